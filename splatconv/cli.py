@@ -1,0 +1,106 @@
+"""The ``splatconv`` command: a thin click layer over the library.
+
+Library errors become one ``Error: ...`` line: exit 1 for bad input, 2 for usage.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+
+import click
+
+import splatconv
+from splatconv.errors import SplatconvError, UsageError
+
+
+class _Failure(click.ClickException):
+    """One ``Error: ...`` line with a chosen exit code."""
+
+    def __init__(self, message: str, exit_code: int = 1):
+        super().__init__(message)
+        self.exit_code = exit_code
+
+
+def _library_errors(fn):
+    """Map library and OS errors to one-line click errors."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        try:
+            return fn(*args, **kwargs)
+        except UsageError as e:
+            raise _Failure(str(e), 2) from None
+        except SplatconvError as e:
+            raise _Failure(str(e), 1) from None
+        except OSError as e:
+            where = f"{e.filename}: " if e.filename else ""
+            raise _Failure(f"{where}{e.strerror or e}", 1) from None
+        except MemoryError:
+            raise _Failure("out of memory", 1) from None
+
+    return wrapper
+
+
+def _notes(notes) -> None:
+    for note in notes:
+        click.echo(f"note: {note}", err=True)
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(splatconv.__version__, prog_name="splatconv")
+def main():
+    """Convert 4D Gaussian-splatting scenes between PLY (Spacetime Gaussians, 3DGS) and splaTV's .splatv."""
+
+
+@main.command()
+@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
+@click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
+@click.option("--compat", type=click.Choice(splatconv.COMPAT_MODES),
+              help="splatv-js: texture bytes identical to splaTV's in-browser converter "
+                   "(truncating halves). Default: accurate rounding.")
+@click.option("--sort", type=click.Choice(splatconv.SORT_MODES),
+              help="Record order: importance (largest, most opaque first, so the viewer can draw "
+                   "while streaming; default for .splatv) or none (input order; default for .ply).")
+@click.option("--cameras", "cameras", type=click.Path(dir_okay=False),
+              help="A 3DGS / Spacetime Gaussians cameras.json to store in the output.")
+@click.option("--color", type=click.Choice(splatconv.COLOR_MODES), default="auto", show_default=True,
+              help="Read PLY f_dc_0..2 as RGB (Spacetime Gaussians lite) or as SH degree 0 (3DGS); "
+                   "auto picks by the variant.")
+@click.option("--force", is_flag=True, help="Replace OUTPUT if it exists (never the input).")
+@_library_errors
+def convert(input_path, output_path, compat, sort, cameras, color, force):
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv).
+
+    Lossy steps (saturated halves, clamped colours, dropped properties) are
+    reported as notes on stderr. OUTPUT is written atomically.
+    """
+    scene, report = splatconv.convert(input_path, output_path, compat=compat, sort=sort,
+                                      cameras=cameras, color=color, force=force)
+    _notes(scene.notes)
+    _notes(report.notes)
+    size = os.path.getsize(output_path)
+    click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
+
+
+@main.command()
+@click.argument("path", metavar="FILE", type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print the facts as JSON.")
+@click.option("--color", type=click.Choice(splatconv.COLOR_MODES), default="auto", show_default=True,
+              help="How to read PLY f_dc_0..2 (see convert).")
+@_library_errors
+def info(path, as_json, color):
+    """Describe a scene file: format, variant, count, texture, cameras, time range,
+    bounds, non-finite values and what is ignored."""
+    from splatconv.formats import format_for
+    from splatconv.report import info_text, to_json
+    from splatconv.stats import describe
+
+    module = format_for(path)
+    scene = splatconv.read(path, color=color)
+    data = describe(scene, path, module.NAME)
+    click.echo(to_json(data) if as_json else info_text(data))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

@@ -1,0 +1,68 @@
+"""Safe output: never onto an input, never over a file unless asked, atomically."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+
+from .errors import OutputError
+
+
+def check_output(output: str | os.PathLike, inputs=(), force: bool = False) -> None:
+    """Refuse an output path that would clobber an input or an existing file.
+
+    Parameters
+    ----------
+    output : path
+    inputs : iterable of path
+        Files read for this output; writing onto any of them (by any path, link or
+        hard link) is refused even with ``force``.
+    force : bool
+        Allow replacing an existing file that is not an input.
+
+    Raises
+    ------
+    OutputError
+    """
+    output = os.fspath(output)
+    if os.path.isdir(output):
+        raise OutputError("is a directory", output)
+    parent = os.path.dirname(os.path.abspath(output))
+    if not os.path.isdir(parent):
+        raise OutputError(f"folder {parent} does not exist", output)
+    if not os.path.exists(output):
+        return
+    for inp in inputs:
+        with contextlib.suppress(OSError):
+            if os.path.samefile(output, inp):
+                raise OutputError("is the input file; refusing to write onto it", output)
+    if not force:
+        raise OutputError("already exists (use --force to replace it)", output)
+
+
+@contextlib.contextmanager
+def atomic_writer(output: str | os.PathLike):
+    """Open a temporary file beside ``output``; rename it over ``output`` on success.
+
+    On any exception the temporary file is removed and ``output`` is untouched.
+
+    Yields
+    ------
+    file
+        A binary file object to write to.
+    """
+    output = os.fspath(output)
+    parent = os.path.dirname(os.path.abspath(output))
+    fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + os.path.basename(output) + ".", suffix=".part")
+    try:
+        with os.fdopen(fd, "wb") as f:
+            yield f
+        umask = os.umask(0)
+        os.umask(umask)
+        os.chmod(tmp, 0o666 & ~umask)
+        os.replace(tmp, output)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
