@@ -121,7 +121,8 @@ def framing_camera(x: np.ndarray, y: np.ndarray, z: np.ndarray) -> dict:
     dict
         A camera in ``cameras.json`` form.
     """
-    pts = np.stack([np.asarray(c, dtype=np.float64) for c in (x, y, z)], axis=1)
+    with np.errstate(invalid="ignore"):  # signalling NaNs warn when widened
+        pts = np.stack([np.asarray(c, dtype=np.float64) for c in (x, y, z)], axis=1)
     pts = pts[np.isfinite(pts).all(axis=1)]
     if len(pts) == 0:
         lo = hi = np.zeros(3)

@@ -1,0 +1,92 @@
+"""Shared helpers: build small splat files of every flavour in tmp_path."""
+
+from __future__ import annotations
+
+import numpy as np
+import plyfile
+import pytest
+
+from splatconv import model
+from splatconv.formats import ply
+
+GS_PROPS = ("x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2") + tuple(
+    f"f_rest_{i}" for i in range(45)) + ("opacity", "scale_0", "scale_1", "scale_2",
+                                         "rot_0", "rot_1", "rot_2", "rot_3")
+
+
+def random_columns(n: int, seed: int = 0) -> dict:
+    """Plausible lite attributes: (n,) float32 per model column."""
+    rng = np.random.default_rng(seed)
+    cols = {
+        "x": rng.normal(0, 2, n), "y": rng.normal(0, 2, n), "z": rng.normal(0, 2, n),
+        "trbf_center": rng.uniform(0, 1, n), "trbf_scale": np.log(rng.uniform(0.05, 1, n)),
+        "opacity": rng.normal(0, 2, n),
+    }
+    for i in range(9):
+        cols[f"motion_{i}"] = rng.normal(0, 0.1, n)
+    for i in range(3):
+        cols[f"f_dc_{i}"] = rng.uniform(0, 1, n)
+        cols[f"scale_{i}"] = np.log(rng.uniform(0.005, 0.1, n))
+    for i in range(4):
+        cols[f"rot_{i}"] = rng.normal(0, 1, n)
+        cols[f"omega_{i}"] = rng.normal(0, 0.1, n)
+    return {k: np.asarray(v, dtype=np.float32) for k, v in cols.items()}
+
+
+def write_ply(path, columns: dict, *, text=False, byte_order="<", dtype="f4", order=None,
+              extra_props=(), extra_elements=(), comments=(), obj_info=()):
+    """Write a PLY with plyfile: any encoding, property order and extras."""
+    names = list(order or columns)
+    n = len(next(iter(columns.values())))
+    fields = [(name, dtype) for name in names] + [(name, "f4") for name in extra_props]
+    arr = np.zeros(n, dtype=fields)
+    for name in names:
+        arr[name] = columns[name]
+    for i, name in enumerate(extra_props):
+        arr[name] = i + 0.5
+    elements = [plyfile.PlyElement.describe(arr, "vertex")] + list(extra_elements)
+    plyfile.PlyData(elements, text=text, byte_order=byte_order, comments=list(comments),
+                    obj_info=list(obj_info)).write(str(path))
+    return path
+
+
+def lite_columns_with_normals(cols: dict) -> dict:
+    out = {}
+    for name in ply.LITE_LAYOUT:
+        out[name] = cols[name] if name in cols else np.zeros(len(cols["x"]), np.float32)
+    return out
+
+
+@pytest.fixture
+def lite_ply(tmp_path):
+    """A 3000-splat lite PLY in the exact SpacetimeGaussians layout."""
+    cols = random_columns(3000)
+    return write_ply(tmp_path / "scene.ply", lite_columns_with_normals(cols))
+
+
+@pytest.fixture
+def gs_ply(tmp_path):
+    """A 500-splat plain 3DGS PLY with f_rest_*."""
+    rng = np.random.default_rng(1)
+    cols = {name: rng.normal(0, 1, 500).astype(np.float32) for name in GS_PROPS}
+    return write_ply(tmp_path / "gs.ply", cols)
+
+
+def splatv_bytes(records: np.ndarray, cameras=None, *, pad=True, chunks=None) -> bytes:
+    """A .splatv file around raw (N, 16) uint32 records."""
+    import json
+
+    from splatconv.formats import splatv
+
+    n = len(records)
+    h = splatv.texture_height(n)
+    data = np.zeros((h * 1024, 16), "<u4")
+    data[:n] = records
+    body = data.tobytes() if pad else np.ascontiguousarray(records, "<u4").tobytes()
+    chunk = {"type": "splat", "size": 4096 * h * 16, "texwidth": 4096, "texheight": h,
+             "cameras": cameras if cameras is not None else []}
+    text = json.dumps(chunks if chunks is not None else [chunk]).encode()
+    return np.array([0x674B, len(text)], "<u4").tobytes() + text + body
+
+
+__all__ = ["random_columns", "write_ply", "splatv_bytes", "model"]

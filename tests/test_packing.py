@@ -1,0 +1,157 @@
+"""Half-float and unorm8 packers: exhaustive, vector and property-based checks."""
+
+from __future__ import annotations
+
+import math
+import struct
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from splatconv import packing
+
+ALL_HALVES = np.arange(1 << 16, dtype=np.uint16)
+
+
+def ref_splatvjs(x: float) -> int:
+    """splaTV's floatToHalf, one value at a time, from the algorithm's description."""
+    f = struct.unpack("<I", struct.pack("<f", x))[0]
+    sign, exp, frac = (f >> 31) & 1, (f >> 23) & 0xFF, f & 0x7FFFFF
+    if exp == 0:
+        new_exp = 0
+    elif exp < 113:
+        new_exp = 0
+        frac = (frac | 0x800000) >> ((113 - exp) % 32)  # JS >> takes the count mod 32
+    elif exp < 142:
+        new_exp = exp - 112
+    else:
+        new_exp, frac = 31, 0
+    return (sign << 15) | (new_exp << 10) | (frac >> 13)
+
+
+def ref_nearest(x: float) -> int:
+    """IEEE round-to-nearest-even through the C library (struct 'e'), saturating."""
+    if math.isnan(x):
+        raise ValueError
+    try:
+        return struct.unpack("<H", struct.pack("<e", x))[0]
+    except OverflowError:
+        return 0xFBFF if x < 0 else 0x7BFF
+
+
+SPLATVJS_VECTORS = [
+    (1e-15, 0x0048), (3e-15, 0x00D8), (1e-14, 0x02D0), (2e-14, 0x05A1), (5e-8, 0x0000),
+    (6e-5, 0x03EE), (65504.0, 0x7C00), (65520.0, 0x7C00), (float("nan"), 0x7C00), (-0.0, 0x8000),
+    (1e-40, 0x0008), (0.1, 0x2E66), (1.00146484375, 0x3C01),
+]
+
+
+@pytest.mark.parametrize("value,expected", SPLATVJS_VECTORS)
+def test_splatvjs_vectors(value, expected):
+    got = packing.float_to_half_splatvjs(np.array([value], np.float32))[0]
+    assert got == expected, f"{value!r}: got 0x{got:04x}, want 0x{expected:04x}"
+
+
+def test_nearest_rounds_where_splatvjs_truncates():
+    x = np.array([1.00146484375], np.float32)
+    assert packing.float_to_half(x)[0] == 0x3C02
+
+
+def test_half_table_decodes_every_pattern_like_numpy():
+    ref = ALL_HALVES.view(np.float16).astype(np.float32)
+    got = packing.half_to_float(ALL_HALVES)
+    finite = ~np.isnan(ref)
+    assert np.array_equal(got[finite], ref[finite])
+    assert np.array_equal(np.isnan(got), np.isnan(ref))
+
+
+def test_nearest_roundtrips_all_65536_patterns_bit_exactly():
+    # NaN payloads included: a half NaN read and written again keeps its bits.
+    back = packing.float_to_half(packing.half_to_float(ALL_HALVES))
+    assert np.array_equal(back, ALL_HALVES)
+
+
+def test_splatvjs_on_all_65536_patterns():
+    values = packing.half_to_float(ALL_HALVES)
+    got = packing.float_to_half_splatvjs(values)
+    want = np.array([ref_splatvjs(float(v)) for v in values], np.uint16)
+    assert np.array_equal(got, want)
+    # Exactly representable halves survive truncation unless |x| >= 32768 or NaN.
+    keep = ~np.isnan(values) & (np.abs(values) < 32768)
+    assert np.array_equal(got[keep], ALL_HALVES[keep])
+
+
+def test_nearest_midpoints_round_to_even():
+    # Every midpoint between adjacent positive finite halves, as float64 (exact).
+    lo = packing.half_to_float(np.arange(0, 0x7BFF, dtype=np.uint16)).astype(np.float64)
+    hi = packing.half_to_float(np.arange(1, 0x7C00, dtype=np.uint16)).astype(np.float64)
+    mid = (lo + hi) / 2
+    got = packing.float_to_half(mid)
+    even = np.where(np.arange(0, 0x7BFF) % 2 == 0, np.arange(0, 0x7BFF), np.arange(1, 0x7C00))
+    assert np.array_equal(got, even.astype(np.uint16))
+
+
+def test_nearest_saturates_and_counts():
+    counts = packing.HalfCounts()
+    x = np.array([65504, 65505, 70000, -1e30, np.inf, -np.inf, np.nan, 1e-9, 0.0], np.float32)
+    got = packing.float_to_half(x, counts)
+    assert [hex(v) for v in got] == ["0x7bff", "0x7bff", "0x7bff", "0xfbff", "0x7c00", "0xfc00",
+                                     "0x7e00", "0x0", "0x0"]
+    assert (counts.overflow, counts.nonfinite, counts.underflow) == (3, 3, 1)
+
+
+def test_splatvjs_counts_overflow_and_underflow():
+    counts = packing.HalfCounts()
+    packing.float_to_half_splatvjs(np.array([40000, 65504, 5e-8, np.nan, 1.0], np.float32), counts)
+    assert (counts.overflow, counts.underflow, counts.nonfinite) == (2, 1, 1)
+
+
+@settings(max_examples=2000, deadline=None)
+@given(st.floats(width=32, allow_nan=False))
+def test_nearest_matches_ieee_reference(x):
+    got = packing.float_to_half(np.array([x], np.float32))[0]
+    assert got == ref_nearest(x)
+
+
+@settings(max_examples=2000, deadline=None)
+@given(st.floats(width=32))
+def test_splatvjs_matches_reference(x):
+    assert packing.float_to_half_splatvjs(np.array([x], np.float32))[0] == ref_splatvjs(x)
+
+
+@settings(max_examples=500, deadline=None)
+@given(st.floats(width=32, min_value=-65504, max_value=65504, allow_nan=False))
+def test_nearest_error_is_at_most_half_an_ulp(x):
+    h = packing.float_to_half(np.array([x], np.float32))
+    back = float(packing.half_to_float(h)[0])
+    ulp = max(2.0 ** (math.floor(math.log2(abs(x))) - 10), 2.0**-24) if x else 2.0**-24
+    assert abs(back - x) <= ulp / 2
+
+
+@given(st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=50),
+       st.lists(st.integers(0, 0xFFFF), min_size=1, max_size=50))
+def test_pack_half2_roundtrip(a, b):
+    n = min(len(a), len(b))
+    lo, hi = np.array(a[:n], np.uint16), np.array(b[:n], np.uint16)
+    words = packing.pack_half2(lo, hi)
+    assert np.array_equal(words & 0xFFFF, lo) and np.array_equal(words >> 16, hi)
+    back_lo, back_hi = packing.unpack_half2(words)
+    assert np.array_equal(back_lo, lo) and np.array_equal(back_hi, hi)
+
+
+def test_unorm8_nearest_and_truncate():
+    v = np.array([-3, 0, 0.49, 0.5, 1.5, 254.5, 254.99, 255, 300, np.nan])
+    near, clamped, nan = packing.unorm8_nearest(v)
+    assert near.tolist() == [0, 0, 0, 0, 2, 254, 255, 255, 255, 0]
+    assert (clamped, nan) == (2, 1)
+    trunc, clamped, nan = packing.unorm8_truncate(v)
+    assert trunc.tolist() == [0, 0, 0, 0, 1, 254, 254, 255, 255, 0]
+    assert (clamped, nan) == (2, 1)
+
+
+def test_rgba8_red_in_low_byte():
+    word = packing.pack_rgba8(*(np.array([v], np.uint8) for v in (1, 2, 3, 4)))
+    assert word[0] == 0x04030201
+    assert [c[0] for c in packing.unpack_rgba8(word)] == [1, 2, 3, 4]

@@ -1,0 +1,119 @@
+"""PLY reading: encodings, variants, extras; and the lite layout written back."""
+
+from __future__ import annotations
+
+import numpy as np
+import plyfile
+import pytest
+
+import splatconv
+from splatconv import model
+from splatconv.errors import UnsupportedError
+from splatconv.formats import ply
+
+from .conftest import GS_PROPS, lite_columns_with_normals, random_columns, write_ply
+
+
+@pytest.mark.parametrize("kw", [
+    dict(), dict(byte_order=">"), dict(text=True), dict(dtype="f8"),
+    dict(order=list(reversed(ply.LITE_LAYOUT))),
+    dict(extra_props=("f_rest_0", "custom")), dict(comments=["made by a test"], obj_info=["obj"]),
+    dict(extra_elements=[plyfile.PlyElement.describe(np.zeros(3, [("a", "i4")]), "face")]),
+])
+def test_lite_variants_read_identically(tmp_path, kw):
+    cols = random_columns(200, 4)
+    path = write_ply(tmp_path / "v.ply", lite_columns_with_normals(cols), **kw)
+    scene = splatconv.read(path)
+    assert scene.variant == model.VARIANT_LITE and scene.count == 200
+    for name in model.COLUMNS:
+        got = scene.columns[name]
+        assert got.dtype == np.float32
+        if kw.get("text"):
+            assert np.allclose(got, cols[name], rtol=1e-6, atol=1e-7)
+        else:
+            assert np.array_equal(got, cols[name]), name
+    if kw.get("dtype") == "f8":
+        assert any("double properties narrowed" in n for n in scene.notes)
+    if kw.get("extra_props"):
+        assert scene.meta["ignored_properties"] == ["f_rest_0", "custom"]
+    if kw.get("extra_elements"):
+        assert scene.meta["extra_elements"] == ["face"]
+
+
+def test_crlf_header(tmp_path):
+    cols = lite_columns_with_normals(random_columns(5))
+    arr = np.zeros(5, ply.LITE_DTYPE)
+    for name in ply.LITE_LAYOUT:
+        arr[name] = cols[name]
+    header = ply.header_bytes(5, None).replace(b"\n", b"\r\n").replace(b"end_header\r\n",
+                                                                       b"comment x\r\nend_header\r\n")
+    header = header.replace(b"comment x\r\n", b"")
+    p = tmp_path / "crlf.ply"
+    p.write_bytes(header + arr.tobytes())
+    assert np.array_equal(splatconv.read(p).columns["opacity"], cols["opacity"])
+
+
+def test_plain_3dgs_becomes_static_scene_with_sh_colour(gs_ply):
+    scene = splatconv.read(gs_ply)
+    assert scene.variant == model.VARIANT_3DGS
+    raw = plyfile.PlyData.read(str(gs_ply))["vertex"]
+    assert np.allclose(scene.columns["f_dc_1"], 0.5 + ply.SH_C0 * raw["f_dc_1"], rtol=1e-6, atol=1e-7)
+    assert not np.any(scene.columns["motion_4"]) and not np.any(scene.columns["omega_2"])
+    # visible at every time in [0, 1]: exp(-(dt/s)^2) stays ~1
+    dt = np.array([0.0, 1.0]) - scene.columns["trbf_center"][0]
+    assert np.all(np.exp(-(dt / np.exp(float(scene.columns["trbf_scale"][0]))) ** 2) > 0.999)
+    assert any("f_rest_" in n for n in scene.notes)
+    assert splatconv.read(gs_ply, color="rgb").columns["f_dc_0"][3] == raw["f_dc_0"][3]
+
+
+def test_lite_can_be_read_as_sh(lite_ply):
+    a = splatconv.read(lite_ply).columns["f_dc_2"]
+    b = splatconv.read(lite_ply, color="sh").columns["f_dc_2"]
+    assert np.allclose(b, 0.5 + ply.SH_C0 * a, rtol=1e-6, atol=1e-7)
+
+
+def test_full_model_is_refused_with_explanation(tmp_path):
+    cols = lite_columns_with_normals(random_columns(4))
+    cols.update({f"f_dc_{i}": np.zeros(4, np.float32) for i in range(3, 6)})
+    cols.update({f"f_t_{i}": np.zeros(4, np.float32) for i in range(3)})
+    with pytest.raises(UnsupportedError, match="full model .* lite model, which stores RGB"):
+        splatconv.read(write_ply(tmp_path / "full.ply", cols))
+
+
+@pytest.mark.parametrize("drop,expect", [
+    (("omega_0", "omega_3"), "missing properties omega_0, omega_3 (needed for Spacetime Gaussians lite)"),
+])
+def test_missing_properties_are_named(tmp_path, drop, expect):
+    cols = {k: v for k, v in lite_columns_with_normals(random_columns(4)).items() if k not in drop}
+    with pytest.raises(UnsupportedError) as e:
+        splatconv.read(write_ply(tmp_path / "m.ply", cols))
+    assert expect in str(e.value)
+
+
+def test_mesh_is_not_a_splat_file(tmp_path):
+    cols = {k: np.zeros(3, np.float32) for k in ("x", "y", "z", "red")}
+    with pytest.raises(UnsupportedError) as e:
+        splatconv.read(write_ply(tmp_path / "mesh.ply", cols))
+    assert "not a splat file: missing properties f_dc_0, f_dc_1, f_dc_2, opacity, scale_0" in str(e.value)
+
+
+def test_lite_layout_written_in_exact_order(tmp_path, lite_ply):
+    out = tmp_path / "out.ply"
+    splatconv.convert(lite_ply, out)
+    data = plyfile.PlyData.read(str(out))
+    assert [p.name for p in data["vertex"].properties] == list(ply.LITE_LAYOUT)
+    assert all(p.val_dtype == "f4" for p in data["vertex"].properties)
+    assert not data.text and data.byte_order == "<"
+    v = data["vertex"].data
+    src = plyfile.PlyData.read(str(lite_ply))["vertex"].data
+    for name in model.COLUMNS:
+        assert np.array_equal(v[name], src[name])
+    assert not v["nx"].any()
+
+
+def test_3dgs_to_lite_ply_keeps_values(tmp_path, gs_ply):
+    out = tmp_path / "lite.ply"
+    splatconv.convert(gs_ply, out)
+    scene = splatconv.read(out)
+    assert scene.variant == model.VARIANT_LITE
+    assert np.array_equal(scene.columns["scale_2"], splatconv.read(gs_ply).columns["scale_2"])
