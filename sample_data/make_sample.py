@@ -10,8 +10,8 @@ the time range t in [0, 1]:
 * **ball** - a red sphere that travels along a curved path from left to right:
   linear (``motion_0..2``), quadratic (``motion_3..5``, the hop) and cubic
   (``motion_6..8``, the ease-in/out and the S-bend in depth) motion terms.
-* **bar** - a green elongated box that spins about the z axis through about
-  160 degrees: each splat's orientation turns through the angular velocity term
+* **bar** - a green elongated box that spins about the z axis through
+  120 degrees: each splat's orientation turns through the angular velocity term
   (``omega_0..3``), and the splat centres follow the same rotation via a cubic
   fit in ``motion_*``, so the bar turns as one rigid piece.
 * **blue** - a blue cloud that fades in and out around t = 0.3 (narrow temporal
@@ -258,15 +258,18 @@ def make_bar(rng: np.random.Generator, n: int = 900) -> np.ndarray:
 
     Orientation: identity base orientation (splats elongated along the bar's
     x axis) plus ``omega = (0, 0, 0, k)``, so the quaternion turns by
-    2 atan(k dt), from -80 to +80 degrees over t in [0, 1]. Position: Rodrigues'
+    2 atan(k dt), from -60 to +60 degrees over t in [0, 1]. Position: Rodrigues'
     formula for the same rotation, ``p(dt) = p0 + (cos - 1) u_perp + sin (n x u)``
     with ``u = p0 - centre``, where cos - 1 and sin are the cubic fits of
-    :func:`rotation_fit`; the motion coefficients are outer products of those
-    fits with each splat's ``u_perp`` and ``n x u``.
+    :func:`rotation_fit`; the motion coefficients are those fits times each
+    splat's ``u_perp`` and ``n x u``. Over the sweep the fitted centres stay
+    within 1.7 degrees and 2.6% of radius of the exact rotation.
     """
     centre = np.array([0.0, -0.5, 0.9])
     axis = np.array([0.0, 0.0, 1.0])
-    k = 2.0 * math.tan(math.radians(80.0) / 2.0)  # theta(+-0.5) = +-80 degrees
+    # theta(+-0.5) = +-60 degrees. Beyond that the cubic fit of the centres drifts
+    # visibly from the splat orientations (about 6 degrees off at +-80).
+    k = 2.0 * math.tan(math.radians(60.0) / 2.0)
     half = np.array([0.7, 0.08, 0.08])
     u = rng.uniform(-1.0, 1.0, size=(n, 3)) * half
     pos = centre + u
@@ -285,7 +288,7 @@ def make_bar(rng: np.random.Generator, n: int = 900) -> np.ndarray:
     cos_c, sin_c, _ = rotation_fit(k)
     u_perp = u - np.outer(u @ axis, axis)
     n_cross_u = np.cross(axis, u)
-    # coeffs[:, j] is the (n, 3) vector multiplying dt^(j+1).
+    # Term j (dt^(j+1)) of the Rodrigues expansion, one (n, 3) vector per power.
     lin, quad, cubic = (u_perp * cos_c[j] + n_cross_u * sin_c[j] for j in range(3))
     set_motion(rows, lin, quad, cubic)
     return rows
@@ -379,7 +382,7 @@ def make_cameras() -> list:
     return [
         look_at_camera(0, orbit_position(6.0, 0.0, 12.0), 1000.0),
         look_at_camera(1, orbit_position(6.5, 30.0, 18.0), 1050.0),
-        look_at_camera(2, orbit_position(5.5, -35.0, 25.0), 950.0),
+        look_at_camera(2, orbit_position(6.0, -35.0, 25.0), 900.0),
     ]
 
 

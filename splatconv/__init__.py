@@ -102,6 +102,8 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     check_output(output, [source], force)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     scene = read(source, color=color)
+    if scene.count == 0 and format_for(output).NAME == "splatv":
+        raise UnsupportedError("holds no splats; the viewer cannot show an empty texture", source)
     if camera_list is not None:
         scene.cameras = camera_list
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source])

@@ -69,13 +69,17 @@ def _minimum_body(f, path: str, file_size: int) -> None:
                 elements[-1][2] += _SIZES.get(words[1], 1)
             elif len(words) == 5 and words[1] == "list":
                 elements[-1][2] += _SIZES.get(words[2], 1)
+    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+        return
     need = 0
     for name, count, row_bytes, props in elements:
-        row = max(row_bytes, 1) if fmt and fmt.startswith("binary") else 2 * max(props, 1)
+        # At least one byte a value in binary; a digit and a separator in ASCII.
+        row = max(row_bytes, 1) if fmt != "ascii" else 2 * max(props, 1)
         need += count * row
-        if need > body + 1:
-            raise FormatError(f"header declares {count} rows but only {body} bytes follow the header",
-                              path, (f"element '{name}'",))
+        if need > body + (fmt == "ascii"):
+            what = f"{count * row} bytes" if fmt != "ascii" else f"at least {count * row - 1} bytes"
+            raise FormatError(f"header declares {count} rows ({what}) but only {body} bytes follow the "
+                              "header: file truncated?", path, (f"element '{name}'",))
 
 
 def _open(path: str) -> plyfile.PlyData:
@@ -85,6 +89,8 @@ def _open(path: str) -> plyfile.PlyData:
         raise FormatError(f"cannot open: {e.strerror}", path) from None
     with f:
         size = os.fstat(f.fileno()).st_size
+        if size == 0:
+            raise FormatError("file is empty", path)
         _minimum_body(f, path, size)
         try:
             return plyfile.PlyData.read(f, mmap="r")

@@ -381,7 +381,7 @@ def _check_splat_chunk(chunk: dict, path: str, where: tuple) -> None:
     try:
         validate_cameras(cameras, path)
     except Exception as e:
-        raise FormatError(f"cameras: {e.message}", path, where + e.where) from None
+        raise FormatError(e.message, path, where + ("cameras",) + e.where) from None
 
 
 def read_records(path: str | os.PathLike):
@@ -409,6 +409,10 @@ def read_records(path: str | os.PathLike):
         splat = None
         skipped = []
         for i, chunk in enumerate(chunks):
+            if splat is None and offset + chunk["size"] > file_size and chunk["type"] != "splat":
+                raise FormatError(f"declares {chunk['size']} bytes but the file ends {file_size - offset} "
+                                  "bytes after its start, before any splat chunk", path,
+                                  (f"chunk {i} ({chunk['type']!r})",))
             if chunk["type"] == "splat" and splat is None:
                 _check_splat_chunk(chunk, path, (f"chunk {i}",))
                 splat = (i, chunk, offset)

@@ -1,0 +1,248 @@
+"""The command line: exact error lines and exit codes, safe output, determinism."""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from splatconv.cli import main
+from splatconv.formats import ply
+
+from .conftest import lite_columns_with_normals, random_columns, write_ply
+
+N = 20
+_ARR = np.zeros(N, ply.LITE_DTYPE)
+_HDR = ply.header_bytes(N, None)
+GOOD_PLY = _HDR + _ARR.tobytes()
+OK_CHUNK = {"type": "splat", "size": 4096 * 16, "texwidth": 4096, "texheight": 1, "cameras": []}
+
+
+def _sv(chunks, body=b"") -> bytes:
+    text = json.dumps(chunks).encode()
+    return struct.pack("<II", 0x674B, len(text)) + text + body
+
+
+def _raw(text: bytes, declared=None) -> bytes:
+    return struct.pack("<II", 0x674B, len(text) if declared is None else declared) + text
+
+
+# (file name, bytes, the exact error after "Error: <name>: ")
+INVALID_CASES = [
+    ("empty.ply", b"", "file is empty"),
+    ("notply.ply", b"hello world\n", "line 1: bad header: expected 'ply'"),
+    ("noend.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 3\nproperty float x\n",
+     "line 5: bad header: early end-of-file"),
+    ("badformat.ply", b"ply\nformat binary_middle_endian 1.0\nelement vertex 1\nproperty float x\nend_header\n",
+     "line 2: bad header: don't understand format 'binary_middle_endian'"),
+    ("truncated.ply", GOOD_PLY[:len(_HDR) + 1285],
+     "element 'vertex': header declares 20 rows (2560 bytes) but only 1285 bytes follow the header: "
+     "file truncated?"),
+    ("huge.ply", _HDR.replace(b"vertex 20", b"vertex 1000000000000") + _ARR.tobytes(),
+     "element 'vertex': header declares 1000000000000 rows (128000000000000 bytes) but only 2560 bytes "
+     "follow the header: file truncated?"),
+    ("hugeascii.ply", b"ply\nformat ascii 1.0\nelement vertex 1000000000000\nproperty float x\nend_header\n1\n",
+     "element 'vertex': header declares 1000000000000 rows (at least 1999999999999 bytes) but only 2 bytes "
+     "follow the header: file truncated?"),
+    ("badascii.ply", b"ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
+                     b"end_header\n1 2\n3 abc\n", "element 'vertex': row 1: property 'y': malformed input"),
+    ("noverts.ply", b"ply\nformat ascii 1.0\nelement face 1\nproperty float x\nend_header\n1\n",
+     "not a splat file: no 'vertex' element (elements: face)"),
+    ("mesh.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nproperty float y\n"
+                 b"property float z\nend_header\n1 2 3\n",
+     "not a splat file: missing properties f_dc_0, f_dc_1, f_dc_2, opacity, scale_0, scale_1, scale_2, "
+     "rot_0, rot_1, rot_2, rot_3 (needed for plain 3DGS)"),
+    ("zero.ply", _HDR.replace(b"vertex 20", b"vertex 0"),
+     "holds no splats; the viewer cannot show an empty texture"),
+    ("short.splatv", b"\x4b\x67", "2 bytes is too short for a .splatv file (8-byte preamble)"),
+    ("magic.splatv", struct.pack("<II", 0x1234, 2) + b"[]", "not a .splatv file: magic 0x00001234, expected 0x0000674b"),
+    ("jsonlen.splatv", _raw(b"[]", 1000), "header declares 1000 bytes of JSON but the file ends after 2"),
+    ("jsonhuge.splatv", _raw(b"[]", 2**31),
+     "header declares 2147483648 bytes of JSON, more than the 67108864 allowed"),
+    ("badjson.splatv", _raw(b"[{"),
+     "header JSON: Expecting property name enclosed in double quotes (line 1, column 3)"),
+    ("nanjson.splatv", _raw(b'[{"type":"splat","size":NaN}]'), "header JSON: NaN is not allowed in strict JSON"),
+    ("utf8.splatv", _raw(b"\xff\xfe["), "header JSON is not UTF-8 (byte 0)"),
+    ("notarray.splatv", _sv({"type": "splat"}), "header JSON must be an array of chunks"),
+    ("nosize.splatv", _sv([{"type": "splat"}]), "chunk 0: 'size' must be a non-negative integer, got None"),
+    ("nosplat.splatv", _sv([{"type": "audio", "size": 0}]), "header has no 'splat' chunk"),
+    ("texwidth.splatv", _sv([dict(OK_CHUNK, texwidth=2048)]),
+     "chunk 0: 'texwidth' is 2048; the viewer's shader needs 4096"),
+    ("sizemismatch.splatv", _sv([dict(OK_CHUNK, size=100)]),
+     "chunk 0: 'size' is 100 but texwidth*texheight*16 is 65536"),
+    ("hugetex.splatv", _sv([dict(OK_CHUNK, texheight=15258789062, size=4096 * 15258789062 * 16)]),
+     "chunk 0: 'texheight' 15258789062 is past the largest texture any GPU takes (65536)"),
+    ("hugechunk.splatv", _sv([{"type": "audio", "size": 10**15}, OK_CHUNK]),
+     "chunk 0 ('audio'): declares 1000000000000000 bytes but the file ends 0 bytes after its start, "
+     "before any splat chunk"),
+    ("badcam.splatv", _sv([dict(OK_CHUNK, cameras=[{"id": 0}])]),
+     "chunk 0: cameras: camera 0: missing img_name, width, height, position, rotation, fy, fx"),
+    ("empty.splatv", _sv([OK_CHUNK], bytes(4096 * 16)),
+     "holds no splats; the viewer cannot show an empty texture"),
+]
+
+
+@pytest.mark.parametrize("name,data,message", INVALID_CASES, ids=[c[0] for c in INVALID_CASES])
+def test_invalid_input_gives_one_error_line(tmp_path, name, data, message):
+    src = tmp_path / name
+    src.write_bytes(data)
+    out = tmp_path / ("out.ply" if name.endswith(".splatv") else "out.splatv")
+    if name == "empty.splatv":
+        out = tmp_path / "out.splatv"
+    os.chdir(tmp_path)
+    result = CliRunner().invoke(main, ["convert", name, out.name])
+    assert result.exit_code == 1, result.output
+    assert result.stderr == f"Error: {name}: {message}\n"
+    assert sorted(os.listdir(tmp_path)) == [name]  # nothing written, no temp file left
+    assert src.read_bytes() == data
+
+
+def run(*args, **kw):
+    return CliRunner().invoke(main, [str(a) for a in args], **kw)
+
+
+def test_convert_and_info_roundtrip(tmp_path, lite_ply):
+    out = tmp_path / "s.splatv"
+    r = run("convert", lite_ply, out)
+    assert r.exit_code == 0, r.output
+    assert r.stdout.startswith(f"wrote {out}: 3,000 splats")
+    assert "note: no cameras given; wrote one camera that frames the scene" in r.stderr
+    r = run("info", out, "--json")
+    info = json.loads(r.stdout)
+    assert info["count"] == 3000 and info["format"] == "splatv"
+    assert info["texture"] == {"width": 4096, "height": 3, "declared_bytes": 4096 * 3 * 16,
+                               "actual_bytes": 4096 * 3 * 16}
+    assert len(info["cameras"]) == 1
+    r = run("info", lite_ply)
+    assert r.exit_code == 0
+    assert "variant:   Spacetime Gaussians lite" in r.stdout
+
+
+def test_info_lists_ignored_and_nonfinite(tmp_path):
+    cols = lite_columns_with_normals(random_columns(10))
+    cols["x"][3] = np.nan
+    cols["trbf_scale"][4] = np.inf
+    p = write_ply(tmp_path / "e.ply", cols, extra_props=("f_rest_0",))
+    info = json.loads(run("info", p, "--json").stdout)
+    assert info["nonfinite"]["x"] == 1 and info["nonfinite"]["trbf_scale"] == 1
+    assert info["ignored_properties"] == ["f_rest_0"]
+    assert info["variant"] == "Spacetime Gaussians lite"
+
+
+def test_refuses_existing_output_without_force(tmp_path, lite_ply):
+    out = tmp_path / "o.splatv"
+    out.write_bytes(b"keep me")
+    r = run("convert", lite_ply, out)
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {out}: already exists (use --force to replace it)\n"
+    assert out.read_bytes() == b"keep me"
+    assert run("convert", lite_ply, out, "--force").exit_code == 0
+    assert out.read_bytes()[:4] == b"\x4b\x67\x00\x00"
+
+
+@pytest.mark.parametrize("how", ["same", "symlink", "hardlink"])
+def test_never_writes_onto_the_input(tmp_path, lite_ply, how):
+    before = lite_ply.read_bytes()
+    target = tmp_path / "alias.ply"
+    if how == "same":
+        target = lite_ply
+    elif how == "symlink":
+        target.symlink_to(lite_ply)
+    else:
+        os.link(lite_ply, target)
+    r = run("convert", lite_ply, target, "--force")
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {target}: is the input file; refusing to write onto it\n"
+    assert lite_ply.read_bytes() == before
+
+
+def test_usage_errors_exit_2(tmp_path, lite_ply):
+    r = run("convert", lite_ply, tmp_path / "x.obj")
+    assert r.exit_code == 2
+    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .ply, .splatv)\n"
+    r = run("convert", lite_ply, tmp_path / "x.ply", "--compat", "splatv-js")
+    assert r.exit_code == 2
+    assert r.stderr == f"Error: {tmp_path / 'x.ply'}: --compat splatv-js applies to .splatv output only\n"
+    assert run("convert", lite_ply).exit_code == 2
+    assert run("convert", lite_ply, tmp_path / "x.splatv", "--sort", "size").exit_code == 2
+    assert not (tmp_path / "x.ply").exists()
+
+
+def test_missing_input(tmp_path):
+    r = run("convert", tmp_path / "nope.ply", tmp_path / "o.splatv")
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {tmp_path / 'nope.ply'}: cannot open: No such file or directory\n"
+
+
+def test_cameras_option_and_roundtrip(tmp_path, lite_ply):
+    cams = [{"id": 0, "img_name": "cam00", "width": 640, "height": 480, "position": [0, 0, -5],
+             "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "fy": 500.0, "fx": 510.0},
+            {"id": 1, "img_name": "cam01", "width": 640, "height": 480, "position": [1, 0, -5],
+             "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "fy": 500.0, "fx": 510.0}]
+    cfile = tmp_path / "cameras.json"
+    cfile.write_text(json.dumps(cams))
+    out = tmp_path / "c.splatv"
+    assert run("convert", lite_ply, out, "--cameras", cfile).exit_code == 0
+    data = out.read_bytes()
+    n = struct.unpack("<I", data[4:8])[0]
+    assert json.loads(data[8:8 + n])[0]["cameras"] == cams
+    assert run("convert", out, tmp_path / "c.ply").exit_code == 0
+    assert run("convert", tmp_path / "c.ply", tmp_path / "d.splatv", "--sort", "none").exit_code == 0
+    assert json.loads(run("info", tmp_path / "d.splatv", "--json").stdout)["cameras"][1]["img_name"] == "cam01"
+    assert (tmp_path / "d.splatv").read_bytes() == data
+
+
+@pytest.mark.parametrize("content,message", [
+    ("[]", "holds no cameras; the viewer needs at least one"),
+    ("{", "invalid JSON: Expecting property name enclosed in double quotes (line 1, column 2)"),
+    ('[{"id": 0}]', "camera 0: missing img_name, width, height, position, rotation, fy, fx"),
+    ("[NaN]", "invalid JSON: NaN is not allowed in strict JSON"),
+])
+def test_bad_cameras_file(tmp_path, lite_ply, content, message):
+    cfile = tmp_path / "cams.json"
+    cfile.write_text(content)
+    r = run("convert", lite_ply, tmp_path / "o.splatv", "--cameras", cfile)
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {cfile}: {message}\n"
+    assert not (tmp_path / "o.splatv").exists()
+
+
+@pytest.mark.parametrize("args", [[], ["--compat", "splatv-js"], ["--sort", "none"]])
+def test_two_runs_give_identical_bytes(tmp_path, lite_ply, args):
+    a, b = tmp_path / "a.splatv", tmp_path / "b.splatv"
+    assert run("convert", lite_ply, a, *args).exit_code == 0
+    assert run("convert", lite_ply, b, *args).exit_code == 0
+    assert a.read_bytes() == b.read_bytes()
+    assert run("convert", a, tmp_path / "a.ply").exit_code == 0
+    assert run("convert", a, tmp_path / "b.ply").exit_code == 0
+    assert (tmp_path / "a.ply").read_bytes() == (tmp_path / "b.ply").read_bytes()
+
+
+def test_lossy_steps_are_reported(tmp_path):
+    cols = lite_columns_with_normals(random_columns(10))
+    cols["scale_0"][0] = 20.0  # exp(20) is past the half range
+    cols["f_dc_1"][1] = 1.5
+    p = write_ply(tmp_path / "l.ply", cols)
+    r = run("convert", p, tmp_path / "l.splatv")
+    assert "note: scale_0: 1 values past the half-float range saturated to +-65504" in r.stderr
+    assert "note: color: 1 values outside [0, 1] clamped" in r.stderr
+    r = run("convert", p, tmp_path / "j.splatv", "--compat", "splatv-js")
+    assert "note: scale_0: 1 values past the half-float range became infinity (splaTV's converter)" in r.stderr
+
+
+def test_help_for_every_command():
+    for cmd in ([], ["convert"], ["info"]):
+        r = run(*cmd, "--help")
+        assert r.exit_code == 0 and "Usage:" in r.stdout
+
+
+def test_conversion_does_not_import_moderngl(tmp_path, lite_ply):
+    import subprocess
+    import sys
+    code = ("import sys, splatconv; splatconv.convert(sys.argv[1], sys.argv[2]); "
+            "assert 'moderngl' not in sys.modules")
+    subprocess.run([sys.executable, "-c", code, str(lite_ply), str(tmp_path / "m.splatv")], check=True)
