@@ -1,0 +1,48 @@
+"""The README's commands and printed examples are true."""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+from pathlib import Path
+
+from click.testing import CliRunner
+
+from splatconv.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+README = (ROOT / "README.md").read_text()
+
+
+def quick_start_commands() -> list:
+    section = README.split("## Quick start", 1)[1]
+    block = re.search(r"```\n(.*?)```", section, re.S).group(1)
+    return block.strip().splitlines()
+
+
+def splatconv_args(line: str) -> list:
+    """The splatconv part of 'pip install ... && splatconv ...'."""
+    part = line.split("&&", 1)[1].strip()
+    words = shlex.split(part)
+    assert words[0] == "splatconv"
+    return words[1:]
+
+
+def test_quick_start_has_two_commands_install_and_test():
+    lines = quick_start_commands()
+    assert len(lines) == 2
+    assert lines[0].startswith("pip install . && splatconv convert sample_data/")
+    assert lines[1] == "pip install '.[test]' && python -m pytest"
+
+
+def test_quick_start_conversion_and_info_example(tmp_path):
+    os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
+    os.chdir(tmp_path)
+    args = splatconv_args(quick_start_commands()[0])
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    example = re.search(r"\$ splatconv info (\S+)\n(.*?)```", README, re.S)
+    result = CliRunner().invoke(main, ["info", example.group(1)])
+    assert result.exit_code == 0
+    assert result.stdout == example.group(2)
