@@ -125,6 +125,10 @@ def test_compat_sort_is_stable_descending_on_float32_key(tmp_path):
     assert np.array_equal(out[:50, 0], packing.f32_bits(cols["x"][expected]))
 
 
+def _is_snan(bits: np.ndarray) -> np.ndarray:
+    return ((bits & 0x7F800000) == 0x7F800000) & (bits & 0x7FFFFF != 0) & (bits & 0x400000 == 0)
+
+
 def splatv_records(data: bytes) -> np.ndarray:
     n_json = struct.unpack("<I", data[4:8])[0]
     return np.frombuffer(data[8 + n_json:], "<u4").reshape(-1, 16)
@@ -173,6 +177,7 @@ def test_every_half_in_every_slot_survives_splatv_ply_splatv(tmp_path, compat):
         v = packing.HALF_TO_FLOAT[h]
         keep = (np.abs(v) < 32768) & ~np.isnan(v)
         recs = recs[keep]
+        recs[:, 0:3] |= np.uint32(0x00400000) * _is_snan(recs[:, 0:3])  # it quiets sNaN positions
     src = tmp_path / "all.splatv"
     src.write_bytes(splatv_bytes(recs, cameras=[]))
     scene = splatconv.read(src)
@@ -285,6 +290,8 @@ def test_random_records_roundtrip_through_ply(tmp_path_factory, rows, compat):
     recs[:, 6] &= 0xFFFF  # the unused halves are zero in any converter's output
     recs[:, 12] &= 0xFFFF
     recs[:, 0] |= 1  # no all-zero record (it would count as padding at the end)
+    if compat:
+        recs[:, 0:3] |= np.uint32(0x00400000) * _is_snan(recs[:, 0:3])  # it quiets sNaN positions
     for w, (lo, hi) in splatv.HALF_WORDS.items():
         for shift, name in ((0, lo), (16, hi)):
             h = (recs[:, w] >> shift) & 0xFFFF
@@ -300,3 +307,14 @@ def test_random_records_roundtrip_through_ply(tmp_path_factory, rows, compat):
     splatconv.convert(d / "a.splatv", d / "b.ply")
     splatconv.convert(d / "b.ply", d / "c.splatv", sort="none", compat=compat)
     assert np.array_equal(splatv_records((d / "c.splatv").read_bytes())[: len(recs)], recs)
+
+
+def test_compat_quiets_signalling_nan_positions_like_the_browser():
+    # V8 reads positions with DataView.getFloat32 into a double, quieting sNaNs; the
+    # accurate writer keeps the bits as they are.
+    cols = one_splat()
+    cols["x"] = np.array([0x7F800001], np.uint32).view(np.float32)
+    cols["z"] = np.array([0xFFC00005], np.uint32).view(np.float32)  # already quiet
+    assert pack(cols, compat=True)[0][0, 0] == 0x7FC00001
+    assert pack(cols, compat=True)[0][0, 2] == 0xFFC00005
+    assert pack(cols)[0][0, 0] == 0x7F800001

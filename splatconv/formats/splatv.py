@@ -172,7 +172,8 @@ def _order(scene: Scene, sort: str, compat: bool, report: WriteReport) -> np.nda
     key = importance(scene.columns)
     if compat:
         # splaTV keeps the key in a Float32Array and sorts with (b, a) => s[a] - s[b].
-        key = key.astype(np.float32)
+        with np.errstate(over="ignore"):
+            key = key.astype(np.float32)
         nan = int(np.count_nonzero(np.isnan(key)))
         if nan:
             report.notes.append(
@@ -188,9 +189,9 @@ def _halves(name: str, values: np.ndarray, compat: bool, counts: dict) -> np.nda
     if name in EXP_ATTRIBUTES:
         with np.errstate(over="ignore", invalid="ignore"):
             linear = np.exp(values.astype(np.float64))
+            linear32 = linear.astype(np.float32) if compat else None
         nan = np.isnan(values)
         if compat:
-            linear32 = linear.astype(np.float32)
             linear32[nan] = values[nan]
             return packing.float_to_half_splatvjs(linear32, c)
         out = packing.float_to_half(linear, c)
@@ -221,7 +222,13 @@ def pack_block(cols: dict, compat: bool, report: WriteReport) -> np.ndarray:
     m = len(cols["x"])
     words = np.zeros((m, WORDS_PER_SPLAT), dtype="<u4")
     for w, name in POSITION_WORDS.items():
-        words[:, w] = packing.f32_bits(cols[name])
+        bits = packing.f32_bits(cols[name])
+        if compat:
+            # The browser reads positions through DataView.getFloat32 into a double,
+            # which quiets signalling NaNs (sets the top mantissa bit).
+            snan = ((bits & packing.F32_EXP_MASK) == packing.F32_EXP_MASK) & (bits & 0x007FFFFF != 0)
+            bits = np.where(snan, bits | np.uint32(0x00400000), bits)
+        words[:, w] = bits
     zero = np.zeros(m, dtype=np.uint16)
     for w, (lo, hi) in HALF_WORDS.items():
         low = _halves(lo, cols[lo], compat, report.half)
