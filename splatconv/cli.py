@@ -102,5 +102,43 @@ def info(path, as_json, color):
     click.echo(to_json(data) if as_json else info_text(data))
 
 
+@main.command()
+@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
+@click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
+@click.option("--time", "time_", type=float, default=0.5, show_default=True,
+              help="Scene time of the frame (the viewer plays 0..1).")
+@click.option("--camera", type=int, help="Header camera to view from (default 0).")
+@click.option("--view", help="Column-major view matrix as the viewer keeps it in its URL hash: "
+                             "a JSON list of 16 numbers.")
+@click.option("--size", help="Image size WxH. Default: the camera's, scaled down to at most 1280 wide "
+                             "(fx, fy scale along).")
+@click.option("--fx", type=float, help="Focal length in pixels (default: the camera's).")
+@click.option("--fy", type=float, help="Focal length in pixels (default: the camera's).")
+@click.option("--frames", type=click.IntRange(1, 1000), default=1, show_default=True,
+              help="Sweep N times over [0, 1]: an animated .gif or .webp, or a labelled "
+                   "contact sheet for .png.")
+@click.option("--reference", is_flag=True,
+              help="Draw a PLY's attributes unquantized (float reference path) instead of as the "
+                   ".splatv texture the viewer would get.")
+@click.option("--color", type=click.Choice(splatconv.COLOR_MODES), default="auto", show_default=True,
+              help="How to read PLY f_dc_0..2 (see convert).")
+@click.option("--force", is_flag=True, help="Replace OUTPUT if it exists.")
+@_library_errors
+def render(input_path, output_path, time_, camera, view, size, fx, fy, frames, reference, color, force):
+    """Render INPUT (.splatv or PLY) headlessly with the viewer's shader to OUTPUT.
+
+    OUTPUT is a .png for one frame; with --frames N it is an animated .gif or
+    .webp, or a .png contact sheet. The picture is the viewer's framebuffer:
+    premultiplied colour over black.
+    """
+    from splatconv.render.commands import render_file
+
+    if camera is not None and view is not None:
+        raise _Failure("--camera and --view cannot be used together", 2)
+    result = render_file(input_path, output_path, time=time_, camera=camera, view=view, size=size,
+                         fx=fx, fy=fy, frames=frames, reference=reference, color=color, force=force)
+    click.echo(result)
+
+
 if __name__ == "__main__":  # pragma: no cover
     main()

@@ -286,17 +286,42 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     if not cameras:
         cameras = [framing_camera(scene.columns["x"], scene.columns["y"], scene.columns["z"])]
         report.notes.append("no cameras given; wrote one camera that frames the scene")
-    order = _order(scene, sort or "importance", is_compat, report)
     stream.write(header_bytes(n, cameras))
-    for start in range(0, n, BLOCK):
-        stop = min(start + BLOCK, n)
-        rows = slice(start, stop) if order is None else order[start:stop]
-        block = pack_block(scene.take(rows), is_compat, report)
+    for block in _blocks(scene, sort, is_compat, report):
         stream.write(memoryview(block))
     padding = report.texheight * SPLATS_PER_ROW - n
     stream.write(bytes(padding * RECORD_BYTES))
     report.notes.extend(_write_notes(report, is_compat))
     return report
+
+
+def _blocks(scene: Scene, sort: str | None, compat: bool, report: WriteReport):
+    """Yield ``(M, 16) uint32`` record blocks of the scene in output order."""
+    order = _order(scene, sort or "importance", compat, report)
+    for start in range(0, scene.count, BLOCK):
+        stop = min(start + BLOCK, scene.count)
+        rows = slice(start, stop) if order is None else order[start:stop]
+        yield pack_block(scene.take(rows), compat, report)
+
+
+def encode(scene: Scene, *, compat: str | None = None, sort: str | None = "importance"):
+    """The texture a write would produce, in memory (for rendering).
+
+    Returns
+    -------
+    records : (texheight * 1024, 16) uint32 ndarray
+        Padding records included, all zero.
+    report : WriteReport
+    """
+    is_compat = compat == "splatv-js"
+    report = WriteReport(count=scene.count, texheight=texture_height(scene.count))
+    records = np.zeros((report.texheight * SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4")
+    start = 0
+    for block in _blocks(scene, sort, is_compat, report):
+        records[start:start + len(block)] = block
+        start += len(block)
+    report.notes.extend(_write_notes(report, is_compat))
+    return records, report
 
 
 def _write_notes(report: WriteReport, compat: bool) -> list:

@@ -1,0 +1,277 @@
+"""Benchmark splatconv's conversions against the machine's I/O floor.
+
+What it measures, on a synthetic Spacetime Gaussians lite PLY (32 float32
+properties a row, 128 bytes a splat; 1,000,000 splats = 128 MB by default):
+
+* the I/O floor: reading the whole input into a preallocated buffer plus writing
+  a file the size of the ``.splatv`` output from a preallocated buffer, warm
+  (page cache), median of several runs;
+* PLY -> .splatv (default, accurate mode): in-process conversion seconds (median),
+  whole-command wall seconds including interpreter start (``python -c`` and the
+  ``splatconv convert`` console script), peak RSS of the converting process, and
+  the ratio conversion / I/O floor;
+* PLY -> .splatv with ``compat="splatv-js"``, and .splatv -> PLY, the same way.
+
+Every conversion runs in a fresh child process so that its peak RSS (from
+``os.wait4``) is that conversion's alone. A final block compares the default
+mode against the targets (at most 2.5x the I/O floor, at most 350 MB peak RSS).
+The exit status is 0 whatever the figures; it is a report, not a test.
+
+Run::
+
+    python bench/bench_convert.py [--splats N] [--keep DIR] [--repeat R]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+import numpy as np
+
+import splatconv
+from splatconv.formats.ply import LITE_DTYPE, header_bytes
+
+#: Conversion target: seconds of the default conversion over the I/O floor.
+TARGET_RATIO = 2.5
+#: Memory target: peak RSS of the converting process, MB (10^6 bytes).
+TARGET_RSS_MB = 350.0
+
+#: Bytes of .splatv header assumed for the floor's output file.
+SPLATV_HEADER_BYTES = 400
+
+#: Child snippet: convert argv[1] -> argv[2] (compat argv[3] or "-") and print seconds.
+CHILD = """\
+import sys, time, splatconv
+compat = None if sys.argv[3] == "-" else sys.argv[3]
+t = time.perf_counter()
+splatconv.convert(sys.argv[1], sys.argv[2], compat=compat, force=True)
+print("BENCH_SECONDS", time.perf_counter() - t)
+"""
+
+#: Launcher: run argv[1:] as a child, then print its exit code, wall seconds and ru_maxrss (KiB).
+LAUNCHER = """\
+import os, subprocess, sys, time
+t = time.perf_counter()
+p = subprocess.Popen(sys.argv[1:])
+_, status, usage = os.wait4(p.pid, 0)
+wall = time.perf_counter() - t
+p.returncode = os.waitstatus_to_exitcode(status)
+sys.stdout.flush()
+print("BENCH_CHILD", p.returncode, wall, usage.ru_maxrss, flush=True)
+"""
+
+PYTHON = sys.executable
+CLI = os.path.join(os.path.dirname(sys.executable), "splatconv")
+
+
+def make_ply(path: str, n: int) -> int:
+    """Write a deterministic ``n``-splat lite PLY to ``path``; return its size in bytes."""
+    rng = np.random.default_rng(0)
+    arr = np.zeros(n, dtype=LITE_DTYPE)
+    for name in ("x", "y", "z"):
+        arr[name] = rng.normal(0.0, 2.0, n)
+    arr["trbf_center"] = rng.uniform(0.0, 1.0, n)
+    arr["trbf_scale"] = np.log(rng.uniform(0.05, 1.0, n))
+    for i in range(9):
+        arr[f"motion_{i}"] = rng.normal(0.0, 0.1, n)
+    for i in range(3):
+        arr[f"f_dc_{i}"] = rng.uniform(0.0, 1.0, n)
+    arr["opacity"] = rng.normal(0.0, 2.0, n)
+    for i in range(3):
+        arr[f"scale_{i}"] = np.log(rng.uniform(0.005, 0.1, n))
+    for i in range(4):
+        arr[f"rot_{i}"] = rng.normal(0.0, 1.0, n)
+    for i in range(4):
+        arr[f"omega_{i}"] = rng.normal(0.0, 0.1, n)
+    # nx, ny, nz stay 0.
+    with open(path, "wb") as f:
+        f.write(header_bytes(n, None))
+        arr.tofile(f)
+    return os.path.getsize(path)
+
+
+def splatv_size(n: int) -> int:
+    """Bytes of a .splatv file of ``n`` splats: texture plus an assumed header."""
+    return 4096 * (-(-n // 1024)) * 16 + SPLATV_HEADER_BYTES
+
+
+def time_read(path: str, repeat: int) -> float:
+    """Median seconds to read ``path`` whole into a preallocated buffer."""
+    buf = bytearray(os.path.getsize(path))
+    view = memoryview(buf)
+    times = []
+    for _ in range(repeat + 1):  # the first run only warms the page cache
+        t = time.perf_counter()
+        with open(path, "rb", buffering=0) as f:
+            got = 0
+            while got < len(buf):
+                k = f.readinto(view[got:])
+                if not k:
+                    break
+                got += k
+        times.append(time.perf_counter() - t)
+    return statistics.median(times[1:])
+
+
+def time_write(path: str, size: int, repeat: int) -> float:
+    """Median seconds to write ``size`` bytes from a preallocated buffer to a new file.
+
+    Like splatconv's atomic writer, each run writes a fresh file beside ``path``
+    and renames it over ``path``.
+    """
+    buf = np.ones(size, dtype=np.uint8)  # touched, so no page faults are timed
+    times = []
+    for i in range(repeat):
+        tmp = f"{path}.{i}.part"
+        t = time.perf_counter()
+        with open(tmp, "wb", buffering=0) as f:
+            f.write(memoryview(buf))
+        os.replace(tmp, path)
+        times.append(time.perf_counter() - t)
+    os.unlink(path)
+    return statistics.median(times)
+
+
+def run_child(argv: list) -> dict:
+    """Run ``argv`` in a fresh process; return wall seconds, peak RSS (MB) and its output.
+
+    The command is started by a small launcher process, not by this one: Linux
+    carries the RSS high-water mark of a forked process's pre-exec image into
+    its ``ru_maxrss``, and this process's high-water mark includes the generated
+    input. The launcher is small, so the figure is the command's own.
+    """
+    p = subprocess.run([PYTHON, "-c", LAUNCHER, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    text = p.stdout.decode("utf-8", "replace")
+    result = {"seconds": None}
+    for line in text.splitlines():
+        if line.startswith("BENCH_SECONDS "):
+            result["seconds"] = float(line.split()[1])
+        elif line.startswith("BENCH_CHILD "):
+            code, wall, maxrss_kib = line.split()[1:]
+            result.update(code=int(code), wall=float(wall), rss_mb=int(maxrss_kib) * 1024 / 1e6)
+    if p.returncode != 0 or result.get("code") != 0:
+        raise RuntimeError(f"{' '.join(argv)} failed:\n{text}")
+    return result
+
+
+def measure(src: str, dst: str, compat: str | None, repeat: int, cli: bool) -> dict:
+    """Convert ``src`` -> ``dst`` ``repeat`` times via ``python -c`` (and the CLI if asked).
+
+    Returns medians of conversion and wall seconds and the largest peak RSS.
+    """
+    runs = [run_child([PYTHON, "-c", CHILD, src, dst, compat or "-"]) for _ in range(repeat)]
+    result = {
+        "seconds": statistics.median(r["seconds"] for r in runs),
+        "wall": statistics.median(r["wall"] for r in runs),
+        "rss_mb": max(r["rss_mb"] for r in runs),
+    }
+    if cli:
+        argv = [CLI, "convert", src, dst, "--force"] + (["--compat", compat] if compat else [])
+        cli_runs = [run_child(argv) for _ in range(repeat)]
+        result["cli_wall"] = statistics.median(r["wall"] for r in cli_runs)
+        result["cli_rss_mb"] = max(r["rss_mb"] for r in cli_runs)
+    return result
+
+
+def baseline_rss() -> float:
+    """Peak RSS (MB) of a child that only imports splatconv and its formats: the fixed cost."""
+    return run_child([PYTHON, "-c", "import splatconv.formats.splatv, splatconv.formats.ply"])["rss_mb"]
+
+
+def row(label: str, value: str, note: str = "") -> str:
+    """One line of the text table."""
+    return f"  {label:<44} {value:>12}  {note}".rstrip()
+
+
+def main(argv=None) -> int:
+    """Parse options, run every measurement and print the report."""
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--splats", type=int, default=1_000_000, help="splats in the input (default 1,000,000)")
+    ap.add_argument("--keep", metavar="DIR", help="work in DIR and leave the files there")
+    ap.add_argument("--repeat", type=int, default=3, help="conversion runs per figure (median; default 3)")
+    ap.add_argument("--io-repeat", type=int, default=5, help="read/write runs for the floor (median; default 5)")
+    args = ap.parse_args(argv)
+
+    if args.keep:
+        os.makedirs(args.keep, exist_ok=True)
+        work = args.keep
+    else:
+        work = tempfile.mkdtemp(prefix="splatconv-bench-")
+    try:
+        return run(args, work)
+    finally:
+        if not args.keep:
+            shutil.rmtree(work, ignore_errors=True)
+
+
+def run(args, work: str) -> int:
+    """The benchmark proper, in folder ``work``."""
+    n = args.splats
+    src = os.path.join(work, "input.ply")
+    dst = os.path.join(work, "output.splatv")
+    compat_dst = os.path.join(work, "output-compat.splatv")
+    back = os.path.join(work, "roundtrip.ply")
+
+    print(f"splatconv {splatconv.__version__} benchmark -- numpy {np.__version__}, "
+          f"Python {platform.python_version()}, {os.cpu_count()} CPUs, {platform.machine()}")
+    print(f"work folder: {work}")
+    t = time.perf_counter()
+    in_bytes = make_ply(src, n)
+    print(f"input: {n:,} splats, {in_bytes / 1e6:.1f} MB lite PLY (generated in {time.perf_counter() - t:.1f} s)")
+    print()
+
+    out_bytes = splatv_size(n)
+    read_s = time_read(src, args.io_repeat)
+    write_s = time_write(os.path.join(work, "floor.bin"), out_bytes, args.io_repeat)
+    floor = read_s + write_s
+    print(f"I/O floor (warm page cache, median of {args.io_repeat})")
+    print(row(f"read {in_bytes / 1e6:.1f} MB", f"{read_s:.3f} s", f"{in_bytes / read_s / 1e9:.2f} GB/s"))
+    print(row(f"write {out_bytes / 1e6:.1f} MB", f"{write_s:.3f} s", f"{out_bytes / write_s / 1e9:.2f} GB/s"))
+    print(row("floor = read + write", f"{floor:.3f} s"))
+    print()
+
+    base = baseline_rss()
+    print(f"conversions (fresh process each, median of {args.repeat}; RSS = largest peak)")
+    print(row("baseline RSS: python + import splatconv", f"{base:.0f} MB"))
+
+    default = measure(src, dst, None, args.repeat, cli=True)
+    print(f"PLY -> .splatv (default, accurate; output {os.path.getsize(dst) / 1e6:.1f} MB)")
+    print(row("conversion, in process", f"{default['seconds']:.3f} s", f"{default['seconds'] / floor:.2f}x floor"))
+    print(row("wall, python -c (incl. interpreter start)", f"{default['wall']:.3f} s"))
+    print(row("wall, splatconv convert (console script)", f"{default['cli_wall']:.3f} s"))
+    print(row("peak RSS, python -c", f"{default['rss_mb']:.0f} MB"))
+    print(row("peak RSS, splatconv convert", f"{default['cli_rss_mb']:.0f} MB"))
+    print(row("ratio conversion / floor", f"{default['seconds'] / floor:.2f}x"))
+
+    compat = measure(src, compat_dst, "splatv-js", args.repeat, cli=False)
+    print("PLY -> .splatv (--compat splatv-js)")
+    print(row("conversion, in process", f"{compat['seconds']:.3f} s", f"{compat['seconds'] / floor:.2f}x floor"))
+    print(row("wall, python -c", f"{compat['wall']:.3f} s"))
+    print(row("peak RSS", f"{compat['rss_mb']:.0f} MB"))
+
+    reverse = measure(dst, back, None, args.repeat, cli=False)
+    rev_floor_note = f"{os.path.getsize(dst) / 1e6:.1f} MB -> {os.path.getsize(back) / 1e6:.1f} MB"
+    print(".splatv -> PLY")
+    print(row("conversion, in process", f"{reverse['seconds']:.3f} s", rev_floor_note))
+    print(row("wall, python -c", f"{reverse['wall']:.3f} s"))
+    print(row("peak RSS", f"{reverse['rss_mb']:.0f} MB"))
+    print()
+
+    ratio = default["seconds"] / floor
+    rss = max(default["rss_mb"], default["cli_rss_mb"])
+    print("targets (PLY -> .splatv, default mode)")
+    print(row(f"conversion <= {TARGET_RATIO}x I/O floor", f"{ratio:.2f}x", "PASS" if ratio <= TARGET_RATIO else "FAIL"))
+    print(row(f"peak RSS <= {TARGET_RSS_MB:.0f} MB", f"{rss:.0f} MB", "PASS" if rss <= TARGET_RSS_MB else "FAIL"))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,89 @@
+"""Camera maths exactly as the splaTV viewer does it (column-major 4x4 lists).
+
+Matrices here are flat lists of 16 Python floats in column-major order, the form
+the viewer keeps in its URL hash and hands to ``uniformMatrix4fv``. Arithmetic is
+done in double precision in the viewer's operation order so that the depth sort
+sees the same numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+from ..errors import UsageError
+
+ZNEAR = 0.2
+ZFAR = 200.0
+#: Default largest preview width.
+MAX_DEFAULT_WIDTH = 1280
+
+
+def projection_matrix(fx: float, fy: float, width: float, height: float) -> list:
+    """The viewer's perspective projection (y flipped, depth in [0, 1])."""
+    return [
+        (2 * fx) / width, 0.0, 0.0, 0.0,
+        0.0, -(2 * fy) / height, 0.0, 0.0,
+        0.0, 0.0, ZFAR / (ZFAR - ZNEAR), 1.0,
+        0.0, 0.0, -(ZFAR * ZNEAR) / (ZFAR - ZNEAR), 0.0,
+    ]
+
+
+def view_matrix(camera: dict) -> list:
+    """World -> camera matrix of a ``cameras.json`` camera, as the viewer builds it."""
+    r = [float(v) for row in camera["rotation"] for v in row]
+    t = [float(v) for v in camera["position"]]
+    return [
+        r[0], r[1], r[2], 0.0,
+        r[3], r[4], r[5], 0.0,
+        r[6], r[7], r[8], 0.0,
+        -t[0] * r[0] - t[1] * r[3] - t[2] * r[6],
+        -t[0] * r[1] - t[1] * r[4] - t[2] * r[7],
+        -t[0] * r[2] - t[1] * r[5] - t[2] * r[8],
+        1.0,
+    ]
+
+
+def multiply(a: list, b: list) -> list:
+    """``a @ b`` for column-major flat matrices, summed in the viewer's order."""
+    out = []
+    for col in range(4):
+        for row in range(4):
+            out.append(b[4 * col] * a[row] + b[4 * col + 1] * a[4 + row]
+                       + b[4 * col + 2] * a[8 + row] + b[4 * col + 3] * a[12 + row])
+    return out
+
+
+def parse_view(text: str) -> list:
+    """A ``--view`` value: a JSON list of 16 finite numbers (column-major).
+
+    Raises
+    ------
+    UsageError
+    """
+    try:
+        values = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise UsageError(f"--view: invalid JSON: {e.msg}") from None
+    if not (isinstance(values, list) and len(values) == 16 and all(
+            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in values)):
+        raise UsageError("--view: expected a JSON list of 16 finite numbers (a column-major view matrix)")
+    return [float(v) for v in values]
+
+
+def parse_size(text: str) -> tuple:
+    """``WxH`` -> (W, H), both positive integers no larger than 16384."""
+    parts = text.lower().split("x")
+    if len(parts) != 2 or not all(p.isdigit() for p in parts):
+        raise UsageError(f"--size: expected WIDTHxHEIGHT, got {text!r}")
+    w, h = int(parts[0]), int(parts[1])
+    if not (0 < w <= 16384 and 0 < h <= 16384):
+        raise UsageError(f"--size: {w}x{h} is outside 1..16384")
+    return w, h
+
+
+def default_size(camera: dict) -> tuple:
+    """The camera's image size, scaled down to at most 1280 wide; and that scale."""
+    w, h = int(camera["width"]), int(camera["height"])
+    scale = min(1.0, MAX_DEFAULT_WIDTH / w)
+    return max(1, round(w * scale)), max(1, round(h * scale)), scale

@@ -1,0 +1,43 @@
+"""Library entry points behind the ``render`` command."""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ..errors import UsageError
+from ..fsutil import atomic_writer, check_output
+from . import camera as cam
+from . import images
+from .frames import load, render_frames, resolve_view
+
+
+def render_file(input_path, output_path, *, time=0.5, camera=None, view=None, size=None, fx=None, fy=None,
+                frames=1, reference=False, color="auto", force=False) -> str:
+    """Render a scene file to an image file; returns a one-line summary.
+
+    Parameters mirror ``splatconv render``; ``view`` and ``size`` are the option
+    strings (a JSON list, ``WxH``).
+    """
+    output_path = os.fspath(output_path)
+    suffix = os.path.splitext(output_path)[1].lower()
+    allowed = images.STILL + (images.ANIMATED if frames > 1 else ())
+    if suffix not in allowed:
+        raise UsageError(f"cannot write {suffix or 'a file without extension'}: use "
+                         + ", ".join(allowed) + ("" if frames > 1 else " (or --frames N with .gif, .webp)"),
+                         output_path)
+    matrix = cam.parse_view(view) if view is not None else None
+    dims = cam.parse_size(size) if size is not None else None
+    for name, value in (("--fx", fx), ("--fy", fy)):
+        if value is not None and not (np.isfinite(value) and value > 0):
+            raise UsageError(f"{name} must be a positive number")
+    check_output(output_path, [input_path], force)
+    source = load(input_path, color=color, keep_scene=reference)
+    v = resolve_view(source, camera=camera, view=matrix, size=dims, fx=fx, fy=fy)
+    times = [time] if frames == 1 else list(np.linspace(0.0, 1.0, frames))
+    rendered, _stats = render_frames(source, v, times, reference=reference)
+    with atomic_writer(output_path) as stream:
+        images.save(rendered, times, stream, suffix)
+    what = f"{len(times)} frames" if len(times) > 1 else f"t={time:g}"
+    return f"wrote {output_path}: {v.width}x{v.height}, {what}"

@@ -1,0 +1,215 @@
+"""Draw frames of a scene with splaTV's shader, headless.
+
+Two inputs are supported by one renderer:
+
+* the ``.splatv`` texture as stored (RGBA32UI, halves and bytes): what the viewer
+  shows of a converted file;
+* the float reference path: the same shader maths fed float32 attributes with no
+  half or 8-bit quantization, for measuring what a conversion loses.
+"""
+
+from __future__ import annotations
+
+import time as _time
+from dataclasses import dataclass, field
+from importlib import resources
+
+import numpy as np
+
+from ..formats import splatv
+from . import camera as cam
+from .gl import create_context
+from .sort import viewer_order
+
+#: Float reference texture: 8 RGBA32F texels per splat, 512 splats per row.
+FLOAT_TEXELS = 8
+FLOAT_SPLATS_PER_ROW = splatv.TEXWIDTH // FLOAT_TEXELS
+_QUAD = np.array([-2, -2, 2, -2, 2, 2, -2, 2], dtype="f4")
+
+
+def shader_source(name: str) -> str:
+    """Text of a GLSL file shipped in ``splatconv/render/shaders``."""
+    return resources.files(__package__).joinpath("shaders", name).read_text(encoding="utf-8")
+
+
+def vertex_source(path: str) -> str:
+    """The vertex shader for ``path`` ``"splatv"`` (quantized texture) or ``"float"``."""
+    fetch = {"splatv": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
+    return "\n".join(shader_source(n) for n in ("splat_head.glsl", fetch, "splat_main.glsl"))
+
+
+@dataclass
+class View:
+    """Where a frame is seen from: a column-major view matrix and intrinsics."""
+
+    matrix: list
+    fx: float
+    fy: float
+    width: int
+    height: int
+
+    def view_proj(self) -> list:
+        return cam.multiply(cam.projection_matrix(self.fx, self.fy, self.width, self.height), self.matrix)
+
+
+@dataclass
+class FrameTimes:
+    """Seconds spent per stage of one frame."""
+
+    sort: float = 0.0
+    upload: float = 0.0
+    draw: float = 0.0
+    extra: dict = field(default_factory=dict)
+
+
+def float_attributes(scene, order=None) -> np.ndarray:
+    """Scene -> float reference texels: ``(N, 32) float32`` rows (8 RGBA texels).
+
+    Linear scales, exp(trbf_scale), colour clamped to [0, 1] and sigmoid(opacity),
+    computed in double and rounded once to float32.
+    """
+    c = scene.columns if order is None else scene.take(order)
+    n = len(c["x"])
+    f = np.zeros((n, 32), dtype=np.float32)
+
+    def d(name):
+        return np.asarray(c[name], dtype=np.float64)
+
+    with np.errstate(over="ignore", invalid="ignore"):
+        f[:, 0:3] = np.stack([c["x"], c["y"], c["z"]], axis=1)
+        f[:, 3] = c["trbf_center"]
+        f[:, 4:8] = np.stack([c[f"rot_{i}"] for i in range(4)], axis=1)
+        f[:, 8:11] = np.exp(np.stack([d(f"scale_{i}") for i in range(3)], axis=1))
+        f[:, 11] = np.exp(d("trbf_scale"))
+        f[:, 12:15] = np.clip(np.stack([d(f"f_dc_{i}") for i in range(3)], axis=1), 0.0, 1.0)
+        f[:, 15] = 1.0 / (1.0 + np.exp(-d("opacity")))
+        f[:, 16:25] = np.stack([c[f"motion_{i}"] for i in range(9)], axis=1)
+        f[:, 25:29] = np.stack([c[f"omega_{i}"] for i in range(4)], axis=1)
+    return f
+
+
+class Renderer:
+    """Draws splat frames into an offscreen RGBA8 framebuffer.
+
+    Parameters
+    ----------
+    width, height : int
+        Framebuffer size in pixels.
+    ctx : moderngl.Context, optional
+        Made with :func:`splatconv.render.gl.create_context` when omitted.
+    """
+
+    def __init__(self, width: int, height: int, ctx=None):
+        import moderngl
+
+        self._mgl = moderngl
+        self.ctx = ctx or create_context()
+        self.width, self.height = width, height
+        frag = shader_source("splat.frag")
+        self._programs = {p: self.ctx.program(vertex_shader=vertex_source(p), fragment_shader=frag)
+                          for p in ("splatv", "float")}
+        self._quad = self.ctx.buffer(_QUAD.tobytes())
+        self._index = None
+        self._texture = None
+        self._path = None
+        self._positions = None
+        self._count = 0
+        self.fbo = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer((width, height), 4)])
+
+    def load_records(self, records: np.ndarray) -> float:
+        """Upload a ``.splatv`` texture, ``(texheight * 1024, 16) uint32``; returns seconds.
+
+        Every record is drawn, padding included, as the viewer does.
+        """
+        t0 = _time.perf_counter()
+        records = np.ascontiguousarray(records, dtype="<u4")
+        rows = len(records) // splatv.SPLATS_PER_ROW
+        self._set_texture((splatv.TEXWIDTH, rows), records, "u4")
+        self._positions = records[:, 0:3].view(np.float32)
+        self._count = len(records)
+        self._path = "splatv"
+        return _time.perf_counter() - t0
+
+    def load_float(self, texels: np.ndarray) -> float:
+        """Upload float reference attributes from :func:`float_attributes`; returns seconds."""
+        t0 = _time.perf_counter()
+        n = len(texels)
+        rows = max(1, -(-n // FLOAT_SPLATS_PER_ROW))
+        padded = np.zeros((rows * FLOAT_SPLATS_PER_ROW, 32), dtype="f4")
+        padded[:n] = texels
+        self._set_texture((splatv.TEXWIDTH, rows), padded, "f4")
+        self._positions = padded[:n, 0:3]
+        self._count = n
+        self._path = "float"
+        return _time.perf_counter() - t0
+
+    def _set_texture(self, size, data, dtype):
+        if self._texture is not None:
+            self._texture.release()
+        self._texture = self.ctx.texture(size, 4, data.tobytes(), dtype=dtype)
+        self._texture.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
+        self._texture.repeat_x = self._texture.repeat_y = False
+
+    def draw(self, view: View, time: float, times: FrameTimes | None = None) -> np.ndarray:
+        """Render one frame.
+
+        Parameters
+        ----------
+        view : View
+            Its width and height set the projection and viewport uniforms; they
+            should equal the framebuffer size.
+        time : float
+            Scene time (the viewer plays [0, 1]).
+        times : FrameTimes, optional
+            Filled with sort, upload and draw seconds.
+
+        Returns
+        -------
+        (H, W, 4) uint8 ndarray
+            The framebuffer, top row first: premultiplied RGB and alpha.
+        """
+        if self._path is None:
+            raise RuntimeError("nothing loaded")
+        times = times if times is not None else FrameTimes()
+        mgl = self._mgl
+        t0 = _time.perf_counter()
+        order = viewer_order(self._positions, view.view_proj())
+        t1 = _time.perf_counter()
+        if self._index is None or self._index.size != order.nbytes:
+            if self._index is not None:
+                self._index.release()
+            self._index = self.ctx.buffer(reserve=max(order.nbytes, 4), dynamic=True)
+        self._index.write(order.tobytes())
+        prog = self._programs[self._path]
+        vao = self.ctx.vertex_array(prog, [(self._quad, "2f", "position"), (self._index, "i/i", "index")])
+        prog["projection"].write(np.array(cam.projection_matrix(view.fx, view.fy, view.width, view.height), "f4"))
+        prog["view"].write(np.array(view.matrix, "f4"))
+        prog["focal"].value = (view.fx, view.fy)
+        prog["viewport"].value = (view.width, view.height)
+        prog["time"].value = time
+        self._texture.use(0)
+        sampler = "u_texture" if self._path == "splatv" else "u_ftexture"
+        prog[sampler].value = 0
+        self.ctx.finish()
+        t2 = _time.perf_counter()
+        self.fbo.use()
+        self.ctx.viewport = (0, 0, self.width, self.height)
+        self.ctx.disable(mgl.DEPTH_TEST | mgl.CULL_FACE)
+        self.ctx.enable(mgl.BLEND)
+        self.ctx.blend_func = (mgl.ONE_MINUS_DST_ALPHA, mgl.ONE, mgl.ONE_MINUS_DST_ALPHA, mgl.ONE)
+        self.ctx.blend_equation = mgl.FUNC_ADD
+        self.fbo.clear(0.0, 0.0, 0.0, 0.0)
+        vao.render(mgl.TRIANGLE_FAN, vertices=4, instances=self._count)
+        data = self.fbo.read(components=4, alignment=1)
+        t3 = _time.perf_counter()
+        vao.release()
+        times.sort, times.upload, times.draw = t1 - t0, t2 - t1, t3 - t2
+        img = np.frombuffer(data, dtype=np.uint8).reshape(self.height, self.width, 4)
+        return img[::-1].copy()
+
+    def release(self) -> None:
+        """Free GL objects (the context too, when this renderer made it)."""
+        for obj in (self._index, self._texture, self._quad, self.fbo, *self._programs.values()):
+            if obj is not None:
+                obj.release()
+        self.ctx.release()
