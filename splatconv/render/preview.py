@@ -103,6 +103,7 @@ class Renderer:
         import moderngl
 
         self._mgl = moderngl
+        self._own_ctx = ctx is None
         self.ctx = ctx or create_context()
         self.width, self.height = width, height
         frag = shader_source("splat.frag")
@@ -209,7 +210,11 @@ class Renderer:
 
     def release(self) -> None:
         """Free GL objects (the context too, when this renderer made it)."""
+        # Rebind the default framebuffer first: moderngl restores the last bound one
+        # when it makes the next framebuffer, and a deleted one is a GL error.
+        self.ctx.detect_framebuffer(0).use()
         for obj in (self._index, self._texture, self._quad, self.fbo, *self._programs.values()):
             if obj is not None:
                 obj.release()
-        self.ctx.release()
+        if self._own_ctx:
+            self.ctx.release()
