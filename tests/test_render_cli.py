@@ -1,0 +1,129 @@
+"""``splatconv render``: outputs, options and errors."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+from PIL import Image
+
+from splatconv.cli import main
+
+SAMPLE = "sample_data/dancers.ply"
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def sample_splatv(tmp_path_factory):
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    out = tmp_path_factory.mktemp("r") / "dancers.splatv"
+    r = run("convert", root / SAMPLE, out, "--cameras", root / "sample_data/cameras.json")
+    assert r.exit_code == 0, r.output
+    return out
+
+
+def test_single_frame_png(tmp_path, sample_splatv):
+    out = tmp_path / "f.png"
+    r = run("render", sample_splatv, out, "--time", "0.5", "--size", "160x90", "--fx", "125", "--fy", "125")
+    assert r.exit_code == 0, r.output
+    assert r.stdout == f"wrote {out}: 160x90, t=0.5\n"
+    img = np.asarray(Image.open(out))
+    assert img.shape == (90, 160, 3)
+    assert img.mean() > 5  # the scene is in view
+
+
+def test_default_size_is_the_cameras_scaled_to_1280(tmp_path, sample_splatv):
+    r = run("render", sample_splatv, tmp_path / "d.png")
+    assert r.exit_code == 0, r.output
+    assert Image.open(tmp_path / "d.png").size == (1280, 720)
+
+
+def test_ply_renders_like_its_conversion(tmp_path, sample_splatv):
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    args = ["--size", "128x72", "--fx", "100", "--fy", "100", "--time", "0.3", "--camera", "1"]
+    cams = root / "sample_data/cameras.json"
+    ply_with_cams = tmp_path / "c.ply"
+    assert run("convert", sample_splatv, ply_with_cams).exit_code == 0
+    assert run("render", ply_with_cams, tmp_path / "a.png", *args).exit_code == 0
+    assert run("render", sample_splatv, tmp_path / "b.png", *args).exit_code == 0
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "a.png")), np.asarray(Image.open(tmp_path / "b.png")))
+    assert cams.exists()
+
+
+def test_view_matrix_option_matches_camera(tmp_path, sample_splatv):
+    from splatconv.render import camera as cam
+
+    cams = json.loads((sample_splatv.parent.parent / "x").read_text()) if False else None
+    from splatconv.formats import splatv
+
+    _, chunk, _, _ = splatv.read_records(sample_splatv)
+    view = json.dumps(cam.view_matrix(chunk["cameras"][2]))
+    common = ["--size", "96x54", "--fx", "80", "--fy", "80"]
+    assert run("render", sample_splatv, tmp_path / "v.png", "--view", view, *common).exit_code == 0
+    assert run("render", sample_splatv, tmp_path / "c.png", "--camera", "2", *common).exit_code == 0
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "v.png")), np.asarray(Image.open(tmp_path / "c.png")))
+    assert cams is None
+
+
+@pytest.mark.parametrize("name,frames,check", [
+    ("a.gif", 4, lambda im: im.n_frames == 4),
+    ("a.webp", 3, lambda im: im.n_frames == 3),
+    ("sheet.png", 4, lambda im: im.size == (2 * 64, 2 * 36)),
+])
+def test_time_sweeps(tmp_path, sample_splatv, name, frames, check):
+    out = tmp_path / name
+    r = run("render", sample_splatv, out, "--frames", frames, "--size", "64x36", "--fx", "50", "--fy", "50")
+    assert r.exit_code == 0, r.output
+    assert check(Image.open(out))
+
+
+@pytest.mark.parametrize("args,code,message", [
+    (["o.jpg"], 2, "Error: o.jpg: cannot write .jpg: use .png (or --frames N with .gif, .webp)\n"),
+    (["o.gif"], 2, "Error: o.gif: cannot write .gif: use .png (or --frames N with .gif, .webp)\n"),
+    (["o.png", "--camera", "7"], 2, "Error: {src}: --camera 7: the file has 3 camera(s), 0..2\n"),
+    (["o.png", "--camera", "0", "--view", "[]"], 2, "Error: --camera and --view cannot be used together\n"),
+    (["o.png", "--view", "[1, 2]"], 2,
+     "Error: --view: expected a JSON list of 16 finite numbers (a column-major view matrix)\n"),
+    (["o.png", "--view", "{"], 2, "Error: --view: invalid JSON: Expecting property name enclosed in double quotes\n"),
+    (["o.png", "--size", "12by4"], 2, "Error: --size: expected WIDTHxHEIGHT, got '12by4'\n"),
+    (["o.png", "--size", "0x10"], 2, "Error: --size: 0x10 is outside 1..16384\n"),
+    (["o.png", "--fx", "-3"], 2, "Error: --fx must be a positive number\n"),
+])
+def test_render_usage_errors(tmp_path, sample_splatv, monkeypatch, args, code, message):
+    monkeypatch.chdir(tmp_path)
+    r = run("render", sample_splatv, *args)
+    assert r.exit_code == code
+    assert r.stderr == message.format(src=sample_splatv)
+    assert not (tmp_path / args[0]).exists()
+
+
+def test_refuses_existing_output(tmp_path, sample_splatv):
+    out = tmp_path / "o.png"
+    out.write_bytes(b"x")
+    r = run("render", sample_splatv, out)
+    assert r.exit_code == 1 and r.stderr == f"Error: {out}: already exists (use --force to replace it)\n"
+    assert out.read_bytes() == b"x"
+
+
+def test_no_opengl_gives_one_line_with_what_to_install(tmp_path, sample_splatv, monkeypatch):
+    import moderngl
+
+    def fail(**kw):
+        raise Exception("libEGL.so.1: cannot open shared object file")
+
+    monkeypatch.setattr(moderngl, "create_context", fail)
+    r = run("render", sample_splatv, tmp_path / "o.png", "--size", "8x8")
+    assert r.exit_code == 1
+    assert r.stderr == ("Error: no OpenGL context (libEGL.so.1: cannot open shared object file); install an "
+                        "EGL driver: on Debian or Ubuntu the packages libegl1 and libgl1-mesa-dri (Mesa's "
+                        "llvmpipe renders on the CPU, no GPU or display needed)\n")
+    assert not (tmp_path / "o.png").exists()
