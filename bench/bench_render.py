@@ -1,0 +1,93 @@
+"""Seconds per frame of the headless preview renderer on a 1M-splat scene.
+
+Draws a generated scene of N splats (default 1,000,000) at 1280x720 from a few
+viewpoints and times, and prints per-frame seconds split into the viewer-style
+depth sort (numpy), the index upload and the draw (including readback) on
+whatever OpenGL the machine has (Mesa llvmpipe on a CPU-only machine).
+
+Run::
+
+    python bench/bench_render.py [--splats N] [--frames K] [--size WxH]
+"""
+
+from __future__ import annotations
+
+import argparse
+import platform
+import statistics
+import time
+
+import numpy as np
+
+from splatconv.formats import splatv
+from splatconv.model import COLUMNS, Scene
+from splatconv.render import camera as cam
+from splatconv.render.preview import FrameTimes, Renderer, View
+
+
+def make_scene(n: int) -> Scene:
+    """A random but plausible lite scene: N splats in a 4-unit box, all visible at t=0.5."""
+    rng = np.random.default_rng(0)
+    cols = {name: np.zeros(n, np.float32) for name in COLUMNS}
+    for i, c in enumerate("xyz"):
+        cols[c] = rng.normal(0, 1.2, n).astype(np.float32)
+    cols["trbf_center"] = rng.uniform(0, 1, n).astype(np.float32)
+    cols["trbf_scale"] = np.log(rng.uniform(0.2, 2, n)).astype(np.float32)
+    for i in range(9):
+        cols[f"motion_{i}"] = rng.normal(0, 0.05, n).astype(np.float32)
+    for i in range(3):
+        cols[f"f_dc_{i}"] = rng.uniform(0, 1, n).astype(np.float32)
+        cols[f"scale_{i}"] = np.log(rng.uniform(0.003, 0.03, n)).astype(np.float32)
+    for i in range(4):
+        cols[f"rot_{i}"] = rng.normal(0, 1, n).astype(np.float32)
+        cols[f"omega_{i}"] = rng.normal(0, 0.1, n).astype(np.float32)
+    cols["opacity"] = rng.normal(1, 2, n).astype(np.float32)
+    return Scene(columns=cols)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--splats", type=int, default=1_000_000)
+    ap.add_argument("--frames", type=int, default=3)
+    ap.add_argument("--size", default="1280x720")
+    args = ap.parse_args()
+    width, height = cam.parse_size(args.size)
+
+    t0 = time.perf_counter()
+    scene = make_scene(args.splats)
+    records, _ = splatv.encode(scene)
+    prep = time.perf_counter() - t0
+
+    r = Renderer(width, height)
+    info = r.ctx.info
+    print(f"splatconv render benchmark -- {info['GL_RENDERER']}, {info['GL_VERSION']}")
+    print(f"machine: {platform.machine()}, python {platform.python_version()}")
+    print(f"scene: {args.splats:,} splats ({len(records):,} records with padding), "
+          f"packed in {prep:.2f} s; frame {width}x{height}")
+    upload = r.load_records(records)
+    print(f"texture upload (once per file): {upload:.3f} s")
+
+    rows = []
+    for k in range(args.frames):
+        angle = 0.4 * k
+        camera = {"rotation": [[np.cos(angle), 0, -np.sin(angle)], [0, 1, 0], [np.sin(angle), 0, np.cos(angle)]],
+                  "position": [6 * np.sin(angle), 0, -6 * np.cos(angle)]}
+        view = View(cam.view_matrix(camera), 1000.0, 1000.0, width, height)
+        ft = FrameTimes()
+        t = time.perf_counter()
+        img = r.draw(view, 0.5, ft)
+        total = time.perf_counter() - t
+        rows.append((ft.sort, ft.upload, ft.draw, total))
+        print(f"frame {k}: sort {ft.sort:.3f} s  upload {ft.upload:.3f} s  draw+readback {ft.draw:.3f} s  "
+              f"total {total:.3f} s  (mean pixel {img[..., :3].mean():.1f})")
+    med = [statistics.median(c) for c in zip(*rows)]
+    print(f"median per frame: sort {med[0]:.3f} s, upload {med[1]:.3f} s, draw {med[2]:.3f} s, "
+          f"total {med[3]:.3f} s")
+    share = (med[0] + med[1]) / med[3]
+    print(f"sort + upload share of the frame: {100 * share:.0f}% "
+          f"({'they do not dominate' if share < 0.5 else 'THEY DOMINATE'})")
+    r.release()
+
+
+if __name__ == "__main__":
+    main()
