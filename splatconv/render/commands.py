@@ -41,3 +41,41 @@ def render_file(input_path, output_path, *, time=0.5, camera=None, view=None, si
         images.save(rendered, times, stream, suffix)
     what = f"{len(times)} frames" if len(times) > 1 else f"t={time:g}"
     return f"wrote {output_path}: {v.width}x{v.height}, {what}"
+
+
+def diff_files(a, b, *, size=None, cameras=None, times=None, min_psnr=40.0, color="auto", out=None,
+               reference=False, force=False):
+    """Compare two images, or two scene files drawn the same way; optionally write a heatmap.
+
+    Returns
+    -------
+    verify.Outcome
+    """
+    from . import diff as imgdiff
+    from .verify import DEFAULT_MIN_PSNR, Frame, Outcome, diff_scenes, parse_times
+
+    a, b = os.fspath(a), os.fspath(b)
+    if out is not None:
+        if not os.fspath(out).lower().endswith(".png"):
+            raise UsageError("--out must be a .png file", out)
+        check_output(out, [a, b], force)
+    images = imgdiff.is_image(a), imgdiff.is_image(b)
+    if images[0] != images[1]:
+        raise UsageError("compare two images or two scene files, not one of each")
+    if images[0]:
+        if size or cameras or times or reference:
+            raise UsageError("--size, --cameras, --times and --reference apply to scene files, not images")
+        ia, ib = imgdiff.load_image(a), imgdiff.load_image(b)
+        outcome = Outcome(min_psnr=min_psnr if min_psnr is not None else DEFAULT_MIN_PSNR, paths=(a, b))
+        outcome.frames.append(Frame(0.0, 0, imgdiff.compare(ia, ib), (ia, ib)))
+    else:
+        outcome = diff_scenes(a, b, times=parse_times(times) if times else (0.5,), cameras=cameras or "0",
+                              size=cam.parse_size(size) if size else None, min_psnr=min_psnr, color=color,
+                              reference=reference)
+    if out is not None:
+        worst = min(outcome.frames, key=lambda f: f.diff.psnr)
+        with atomic_writer(out) as stream:
+            from PIL import Image
+
+            Image.fromarray(imgdiff.heatmap(*worst.images), "RGB").save(stream, format="PNG")
+    return outcome

@@ -41,25 +41,39 @@ def load(path: str | os.PathLike, *, color: str = "auto", keep_scene: bool = Fal
     path = os.fspath(path)
     module = format_for(path)
     if module is splatv:
-        records, chunk, meta, _notes = splatv.read_records(path)
-        count = len(records)
-        rows = splatv.texture_height(count)
-        if meta["texheight"] * splatv.SPLATS_PER_ROW > rows * splatv.SPLATS_PER_ROW == count:
-            rows += 1  # the viewer also sorts the file's zero padding (at the origin)
-        padded = np.zeros((max(rows, 1) * splatv.SPLATS_PER_ROW, splatv.WORDS_PER_SPLAT), dtype="<u4")
-        padded[:count] = records
-        scene = None
-        if keep_scene:
-            columns, _ = splatv.decode_records(records)
-            from ..model import Scene
-            scene = Scene(columns=columns, cameras=list(chunk.get("cameras", [])), variant="splatv")
-        return Source(path, padded, list(chunk.get("cameras", [])), scene, None)
+        padded, scene = splatv_texture(path)
+        return Source(path, padded, list(scene.cameras), scene if keep_scene else None, None)
     scene = read_scene(path, color=color)
     if scene.count == 0:
         raise UsageError("holds no splats to draw", path)
     order = np.argsort(-splatv.importance(scene.columns), kind="stable")
     records, _report = splatv.encode(scene)
     return Source(path, records, list(scene.cameras or []), scene if keep_scene else None, order)
+
+
+def splatv_texture(path: str):
+    """A .splatv file's texture as the viewer holds it, and its decoded scene.
+
+    Returns
+    -------
+    padded : (rows * 1024, 16) uint32 ndarray
+        The records with zero padding, as drawn (the viewer sorts the padding too).
+    scene : Scene
+        The records decoded to model columns (one read of the file serves both).
+    """
+    from ..model import Scene
+
+    records, chunk, meta, notes = splatv.read_records(path)
+    count = len(records)
+    rows = splatv.texture_height(count)
+    if meta["texheight"] * splatv.SPLATS_PER_ROW > rows * splatv.SPLATS_PER_ROW == count:
+        rows += 1  # keep one zero record at the origin, which the viewer's sort also sees
+    padded = np.zeros((max(rows, 1) * splatv.SPLATS_PER_ROW, splatv.WORDS_PER_SPLAT), dtype="<u4")
+    padded[:count] = records
+    columns, decode_notes = splatv.decode_records(records)
+    scene = Scene(columns=columns, cameras=list(chunk.get("cameras", [])), variant="splatv", meta=meta,
+                  notes=notes + decode_notes)
+    return padded, scene
 
 
 def resolve_view(source: Source, *, camera: int | None = None, view: list | None = None,

@@ -1,0 +1,135 @@
+"""Compare two scenes attribute by attribute, in the units the viewer uses.
+
+Used by ``verify`` (is every error explained by quantization?) and by ``stats``
+(how large are the errors?). Pure numpy: no I/O, no printing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import UnsupportedError
+from .formats import splatv
+from .model import GROUPS, Scene
+
+HALF_MAX = 65504.0
+#: One half-float ulp relative to the value (10 mantissa bits), the largest error
+#: of either writer (rounding gives half of it, splaTV's truncation all of it).
+HALF_REL = 2.0**-10
+#: Smallest half subnormal step.
+HALF_ABS = 2.0**-24
+#: One 8-bit step.
+BYTE = 1.0 / 255.0
+
+
+def viewer_values(cols: dict, group: str) -> np.ndarray:
+    """A group's columns as the viewer uses them: ``(N, k) float64``.
+
+    Scales and the temporal scale linear (exp), colour clamped to [0, 1], opacity
+    through the sigmoid; everything else as stored.
+    """
+    names = GROUPS[group]
+    with np.errstate(over="ignore", invalid="ignore"):
+        v = np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
+        if group == "scale":
+            v = np.exp(v)
+        elif group == "trbf":
+            v[:, 1] = np.exp(v[:, 1])
+        elif group == "color":
+            v = np.clip(v, 0.0, 1.0)
+        elif group == "opacity":
+            v = 1.0 / (1.0 + np.exp(-v))
+    return v
+
+
+def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
+    """Largest error a faithful .splatv conversion may introduce, per value."""
+    if group == "position":
+        return np.zeros_like(values)
+    if group in ("color", "opacity"):
+        return np.full_like(values, BYTE * (1 + 1e-6))
+    with np.errstate(invalid="ignore"):
+        return np.maximum(np.abs(values) * HALF_REL, HALF_ABS)
+
+
+def _position_key(cols: dict) -> np.ndarray:
+    """Position bits with every NaN made alike (a browser may quiet them)."""
+    bits = np.stack([np.asarray(cols[c], dtype=np.float32).view(np.uint32) for c in ("x", "y", "z")], axis=1)
+    nan = (bits & 0x7F800000) == 0x7F800000
+    nan &= (bits & 0x007FFFFF) != 0
+    return np.where(nan, np.uint32(0x7FC00000), bits)
+
+
+def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED"):
+    """Row order of ``source`` matching ``converted`` row by row.
+
+    Tries the orders a writer produces (importance, double or float32 key; input
+    order), then falls back to matching positions, which conversion keeps exact.
+
+    Returns
+    -------
+    (N,) int64 ndarray
+        ``source`` row for each ``converted`` row.
+
+    Raises
+    ------
+    UnsupportedError
+        When the splat counts differ.
+    """
+    n, m = source.count, converted.count
+    if n != m:
+        raise UnsupportedError(f"{source_name} has {n:,} splats but {converted_name} has {m:,}")
+    a, b = _position_key(source.columns), _position_key(converted.columns)
+    key = splatv.importance(source.columns)
+    with np.errstate(invalid="ignore", over="ignore"):
+        candidates = (np.arange(n), np.argsort(-key, kind="stable"),
+                      np.argsort(-key.astype(np.float32), kind="stable"))
+    for order in candidates:
+        if np.array_equal(a[order], b):
+            return order
+    sa = np.lexsort(a.T[::-1])
+    sb = np.lexsort(b.T[::-1])
+    order = np.empty(n, dtype=np.int64)
+    order[sb] = sa
+    return order
+
+
+@dataclass
+class GroupError:
+    """Errors of one attribute group, converted against source, in viewer units."""
+
+    group: str
+    max_abs_error: float
+    max_rel_error: float
+    rmse: float
+    unexplained: int  # values whose error exceeds what quantization explains
+    worst_bound: float  # the bound at the worst unexplained value (or 0)
+    compared: int
+
+
+def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupError:
+    """Error statistics of one group over finite pairs; NaN must stay NaN."""
+    a = viewer_values(source_cols, group)
+    b = viewer_values(converted_cols, group)
+    both = np.isfinite(a) & np.isfinite(b)
+    err = np.abs(np.where(both, a - b, 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        rel = np.where(both & (a != 0), err / np.abs(a), 0.0)
+    bound = quantization_bound(group, np.where(both, a, 0.0))
+    # Finite values past the half range saturate (or become infinite in splaTV's
+    # converter); NaN stays NaN. Both are lossy but expected, counted elsewhere.
+    over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) if group != "position" else False
+    same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
+    bad = ~(both & (err <= bound)) & ~over & ~same_special
+    n = int(both.sum())
+    worst = float(bound[bad].max()) if bad.any() else 0.0
+    return GroupError(group, float(err.max()) if err.size else 0.0, float(rel.max()) if rel.size else 0.0,
+                      float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n)
+
+
+def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None) -> dict:
+    """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``."""
+    src = source.columns if order is None else source.take(order)
+    return {g: group_errors(src, converted.columns, g) for g in GROUPS}

@@ -1,0 +1,91 @@
+"""Image comparison: PSNR, error statistics and heatmaps (numpy; Pillow for files)."""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import FormatError, UnsupportedError
+
+#: Default pixel tolerance (per channel, out of 255) for the "pixels off" share.
+TOLERANCE = 8
+
+
+@dataclass
+class ImageDiff:
+    """How far image B is from image A (RGB, 8 bit)."""
+
+    psnr: float  # dB; math.inf when identical
+    max_abs_error: int
+    mean_abs_error: float
+    share_off: float  # share of pixels with a channel off by more than the tolerance
+    tolerance: int
+
+    def as_dict(self) -> dict:
+        return {"psnr": None if math.isinf(self.psnr) else round(self.psnr, 3),
+                "max_abs_error": self.max_abs_error, "mean_abs_error": round(self.mean_abs_error, 4),
+                "share_off": round(self.share_off, 6), "tolerance": self.tolerance}
+
+
+def compare(a: np.ndarray, b: np.ndarray, tolerance: int = TOLERANCE) -> ImageDiff:
+    """Compare two ``(H, W, 3+) uint8`` images on their RGB channels."""
+    if a.shape[:2] != b.shape[:2]:
+        raise UnsupportedError(f"images differ in size: {a.shape[1]}x{a.shape[0]} and {b.shape[1]}x{b.shape[0]}")
+    d = np.abs(a[..., :3].astype(np.int16) - b[..., :3].astype(np.int16))
+    mse = float((d.astype(np.float64) ** 2).mean())
+    psnr = math.inf if mse == 0 else 10 * math.log10(255.0**2 / mse)
+    return ImageDiff(psnr, int(d.max()), float(d.mean()), float((d.max(axis=-1) > tolerance).mean()), tolerance)
+
+
+def heatmap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Per-pixel largest channel error as a black-red-yellow-white ramp, ``(H, W, 3) uint8``.
+
+    The ramp is scaled so that an error of 32/255 or more is white: small
+    quantization errors stay visible next to real damage.
+    """
+    d = np.abs(a[..., :3].astype(np.int16) - b[..., :3].astype(np.int16)).max(axis=-1)
+    x = np.clip(d / 32.0, 0.0, 1.0) * 3.0
+    rgb = np.stack([np.clip(x, 0, 1), np.clip(x - 1, 0, 1), np.clip(x - 2, 0, 1)], axis=-1)
+    return (rgb * 255).round().astype(np.uint8)
+
+
+def side_by_side(*images: np.ndarray) -> np.ndarray:
+    """Images next to each other with a 4-pixel grey gap, ``(H, W', 3) uint8``."""
+    h = max(i.shape[0] for i in images)
+    gap = np.full((h, 4, 3), 64, np.uint8)
+    parts = []
+    for k, img in enumerate(images):
+        pad = np.zeros((h, img.shape[1], 3), np.uint8)
+        pad[:img.shape[0]] = img[..., :3]
+        parts.extend([gap, pad] if k else [pad])
+    return np.concatenate(parts, axis=1)
+
+
+IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
+
+
+def is_image(path) -> bool:
+    return os.fspath(path).lower().endswith(IMAGE_SUFFIXES)
+
+
+def load_image(path) -> np.ndarray:
+    """An image file as ``(H, W, 3) uint8`` RGB (alpha dropped, palette expanded)."""
+    from PIL import Image, UnidentifiedImageError
+
+    path = os.fspath(path)
+    try:
+        with Image.open(path) as im:
+            return np.asarray(im.convert("RGB"))
+    except FileNotFoundError:
+        raise FormatError("cannot open: No such file or directory", path) from None
+    except (UnidentifiedImageError, OSError) as e:
+        raise FormatError(f"not a readable image ({e})", path) from None
+
+
+def save_png(img: np.ndarray, path) -> None:
+    from PIL import Image
+
+    Image.fromarray(np.ascontiguousarray(img[..., :3]), "RGB").save(os.fspath(path), format="PNG")

@@ -1,0 +1,228 @@
+"""``verify`` and ``diff``: prove a conversion by structure and by pixels.
+
+``verify`` draws SOURCE through the float reference path (its attributes as float32,
+no quantization) and CONVERTED as stored (a .splatv texture; a PLY's attributes),
+with the same cameras, times and splat order, and compares the frames. Before
+drawing it checks that every attribute differs only by what quantization explains.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import read as read_scene
+from ..cameras import framing_camera
+from ..compare import align, compare_scenes
+from ..errors import UsageError
+from ..formats import format_for, splatv
+from . import camera as cam
+from . import diff as imgdiff
+from .preview import FLOAT_SPLATS_PER_ROW, Renderer, View, float_attributes
+
+DEFAULT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
+DEFAULT_MIN_PSNR = 40.0
+#: verify's default image width: big enough to see damage, quick on a CPU.
+VERIFY_MAX_WIDTH = 640
+
+
+def parse_times(text: str) -> list:
+    """``--times`` value: comma-separated numbers."""
+    try:
+        times = [float(t) for t in text.split(",") if t.strip()]
+    except ValueError:
+        raise UsageError(f"--times: expected comma-separated numbers, got {text!r}") from None
+    if not times or not all(math.isfinite(t) for t in times):
+        raise UsageError(f"--times: expected comma-separated numbers, got {text!r}")
+    return times
+
+
+def parse_cameras(text: str, available: int) -> list:
+    """``--cameras`` value: ``all`` or comma-separated indices."""
+    if text == "all":
+        return list(range(available))
+    try:
+        picked = [int(c) for c in text.split(",")]
+    except ValueError:
+        raise UsageError(f"--cameras: expected 'all' or comma-separated indices, got {text!r}") from None
+    bad = [c for c in picked if not 0 <= c < available]
+    if bad:
+        raise UsageError(f"--cameras: no camera {bad[0]}; there are {available} (0..{available - 1})")
+    return picked
+
+
+def frame_views(cameras: list, indices: list, size, max_width: int = VERIFY_MAX_WIDTH) -> list:
+    """(camera index, View) for each chosen camera; default size scaled to max_width."""
+    views = []
+    for i in indices:
+        c = cameras[i]
+        if size is None:
+            scale = min(1.0, max_width / int(c["width"]))
+            w, h = max(1, round(int(c["width"]) * scale)), max(1, round(int(c["height"]) * scale))
+        else:
+            (w, h), scale = size, min(size[0] / int(c["width"]), size[1] / int(c["height"]))
+        views.append((i, View(cam.view_matrix(c), float(c["fx"]) * scale, float(c["fy"]) * scale, w, h)))
+    return views
+
+
+def _float_texels_padded(scene, order, records: int) -> np.ndarray:
+    """Float reference rows in the given order, padded with zero rows to ``records``.
+
+    Zero rows stand for the texture's zero padding, which the viewer also sorts, so
+    both paths see the same depth range and draw in the same order.
+    """
+    rows = float_attributes(scene, order)
+    if records > len(rows):
+        rows = np.concatenate([rows, np.zeros((records - len(rows), rows.shape[1]), np.float32)])
+    return rows
+
+
+@dataclass
+class Frame:
+    time: float
+    camera: int
+    diff: imgdiff.ImageDiff
+    images: tuple = ()
+
+
+@dataclass
+class Outcome:
+    """Everything ``verify`` or ``diff`` found, as data."""
+
+    frames: list = field(default_factory=list)
+    structure: dict = field(default_factory=dict)
+    min_psnr: float = DEFAULT_MIN_PSNR
+    count: int = 0
+    paths: tuple = ()
+
+    @property
+    def failing_frames(self) -> list:
+        return [f for f in self.frames if f.diff.psnr < self.min_psnr]
+
+    @property
+    def drifted(self) -> list:
+        return [g for g in self.structure.values() if g.unexplained]
+
+    @property
+    def passed(self) -> bool:
+        return not self.failing_frames and not self.drifted
+
+    def as_dict(self) -> dict:
+        worst = min(self.frames, key=lambda f: f.diff.psnr) if self.frames else None
+        return {
+            "paths": list(self.paths),
+            "count": self.count,
+            "min_psnr": self.min_psnr,
+            "passed": self.passed,
+            "structure": {g.group: {"max_abs_error": g.max_abs_error, "max_rel_error": g.max_rel_error,
+                                    "rmse": g.rmse, "unexplained": g.unexplained, "compared": g.compared,
+                                    "ok": not g.unexplained} for g in self.structure.values()},
+            "frames": [{"time": f.time, "camera": f.camera, **f.diff.as_dict()} for f in self.frames],
+            "worst": None if worst is None else {"time": worst.time, "camera": worst.camera,
+                                                 **worst.diff.as_dict()},
+        }
+
+
+def _read(path: str, color: str):
+    """A scene, plus its texture when it is a .splatv (drawn as stored); one read."""
+    if format_for(path) is splatv:
+        from .frames import splatv_texture
+
+        padded, scene = splatv_texture(path)
+        return scene, padded
+    return read_scene(path, color=color), None
+
+
+def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", size=None,
+           min_psnr=DEFAULT_MIN_PSNR, tolerance=imgdiff.TOLERANCE, color="auto", keep_images=False) -> Outcome:
+    """Check CONVERTED against SOURCE by attributes and by rendered frames.
+
+    Returns
+    -------
+    Outcome
+        ``passed`` is False when any frame is below ``min_psnr`` or any attribute
+        drifted past what quantization explains.
+    """
+    source_path, converted_path = os.fspath(source_path), os.fspath(converted_path)
+    source, _ = _read(source_path, color)
+    converted, records = _read(converted_path, color)
+    order = align(source, converted, source_path, converted_path)
+    outcome = Outcome(min_psnr=min_psnr, count=source.count, paths=(source_path, converted_path))
+    outcome.structure = compare_scenes(source, converted, order)
+
+    cams = source.cameras or converted.cameras or [framing_camera(source.columns["x"], source.columns["y"],
+                                                                  source.columns["z"])]
+    views = frame_views(cams, parse_cameras(cameras, len(cams)) if isinstance(cameras, str) else cameras, size)
+    n_records = len(records) if records is not None else splatv.texture_height(source.count) * 1024
+    src_rows = _float_texels_padded(source, order, n_records)
+    conv_rows = None if records is not None else _float_texels_padded(converted, None, n_records)
+    for index, view in views:
+        a = Renderer(view.width, view.height)
+        b = Renderer(view.width, view.height, ctx=a.ctx)
+        try:
+            a.load_float(src_rows)
+            b.load_records(records) if records is not None else b.load_float(conv_rows)
+            for t in times:
+                ia, ib = a.draw(view, float(t)), b.draw(view, float(t))
+                d = imgdiff.compare(ia, ib, tolerance)
+                outcome.frames.append(Frame(float(t), index, d, (ia, ib) if keep_images else ()))
+        finally:
+            b.release()
+            a.release()
+    return outcome
+
+
+def diff_scenes(path_a, path_b, *, times=(0.5,), cameras="0", size=None, min_psnr=DEFAULT_MIN_PSNR,
+                tolerance=imgdiff.TOLERANCE, color="auto", reference=False) -> Outcome:
+    """Draw two scene files the same way and compare the frames (no structure check)."""
+    from .frames import load
+
+    a_src = load(path_a, color=color, keep_scene=reference)
+    b_src = load(path_b, color=color, keep_scene=reference)
+    cams = a_src.cameras or b_src.cameras
+    if not cams:
+        x, y, z = (a_src.records[:, i].view(np.float32) for i in range(3))
+        cams = [framing_camera(x, y, z)]
+    views = frame_views(cams, parse_cameras(cameras, len(cams)), size)
+    outcome = Outcome(min_psnr=min_psnr, paths=(os.fspath(path_a), os.fspath(path_b)))
+    for index, view in views:
+        ra = Renderer(view.width, view.height)
+        rb = Renderer(view.width, view.height, ctx=ra.ctx)
+        try:
+            for r, s in ((ra, a_src), (rb, b_src)):
+                if reference:
+                    r.load_float(_float_texels_padded(s.scene, s.order, len(s.records)))
+                else:
+                    r.load_records(s.records)
+            for t in times:
+                ia, ib = ra.draw(view, float(t)), rb.draw(view, float(t))
+                outcome.frames.append(Frame(float(t), index, imgdiff.compare(ia, ib, tolerance), (ia, ib)))
+        finally:
+            rb.release()
+            ra.release()
+    return outcome
+
+
+def write_report_dir(outcome: Outcome, directory) -> list:
+    """Save each frame's two images, heatmap and side-by-side; returns the paths."""
+    directory = os.fspath(directory)
+    os.makedirs(directory, exist_ok=True)
+    written = []
+    for f in outcome.frames:
+        if not f.images:
+            continue
+        a, b = f.images
+        stem = os.path.join(directory, f"cam{f.camera}_t{f.time:.3f}")
+        heat = imgdiff.heatmap(a, b)
+        for suffix, img in (("source", a), ("converted", b), ("diff", heat),
+                            ("side_by_side", imgdiff.side_by_side(a, b, heat))):
+            path = f"{stem}_{suffix}.png"
+            imgdiff.save_png(img, path)
+            written.append(path)
+    return written
+
+
+__all__ = ["verify", "diff_scenes", "write_report_dir", "parse_times", "parse_cameras", "FLOAT_SPLATS_PER_ROW"]
