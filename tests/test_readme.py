@@ -46,3 +46,19 @@ def test_quick_start_conversion_and_info_example(tmp_path):
     result = CliRunner().invoke(main, ["info", example.group(1)])
     assert result.exit_code == 0
     assert result.stdout == example.group(2)
+
+
+def test_verify_example_runs_and_passes(tmp_path):
+    os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
+    os.chdir(tmp_path)
+    block = README.split("### Proving a conversion", 1)[1]
+    lines = [ln[2:] for ln in block.splitlines() if ln.startswith("$ splatconv ")]
+    assert len(lines) == 2
+    for line in lines:
+        result = CliRunner().invoke(main, shlex.split(line)[1:])
+        assert result.exit_code == 0, result.output
+    assert result.stdout.rstrip().splitlines()[-1].startswith("PASS: 3 frames at or above 40 dB")
+    example = block.split("$ splatconv verify", 1)[1].split("```", 1)[0].splitlines()[1:]
+    # The table's shape and verdict are as printed; exact dB depend on the GL driver.
+    assert example[0] == result.stdout.splitlines()[0]
+    assert example[-1].startswith("PASS: 3 frames")
