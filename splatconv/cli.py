@@ -140,6 +140,31 @@ def render(input_path, output_path, time_, camera, view, size, fx, fy, frames, r
     click.echo(result)
 
 
+@main.command()
+@click.argument("source", type=click.Path(dir_okay=False))
+@click.argument("converted", required=False, type=click.Path(dir_okay=False))
+@click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (keys in specs/stats.md).")
+@click.option("--markdown", is_flag=True, help="Print the report as Markdown tables.")
+@click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
+              help="zstd level for the transport sizes [default: 19].")
+@click.option("--color", type=click.Choice(splatconv.COLOR_MODES), default="auto", show_default=True,
+              help="How to read PLY f_dc_0..2 (see convert).")
+@_library_errors
+def stats(source, converted, as_json, markdown, zstd_level, color):
+    """Report sizes, zstd transport size and what a conversion loses.
+
+    With CONVERTED, compares it against SOURCE attribute by attribute; with SOURCE
+    alone, reports what converting it to .splatv would give.
+    """
+    from splatconv.report import stats_markdown, stats_text, to_json
+    from splatconv.stats import stats_report
+
+    if as_json and markdown:
+        raise _Failure("--json and --markdown cannot be used together", 2)
+    data = stats_report(source, converted, zstd_level=zstd_level, color=color)
+    click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))
+
+
 def _view_options(fn):
     """Camera, time and size options shared by verify and diff."""
     fn = click.option("--size", help="Image size WxH (default: each camera's, scaled to at most 640 wide).")(fn)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 
 def to_json(data) -> str:
@@ -96,3 +97,91 @@ def verdict_text(data: dict) -> str:
         worst = "" if w is None else f"; worst {_psnr(w['psnr'])} dB at t={w['time']:g} camera {w['camera']}"
         lines.append(f"PASS: {len(data['frames'])} frames at or above {data['min_psnr']:g} dB{worst}")
     return "\n".join(lines)
+
+
+# --------------------------------------------------------------------------
+# ``stats``: the same tables as aligned text or Markdown.
+
+
+def _num(v, fmt="{:,}") -> str:
+    return "-" if v is None else fmt.format(v)
+
+
+def _g(v) -> str:
+    return "-" if v is None else f"{v:.4g}"
+
+
+def _stats_tables(data: dict) -> list:
+    """(title, headers, rows) tables of a stats report."""
+    tables = []
+    level = data["files"][0]["zstd_level"]
+    rows = []
+    for f in data["files"]:
+        name = os.path.basename(f["path"]) if f["path"] is not None else "(as converted)"
+        rows.append([f["role"], name, _num(f["bytes"]), _num(f["bytes_per_splat"], "{:,.2f}"),
+                     _num(f["zstd_bytes"]), _num(f["ratio"], "{:.3f}"), _num(f["zstd_ratio"], "{:.3f}")])
+    tables.append(("files", ["file", "path", "bytes", "B/splat", f"zstd-{level}", "ratio", "zstd ratio"], rows))
+    m = data["motion"]
+    tables.append(("motion and rotation speed (per unit time)", ["magnitude", "p50", "p90", "p99", "max"],
+                   [[k, _g(v["p50"]), _g(v["p90"]), _g(v["p99"]), _g(v["max"])] for k, v in m.items()]))
+    keys = ["max_abs_error", "max_rel_error", "rmse", "nonfinite", "overflow", "underflow", "subnormal", "clamped"]
+    heads = ["attribute", "max abs err", "max rel err", "rmse", "nonfinite", "overflow", "underflow", "subnormal",
+             "clamped"]
+    rows = [[g] + [_g(a[k]) if k in keys[:3] else _num(a[k]) for k in keys] for g, a in data["attributes"].items()]
+    tables.append(("attributes (converted against source, in viewer units)", heads, rows))
+    return tables
+
+
+def _summary_lines(data: dict) -> list:
+    lines = [f"count: {data['count']:,} splats"]
+    b = data["bounds"]
+    if b:
+        lo = ", ".join(f"{v:.4g}" for v in b["min"])
+        hi = ", ".join(f"{v:.4g}" for v in b["max"])
+        lines.append(f"bounds: min ({lo}) max ({hi})")
+    t = data["time"]
+    vis = t["visible"]
+    lo_i, hi_i = vis.index(min(vis)), vis.index(max(vis))
+    lines.append(f"time: {len(vis)} steps over [0, 1]: {min(vis):,} to {max(vis):,} splats drawn "
+                 f"(fewest at t={t['times'][lo_i]:.3g}, most at t={t['times'][hi_i]:.3g})")
+    v = data["viewer"]
+    fits = ", ".join(f"{k}: {'yes' if ok else 'NO'}" for k, ok in v["fits_max_texture_size"].items())
+    lines.append(f"viewer: texture 4096x{v['texture_height']} (fits {fits}); "
+                 f"cameras {v['cameras']}{' (EMPTY: the viewer needs one)' if v['empty_cameras'] else ''}; "
+                 f"NaN positions {v['nan_positions']:,}")
+    dmg = v.get("splatv_js_damage")
+    if dmg is not None:
+        hurt = [f"{g}: {d['infinity']:,} to infinity, {d['garbled']:,} garbled" for g, d in dmg.items()
+                if d["infinity"] or d["garbled"]]
+        lines.append("splaTV's own converter would corrupt: " + ("; ".join(hurt) if hurt else "nothing"))
+    return lines
+
+
+def stats_text(data: dict) -> str:
+    """Compact aligned tables (under 100 columns) of a stats report."""
+    out = []
+    for title, heads, rows in _stats_tables(data):
+        widths = [max(len(str(c)) for c in col) for col in zip(heads, *rows)]
+        out.append(title + ":")
+        for r in [heads] + rows:
+            left = 2 if title == "files" else 1
+            cells = [str(c).ljust(w) if i < left else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))]
+            out.append("  " + "  ".join(cells).rstrip())
+        out.append("")
+    out.extend(_summary_lines(data))
+    return "\n".join(out)
+
+
+def stats_markdown(data: dict) -> str:
+    """The report as Markdown tables, for a pull request."""
+    out = []
+    for title, heads, rows in _stats_tables(data):
+        out.append(f"**{title}**\n")
+        out.append("| " + " | ".join(heads) + " |")
+        left = 2 if title == "files" else 1
+        out.append("|" + "|".join("---" if i < left else "---:" for i in range(len(heads))) + "|")
+        for r in rows:
+            out.append("| " + " | ".join(str(c) for c in r) + " |")
+        out.append("")
+    out.extend(f"- {line}" for line in _summary_lines(data))
+    return "\n".join(out)

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from .formats import splatv
-from .model import COLUMNS, Scene
+from .model import COLUMNS, GROUPS, Scene
 
 #: Temporal opacity below which the viewer skips a splat.
 TEMPORAL_CUTOFF = 0.02
@@ -85,3 +85,177 @@ def describe(scene: Scene, path: str, fmt: str) -> dict:
         info["chunks"] = meta.get("chunks", [])
     info["notes"] = list(scene.notes)
     return info
+
+
+# --------------------------------------------------------------------------
+# ``stats``: sizes, transport size and what a conversion loses.
+
+#: Time steps at which the number of drawn splats is counted.
+TIME_STEPS = 20
+#: GPU texture size limits the report checks the texture height against.
+MAX_TEXTURE_SIZES = (8192, 16384)
+#: Groups stored as halves (colour and opacity are bytes, positions float32).
+HALF_GROUPS = ("rotation", "scale", "motion", "omega", "trbf")
+
+
+def _percentiles(v: np.ndarray) -> dict:
+    v = v[np.isfinite(v)]
+    if v.size == 0:
+        return {"p50": None, "p90": None, "p99": None, "max": None}
+    p = np.percentile(v, [50, 90, 99])
+    return {"p50": float(p[0]), "p90": float(p[1]), "p99": float(p[2]), "max": float(v.max())}
+
+
+def time_coverage(cols: dict, steps: int = TIME_STEPS) -> dict:
+    """How many splats the viewer draws at each of ``steps`` times over [0, 1]."""
+    centre = np.asarray(cols["trbf_center"], dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        scale = np.exp(np.asarray(cols["trbf_scale"], dtype=np.float64))
+        times = np.linspace(0.0, 1.0, steps)
+        visible = [int(np.count_nonzero(np.exp(-(((t - centre) / scale) ** 2)) >= TEMPORAL_CUTOFF)) for t in times]
+    return {"times": [round(float(t), 6) for t in times], "visible": visible}
+
+
+def motion_summary(cols: dict) -> dict:
+    """Percentiles of |velocity|, |acceleration|, |jerk| (motion_0..8) and |omega|."""
+
+    def norm(names):
+        return np.sqrt(sum(np.asarray(cols[n], dtype=np.float64) ** 2 for n in names))
+
+    return {
+        "velocity": _percentiles(norm(("motion_0", "motion_1", "motion_2"))),
+        "acceleration": _percentiles(norm(("motion_3", "motion_4", "motion_5"))),
+        "jerk": _percentiles(norm(("motion_6", "motion_7", "motion_8"))),
+        "omega": _percentiles(norm(tuple(f"omega_{i}" for i in range(4)))),
+    }
+
+
+def _counts(source_cols: dict, converted_cols: dict, group: str) -> dict:
+    """Per-group counts: nonfinite, overflow, underflow, subnormal, clamped."""
+    from .compare import HALF_MAX, viewer_values
+
+    a = viewer_values(source_cols, group)
+    b = viewer_values(converted_cols, group)
+    raw = np.stack([np.asarray(source_cols[n], dtype=np.float64) for n in GROUPS[group]], axis=1)
+    finite = np.isfinite(a)
+    out = {"nonfinite": int(np.count_nonzero(~np.isfinite(b))), "overflow": 0, "underflow": 0, "subnormal": 0,
+           "clamped": 0}
+    if group in HALF_GROUPS:
+        out["overflow"] = int(np.count_nonzero(finite & (np.abs(a) > HALF_MAX)))
+        out["subnormal"] = int(np.count_nonzero((b != 0) & (np.abs(b) < 2.0**-14)))
+    if group != "position":
+        out["underflow"] = int(np.count_nonzero(finite & (a != 0) & (b == 0)))
+    if group == "color":
+        out["clamped"] = int(np.count_nonzero((raw < 0) | (raw > 1)))
+    return out
+
+
+def splatvjs_damage(cols: dict) -> dict:
+    """What splaTV's own converter would corrupt in these attributes, per group.
+
+    ``infinity``: finite values it writes as infinity (|x| >= 32768 after exp);
+    ``garbled``: tiny values (2^-56 <= |x| < 2^-45) its shift wraps into nonzero
+    garbage where the true half is zero.
+    """
+    from .compare import viewer_values
+    from .packing import f32_bits, float_to_half_splatvjs
+
+    out = {}
+    for group in HALF_GROUPS:
+        with np.errstate(over="ignore", invalid="ignore"):
+            v = viewer_values(cols, group).astype(np.float32).ravel()
+        bits = f32_bits(v)
+        exp = (bits >> 23) & 0xFF
+        tiny = (exp >= 1) & (exp <= 81)
+        garbled = tiny & ((float_to_half_splatvjs(v) & 0x7FFF) != 0)
+        out[group] = {"infinity": int(np.count_nonzero(np.isfinite(v) & (np.abs(v) >= 32768))),
+                      "garbled": int(np.count_nonzero(garbled))}
+    return out
+
+
+def _file_entry(role: str, path, fmt: str, size: int, count: int, zstd_bytes: int, level: int,
+                source_bytes: int) -> dict:
+    return {
+        "role": role,
+        "path": path,
+        "format": fmt,
+        "bytes": size,
+        "bytes_per_splat": round(size / count, 3) if count else None,
+        "zstd_bytes": zstd_bytes,
+        "zstd_level": level,
+        "ratio": round(size / source_bytes, 6) if source_bytes else None,
+        "zstd_ratio": round(zstd_bytes / source_bytes, 6) if source_bytes else None,
+    }
+
+
+def stats_report(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
+                 color: str = "auto") -> dict:
+    """The ``stats`` report as JSON-able data (keys documented in ``specs/stats.md``).
+
+    With one file, the conversion it would get (default writer) is simulated in
+    memory and reported as ``converted``, with ``path`` null.
+    """
+    import os
+
+    from . import read
+    from .compare import align, compare_scenes
+    from .formats import format_for, splatv
+    from .model import Scene
+    from .transport import DEFAULT_LEVEL, compressed_size, compressed_size_of
+
+    level = DEFAULT_LEVEL if zstd_level is None else zstd_level
+    source = read(source_path, color=color)
+    src_fmt = format_for(source_path).NAME
+    src_bytes = os.path.getsize(source_path)
+    files = [_file_entry("source", source_path, src_fmt, src_bytes, source.count,
+                         compressed_size(source_path, level), level, src_bytes)]
+    if converted_path is not None:
+        converted = read(converted_path, color=color)
+        order = align(source, converted, source_path, converted_path)
+        files.append(_file_entry("converted", converted_path, format_for(converted_path).NAME,
+                                 os.path.getsize(converted_path), converted.count,
+                                 compressed_size(converted_path, level), level, src_bytes))
+    else:
+        order = None
+        if src_fmt == "splatv":
+            converted = source  # already what the viewer reads
+        else:
+            from .cameras import framing_camera
+
+            # Exactly what convert would write: default writer, importance order.
+            records, _ = splatv.encode(source)
+            cams = source.cameras or [framing_camera(source.columns["x"], source.columns["y"], source.columns["z"])]
+            header = splatv.header_bytes(source.count, cams)
+            columns, _ = splatv.decode_records(records[:source.count])
+            converted = Scene(columns=columns, cameras=cams)
+            order = align(source, converted)
+            size = len(header) + records.nbytes
+            files.append(_file_entry("converted", None, "splatv", size, source.count,
+                                     compressed_size_of([header, memoryview(records)], level), level, src_bytes))
+    errors = compare_scenes(source, converted, order)
+    src_cols = source.columns if order is None else source.take(order)
+    attributes = {}
+    for group, e in errors.items():
+        attributes[group] = {"max_abs_error": e.max_abs_error, "max_rel_error": e.max_rel_error, "rmse": e.rmse,
+                             **_counts(src_cols, converted.columns, group)}
+    info = describe(converted, files[-1]["path"] or source_path, files[-1]["format"])
+    texheight = splatv.texture_height(converted.count)
+    xyz = np.stack([converted.columns[c] for c in ("x", "y", "z")])
+    nan_pos = int(np.count_nonzero((~np.isfinite(xyz)).any(axis=0)))
+    cameras = converted.cameras
+    return {
+        "files": files,
+        "count": source.count,
+        "bounds": info["bounds"],
+        "time": time_coverage(converted.columns),
+        "motion": motion_summary(converted.columns),
+        "attributes": attributes,
+        "viewer": {
+            "texture_height": texheight,
+            "fits_max_texture_size": {str(s): texheight <= s for s in MAX_TEXTURE_SIZES},
+            "cameras": len(cameras or []),
+            "empty_cameras": not cameras,
+            "nan_positions": nan_pos,
+            "splatv_js_damage": splatvjs_damage(source.columns) if src_fmt != "splatv" else None,
+        },
+    }
