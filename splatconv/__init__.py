@@ -34,14 +34,20 @@ def read(path: str | os.PathLike, *, color: str = "auto") -> Scene:
         How a PLY's ``f_dc_0..2`` are read (see :func:`splatconv.formats.ply.read`).
     """
     from .formats import format_for
+    from .transport import is_compressed, plain_input
 
     if color not in COLOR_MODES:
         raise UsageError(f"unknown colour mode {color!r} (expected one of {', '.join(COLOR_MODES)})")
-    return format_for(path).read(path, color=color)
+    module = format_for(path)
+    with plain_input(path) as plain:
+        scene = module.read(plain, color=color)
+    if is_compressed(path):
+        scene.meta["compressed_bytes"] = os.path.getsize(path)
+    return scene
 
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
-          force: bool = False, inputs=()):
+          force: bool = False, inputs=(), zstd_level: int | None = None):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -57,6 +63,9 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         Replace an existing file (never an input).
     inputs : iterable of path
         Files the scene came from; writing onto them is refused.
+    zstd_level : int, optional
+        Level for a ``.zst`` output (default 19); the data is compressed as it
+        is written, never held twice.
 
     Returns
     -------
@@ -65,6 +74,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     """
     from .formats import format_for, splatv
     from .fsutil import atomic_writer, check_output
+    from .transport import DEFAULT_LEVEL, output_stream
 
     module = format_for(path)
     if compat is not None and compat not in COMPAT_MODES:
@@ -74,12 +84,14 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     if sort is not None and sort not in SORT_MODES:
         raise UsageError(f"unknown sort {sort!r} (expected one of {', '.join(SORT_MODES)})")
     check_output(path, inputs, force)
-    with atomic_writer(path) as stream:
-        return module.write(scene, stream, compat=compat, sort=sort)
+    level = DEFAULT_LEVEL if zstd_level is None else zstd_level
+    with atomic_writer(path) as stream, output_stream(stream, path, level) as out:
+        return module.write(scene, out, compat=compat, sort=sort)
 
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
-            sort: str | None = None, cameras=None, color: str = "auto", force: bool = False):
+            sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
+            zstd_level: int | None = None):
     """Read ``source`` and write it to ``output``; formats by suffix.
 
     Parameters
@@ -106,5 +118,5 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         raise UnsupportedError("holds no splats; the viewer cannot show an empty texture", source)
     if camera_list is not None:
         scene.cameras = camera_list
-    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source])
+    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level)
     return scene, report

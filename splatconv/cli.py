@@ -68,15 +68,18 @@ def main():
               help="Read PLY f_dc_0..2 as RGB (Spacetime Gaussians lite) or as SH degree 0 (3DGS); "
                    "auto picks by the variant.")
 @click.option("--force", is_flag=True, help="Replace OUTPUT if it exists (never the input).")
+@click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
+              help="zstd level for a .zst OUTPUT, e.g. scene.splatv.zst [default: 19].")
 @_library_errors
-def convert(input_path, output_path, compat, sort, cameras, color, force):
-    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv).
+def convert(input_path, output_path, compat, sort, cameras, color, force, zstd_level):
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, either + .zst).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
-    reported as notes on stderr. OUTPUT is written atomically.
+    reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
+    compressed while it is written.
     """
     scene, report = splatconv.convert(input_path, output_path, compat=compat, sort=sort,
-                                      cameras=cameras, color=color, force=force)
+                                      cameras=cameras, color=color, force=force, zstd_level=zstd_level)
     _notes(scene.notes)
     _notes(report.notes)
     size = os.path.getsize(output_path)

@@ -18,7 +18,8 @@ def _fmt_range(r) -> str:
 def info_text(info: dict) -> str:
     """Human-readable ``info`` output, one fact per line."""
     lines = [
-        f"file:      {info['path']} ({info['file_bytes']:,} bytes)",
+        f"file:      {info['path']} ({info['file_bytes']:,} bytes"
+        + (f", {info['compressed_bytes']:,} zstd-compressed)" if info.get("compressed_bytes") else ")"),
         f"format:    {info['format']}" + (f" ({info['ply_format']})" if info.get("ply_format") else ""),
         f"variant:   {info['variant']}" + (f", colour read as {info['color']}" if info.get("color") else ""),
         f"count:     {info['count']:,} splats",

@@ -36,7 +36,8 @@ def describe(scene: Scene, path: str, fmt: str) -> dict:
     Returns
     -------
     dict
-        Keys: path, format, variant, count, file_bytes, texture, cameras,
+        Keys: path, format, variant, count, file_bytes (uncompressed),
+        compressed_bytes (on disk, for .zst files, else None), texture, cameras,
         time_range, visible_time_range, bounds, nonfinite, and format-specific
         extras (ply: ply_format, color, ignored_properties, extra_elements;
         splatv: chunks), notes.
@@ -66,6 +67,7 @@ def describe(scene: Scene, path: str, fmt: str) -> dict:
         "variant": scene.variant,
         "count": n,
         "file_bytes": meta.get("file_bytes"),
+        "compressed_bytes": meta.get("compressed_bytes"),
         "texture": texture,
         "cameras": [{"id": c.get("id"), "img_name": c.get("img_name"), "width": c.get("width"),
                      "height": c.get("height")} for c in (scene.cameras or [])],
@@ -173,6 +175,16 @@ def splatvjs_damage(cols: dict) -> dict:
     return out
 
 
+def _sizes(path: str, level: int) -> tuple:
+    """(uncompressed bytes, zstd bytes at ``level``) of a file, ``.zst`` or not."""
+    import os
+
+    from .transport import compressed_size, plain_input
+
+    with plain_input(path) as plain:
+        return os.path.getsize(plain), compressed_size(plain, level)
+
+
 def _file_entry(role: str, path, fmt: str, size: int, count: int, zstd_bytes: int, level: int,
                 source_bytes: int) -> dict:
     return {
@@ -195,26 +207,23 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
     With one file, the conversion it would get (default writer) is simulated in
     memory and reported as ``converted``, with ``path`` null.
     """
-    import os
-
     from . import read
     from .compare import align, compare_scenes
     from .formats import format_for, splatv
     from .model import Scene
-    from .transport import DEFAULT_LEVEL, compressed_size, compressed_size_of
+    from .transport import DEFAULT_LEVEL, compressed_size_of
 
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     source = read(source_path, color=color)
     src_fmt = format_for(source_path).NAME
-    src_bytes = os.path.getsize(source_path)
-    files = [_file_entry("source", source_path, src_fmt, src_bytes, source.count,
-                         compressed_size(source_path, level), level, src_bytes)]
+    src_bytes, src_zstd = _sizes(source_path, level)
+    files = [_file_entry("source", source_path, src_fmt, src_bytes, source.count, src_zstd, level, src_bytes)]
     if converted_path is not None:
         converted = read(converted_path, color=color)
         order = align(source, converted, source_path, converted_path)
-        files.append(_file_entry("converted", converted_path, format_for(converted_path).NAME,
-                                 os.path.getsize(converted_path), converted.count,
-                                 compressed_size(converted_path, level), level, src_bytes))
+        conv_bytes, conv_zstd = _sizes(converted_path, level)
+        files.append(_file_entry("converted", converted_path, format_for(converted_path).NAME, conv_bytes,
+                                 converted.count, conv_zstd, level, src_bytes))
     else:
         order = None
         if src_fmt == "splatv":

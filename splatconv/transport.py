@@ -6,7 +6,9 @@ never sits in memory twice.
 
 from __future__ import annotations
 
+import contextlib
 import os
+import tempfile
 
 #: Default zstd level for reports and ``.zst`` output: 19, zstd's highest level
 #: before the "ultra" ones, worth it for files served many times.
@@ -48,3 +50,62 @@ def compressed_size_of(chunks, level: int = DEFAULT_LEVEL) -> int:
         for chunk in chunks:
             w.write(chunk)
     return sink.count
+
+
+def is_compressed(path) -> bool:
+    """True for a ``.zst`` path (``scene.splatv.zst``, ``scene.ply.zst``)."""
+    return os.fspath(path).lower().endswith(SUFFIX)
+
+
+def inner_name(path) -> str:
+    """The path without its ``.zst`` suffix (which names the format inside)."""
+    path = os.fspath(path)
+    return path[: -len(SUFFIX)] if is_compressed(path) else path
+
+
+@contextlib.contextmanager
+def plain_input(path):
+    """Yield a path to the uncompressed bytes of ``path``.
+
+    A ``.zst`` file is stream-decompressed into a temporary file (removed on exit;
+    memory maps of it stay valid on POSIX), so a large scene never sits in memory
+    twice. Errors raised inside name ``path``, not the temporary file.
+    """
+    from .errors import FormatError, SplatconvError
+
+    path = os.fspath(path)
+    if not is_compressed(path):
+        yield path
+        return
+    import zstandard
+
+    suffix = os.path.splitext(inner_name(path))[1]
+    fd, tmp = tempfile.mkstemp(prefix="splatconv-", suffix=suffix)
+    try:
+        with os.fdopen(fd, "wb") as out:
+            try:
+                with open(path, "rb") as f:
+                    zstandard.ZstdDecompressor().copy_stream(f, out)
+            except FileNotFoundError:
+                raise FormatError("cannot open: No such file or directory", path) from None
+            except zstandard.ZstdError as e:
+                raise FormatError(f"not a valid zstd stream ({e})", path) from None
+        try:
+            yield tmp
+        except SplatconvError as e:
+            if e.path == tmp:
+                e.path = path
+            raise
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def output_stream(stream, path, level: int = DEFAULT_LEVEL):
+    """Wrap a binary output stream in a zstd compressor when ``path`` ends in ``.zst``."""
+    if not is_compressed(path):
+        yield stream
+        return
+    with compressor(level).stream_writer(stream, closefd=False) as z:
+        yield z

@@ -2,7 +2,8 @@
 
 A format module has ``NAME``, ``SUFFIXES``, ``read(path, **options) -> Scene``
 and ``write(scene, stream, **options) -> WriteReport``. Adding a format is adding
-a module and one line to ``_MODULES``.
+a module and one line to ``_MODULES``. A ``.zst`` suffix after a format's suffix
+means the same format, zstd-compressed (see :mod:`splatconv.transport`).
 """
 
 from __future__ import annotations
@@ -24,10 +25,12 @@ def format_for(path: str | os.PathLike):
     UsageError
         For a suffix no format claims.
     """
+    from ..transport import inner_name
+
     path = os.fspath(path)
-    lower = path.lower()
+    lower = inner_name(path).lower()
     for suffix, module in REGISTRY.items():
         if lower.endswith(suffix):
             return module
     known = ", ".join(sorted(REGISTRY))
-    raise UsageError(f"unknown file type (expected one of {known})", path)
+    raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)

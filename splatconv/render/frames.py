@@ -62,8 +62,10 @@ def splatv_texture(path: str):
         The records decoded to model columns (one read of the file serves both).
     """
     from ..model import Scene
+    from ..transport import plain_input
 
-    records, chunk, meta, notes = splatv.read_records(path)
+    with plain_input(path) as plain:
+        records, chunk, meta, notes = splatv.read_records(plain)
     count = len(records)
     rows = splatv.texture_height(count)
     if meta["texheight"] * splatv.SPLATS_PER_ROW > rows * splatv.SPLATS_PER_ROW == count:
