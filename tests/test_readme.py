@@ -62,3 +62,15 @@ def test_verify_example_runs_and_passes(tmp_path):
     # The table's shape and verdict are as printed; exact dB depend on the GL driver.
     assert example[0] == result.stdout.splitlines()[0]
     assert example[-1].startswith("PASS: 3 frames")
+
+
+def test_stats_example(tmp_path):
+    os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
+    os.chdir(tmp_path)
+    assert CliRunner().invoke(main, splatconv_args(quick_start_commands()[0])).exit_code == 0
+    block = README.split("$ splatconv stats ", 1)[1]
+    command, printed = block.split("\n", 1)
+    printed = printed.split("```", 1)[0]
+    result = CliRunner().invoke(main, ["stats"] + shlex.split(command))
+    assert result.exit_code == 0, result.output
+    assert result.stdout == printed
