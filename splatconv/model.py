@@ -25,6 +25,11 @@ OMEGA = ("omega_0", "omega_1", "omega_2", "omega_3")
 
 COLUMNS = POSITION + TRBF + MOTION + COLOR + OPACITY + SCALE + ROTATION + OMEGA
 
+#: Normals: in the lite PLY row, always zero, not part of the model.
+NORMALS = ("nx", "ny", "nz")
+#: Fields of a Spacetime Gaussians lite PLY row, in file order.
+LITE_ROW = POSITION + TRBF + NORMALS + MOTION + COLOR + OPACITY + SCALE + ROTATION + OMEGA
+
 #: Attribute groups, as reports name them.
 GROUPS = {
     "position": POSITION,
@@ -111,3 +116,80 @@ class Scene:
 def constant_column(value, count: int) -> np.ndarray:
     """A read-only ``(count,) float32`` column holding ``value``, using no memory."""
     return np.broadcast_to(np.float32(value), (count,))
+
+
+def lite_rows(count: int) -> tuple[np.ndarray, dict]:
+    """A table in the lite PLY row layout, and the model columns as views of it.
+
+    Filling the columns fills the rows, so a lite PLY writer can write the
+    table as it is.
+
+    Parameters
+    ----------
+    count : int
+        Rows N.
+
+    Returns
+    -------
+    rows : (N, 32) float32 ndarray
+        Fields in :data:`LITE_ROW` order; the normals are zero, the rest
+        uninitialised.
+    columns : dict of str to (N,) float32 ndarray
+        Writeable strided views of ``rows``, one per name in :data:`COLUMNS`.
+    """
+    rows = np.empty((count, len(LITE_ROW)), dtype=np.float32)
+    columns = {}
+    for i, name in enumerate(LITE_ROW):
+        if name in NORMALS:
+            rows[:, i] = 0.0
+        else:
+            columns[name] = rows[:, i]
+    return rows, {name: columns[name] for name in COLUMNS}
+
+
+def _buffer_root(a: np.ndarray):
+    """The object that owns ``a``'s memory (the end of its chain of bases)."""
+    while isinstance(a.base, np.ndarray):
+        a = a.base
+    return a if a.base is None else a.base
+
+
+def row_fields(columns: list):
+    """Whether columns are fields of one row-major buffer, and where.
+
+    True of columns read from a memory-mapped binary PLY, or made by
+    :func:`lite_rows`: a block of rows can then be copied whole, or split into
+    columns by a few transposed copies, instead of one strided pass per column.
+
+    Parameters
+    ----------
+    columns : list of ndarray
+
+    Returns
+    -------
+    (matrix, fields) or None
+        ``matrix`` is an ``(N, W) float32`` read-only view from the first to the
+        last of the fields in each row (so it stays inside the buffer) and
+        ``matrix[:, fields[i]]`` is ``columns[i]``. None unless all columns are
+        native float32 values at 4-byte-aligned offsets of one row stride, in
+        one buffer.
+    """
+    first = columns[0]
+    n = len(first)
+    stride = first.strides[0] if first.ndim == 1 else 0
+    if n == 0 or stride <= 0 or stride % 4:
+        return None
+    root = _buffer_root(first)
+    for c in columns:
+        if (c.ndim != 1 or len(c) != n or c.dtype != np.dtype("=f4") or c.strides[0] != stride
+                or _buffer_root(c) is not root):
+            return None
+    address = [c.__array_interface__["data"][0] for c in columns]
+    base = min(address)
+    offsets = [a - base for a in address]
+    if any(o % 4 or o >= stride for o in offsets):
+        return None
+    fields = [o // 4 for o in offsets]
+    matrix = np.lib.stride_tricks.as_strided(columns[address.index(base)], shape=(n, max(fields) + 1),
+                                             strides=(stride, 4), writeable=False)
+    return matrix, fields

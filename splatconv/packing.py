@@ -91,36 +91,96 @@ def _nan_to_half(bits: np.ndarray) -> np.ndarray:
     return (((bits >> 16) & HALF_SIGN_BIT) | HALF_INF_BITS | mant).astype(np.uint16)
 
 
+#: Bits (sign cleared) of the float32 range the fast accurate path converts: from
+#: 2^-14, the smallest normal half, to 65504, the largest half. Inside it the
+#: result is a normal half and rounding never saturates.
+_NEAREST_LO = 0x38800000
+_NEAREST_HI = 0x477FE000
+#: Rounding bias minus the exponent rebias (127 - 15 = 112), modulo 2^32.
+_NEAREST_ADD = (0x0FFF - (112 << 23)) & 0xFFFFFFFF
+#: Bits (sign cleared) of the float32 range the fast splaTV path converts:
+#: float32 exponents 113 to 141, where floatToHalf is a plain truncation.
+_SPLATVJS_LO = 0x38800000
+_SPLATVJS_HI = 0x47000000
+
+
+def float_to_half_into(x: np.ndarray, out: np.ndarray, *, splatvjs: bool = False,
+                       scratch: np.ndarray | None = None) -> np.ndarray:
+    """Convert the common case in a few integer passes; flag the rest.
+
+    ``numpy``'s float16 cast runs about 6 ns a value with no SIMD; the integer
+    passes here cost a third of that. They are exact only where the result is a
+    normal half (and, for :func:`float_to_half`, no saturation), so every other
+    value -- zero, tiny, huge, infinite, NaN -- is flagged for the exact
+    converters, which callers run on that (usually empty) subset.
+
+    Parameters
+    ----------
+    x : float32 ndarray, any shape, C-contiguous
+    out : uint16 ndarray, same shape as ``x``
+        Receives the half bits; flagged entries hold garbage.
+    splatvjs : bool
+        Truncate as :func:`float_to_half_splatvjs` instead of rounding as
+        :func:`float_to_half`.
+    scratch : uint32 ndarray, optional
+        At least ``scratch_size(x.size)`` elements to work in, instead of
+        allocating; the returned flags are a view into it.
+
+    Returns
+    -------
+    bool ndarray, same shape as ``x``
+        True where ``out`` must be replaced by the exact converter's result.
+    """
+    n = x.size
+    if scratch is None:
+        scratch = np.empty(scratch_size(n), dtype=np.uint32)
+    u = x.view(np.uint32)
+    a = scratch[:n].reshape(x.shape)
+    t = scratch[n:2 * n].reshape(x.shape)
+    flagged = scratch[2 * n:].view(np.bool_)[:n].reshape(x.shape)
+    np.bitwise_and(u, np.uint32(0x7FFFFFFF), out=a)
+    np.right_shift(a, np.uint32(13), out=t)
+    if splatvjs:
+        t -= np.uint32(112 << 10)
+        lo, hi = _SPLATVJS_LO, _SPLATVJS_HI - 1
+    else:
+        # Round half to even at bit 13: add 0xFFF plus the lowest kept bit.
+        t &= np.uint32(1)
+        t += a
+        t += np.uint32(_NEAREST_ADD)
+        t >>= np.uint32(13)
+        lo, hi = _NEAREST_LO, _NEAREST_HI
+    # One unsigned compare tests lo <= a <= hi: values below lo wrap to the top.
+    a -= np.uint32(lo)
+    np.greater(a, np.uint32(hi - lo), out=flagged)
+    sign = np.right_shift(u, np.uint32(16), out=a)
+    sign &= np.uint32(HALF_SIGN_BIT)
+    np.bitwise_or(t, sign, out=out, casting="unsafe")
+    return flagged
+
+
+def scratch_size(n: int) -> int:
+    """uint32 elements of working space :func:`float_to_half_into` needs for ``n`` values."""
+    return 2 * n + -(-n // 4)
+
+
 def float_to_half(x: np.ndarray, counts: HalfCounts | None = None) -> np.ndarray:
     """Accurate float32 -> half: round to nearest even, saturate, keep NaN.
 
     Parameters
     ----------
-    x : (N,) float32 ndarray
+    x : float32 ndarray, any shape
+        Other float dtypes are rounded to float32 first.
     counts : HalfCounts, optional
         Incremented with the number of saturated, flushed-to-zero and
         non-finite inputs.
 
     Returns
     -------
-    (N,) uint16 ndarray
+    uint16 ndarray, shape of ``x``
         Half bit patterns.
     """
-    x = np.asarray(x, dtype=np.float32)
-    with np.errstate(over="ignore", invalid="ignore"):
-        out = x.astype(np.float16).view(np.uint16)
-    finite = np.isfinite(x)
-    over = finite & (np.abs(x) > HALF_MAX)
-    nan = np.isnan(x)
-    if over.any():
-        out[over] = HALF_MAX_BITS | (f32_bits(x[over]) >> 16 & HALF_SIGN_BIT).astype(np.uint16)
-    if nan.any():
-        out[nan] = _nan_to_half(f32_bits(x[nan]))
-    if counts is not None:
-        counts.overflow += int(np.count_nonzero(over))
-        counts.nonfinite += int(x.size - np.count_nonzero(finite))
-        counts.underflow += int(np.count_nonzero((out & 0x7FFF == 0) & (x != 0) & finite))
-    return out
+    return _convert(x, counts, False)
 
 
 def float_to_half_splatvjs(x: np.ndarray, counts: HalfCounts | None = None) -> np.ndarray:
@@ -134,15 +194,80 @@ def float_to_half_splatvjs(x: np.ndarray, counts: HalfCounts | None = None) -> n
 
     Parameters
     ----------
-    x : (N,) float32 ndarray
+    x : float32 ndarray, any shape
     counts : HalfCounts, optional
         ``overflow`` counts finite inputs made infinite; ``underflow`` nonzero
         inputs made zero.
 
     Returns
     -------
-    (N,) uint16 ndarray
+    uint16 ndarray, shape of ``x``
     """
+    return _convert(x, counts, True)
+
+
+def _convert(x, counts: HalfCounts | None, splatvjs: bool) -> np.ndarray:
+    """Fast path for the bulk, exact converter for the flagged rest."""
+    with np.errstate(over="ignore", invalid="ignore"):  # float64 input past float32's range
+        x = np.asarray(x, dtype=np.float32)
+    if not x.flags.c_contiguous:
+        x = x.copy()
+    out = np.empty(x.shape, dtype=np.uint16)
+    flagged = float_to_half_into(x, out, splatvjs=splatvjs)
+    if flagged.any():
+        # Values in the fast range add nothing to the counts, so counting the
+        # flagged subset alone gives the totals.
+        idx = np.flatnonzero(flagged)
+        half, overflow, underflow, nonfinite = float_to_half_exact(x.reshape(-1)[idx], splatvjs=splatvjs)
+        out.reshape(-1)[idx] = half
+        if counts is not None:
+            counts.overflow += int(np.count_nonzero(overflow))
+            counts.underflow += int(np.count_nonzero(underflow))
+            counts.nonfinite += int(np.count_nonzero(nonfinite))
+    return out
+
+
+def float_to_half_exact(x: np.ndarray, *, splatvjs: bool = False):
+    """The exact converters on any values, with what each value went through.
+
+    The reference behind :func:`float_to_half` and :func:`float_to_half_splatvjs`
+    (which run it on what :func:`float_to_half_into` flags); the masks let a caller
+    count per attribute over a mixed subset.
+
+    Parameters
+    ----------
+    x : (N,) float32 ndarray
+    splatvjs : bool
+        splaTV's truncating ``floatToHalf`` instead of round to nearest even.
+
+    Returns
+    -------
+    half : (N,) uint16 ndarray
+    overflow, underflow, nonfinite : (N,) bool ndarray
+        Finite values past the half range (saturated, or made infinite by
+        splaTV's converter); nonzero values made zero; NaN and infinities.
+    """
+    x = np.asarray(x, dtype=np.float32)
+    if splatvjs:
+        return _splatvjs_exact(x)
+    return _nearest_exact(x)
+
+
+def _nearest_exact(x: np.ndarray):
+    with np.errstate(over="ignore", invalid="ignore"):
+        out = x.astype(np.float16).view(np.uint16)
+    finite = np.isfinite(x)
+    over = finite & (np.abs(x) > HALF_MAX)
+    nan = np.isnan(x)
+    if over.any():
+        out[over] = HALF_MAX_BITS | (f32_bits(x[over]) >> 16 & HALF_SIGN_BIT).astype(np.uint16)
+    if nan.any():
+        out[nan] = _nan_to_half(f32_bits(x[nan]))
+    under = (out & 0x7FFF == 0) & (x != 0) & finite
+    return out, over, under, ~finite
+
+
+def _splatvjs_exact(x: np.ndarray):
     f = f32_bits(x)
     sign = (f >> 31) << 15
     exp = (f >> 23) & 0xFF
@@ -156,12 +281,10 @@ def float_to_half_splatvjs(x: np.ndarray, counts: HalfCounts | None = None) -> n
     new_exp = np.where(exp < 113, 0, np.where(exp < 142, exp - 112, 31)).astype(np.uint32)
     frac = np.where(exp >= 142, 0, frac)
     out = (sign | (new_exp << 10) | (frac >> 13)).astype(np.uint16)
-    if counts is not None:
-        finite = exp != 0xFF
-        counts.overflow += int(np.count_nonzero(finite & (exp >= 142)))
-        counts.nonfinite += int(np.count_nonzero(~finite))
-        counts.underflow += int(np.count_nonzero((out & 0x7FFF == 0) & (f & 0x7FFFFFFF != 0)))
-    return out
+    finite = exp != 0xFF
+    over = finite & (exp >= 142)
+    under = (out & 0x7FFF == 0) & (f & 0x7FFFFFFF != 0)
+    return out, over, under, ~finite
 
 
 def pack_half2(low: np.ndarray, high: np.ndarray) -> np.ndarray:
@@ -170,9 +293,16 @@ def pack_half2(low: np.ndarray, high: np.ndarray) -> np.ndarray:
 
 
 def unpack_half2(words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``(N,) uint32`` -> (low, high) ``(N,) uint16`` halves."""
+    """``(N,) uint32`` -> (low, high) ``(N,) uint16`` halves.
+
+    The halves are read-only strided views of ``words`` (when it already is a
+    native uint32 array): a uint16 view splits words without shifting or copying.
+    """
     words = np.asarray(words, dtype=np.uint32)
-    return (words & 0xFFFF).astype(np.uint16), (words >> 16).astype(np.uint16)
+    halves = words[..., None].view(np.uint16)
+    halves.flags.writeable = False
+    low = 0 if np.little_endian else 1
+    return halves[..., low], halves[..., 1 - low]
 
 
 def unorm8_nearest(v: np.ndarray) -> tuple[np.ndarray, int, int]:
@@ -214,6 +344,13 @@ def pack_rgba8(r, g, b, a) -> np.ndarray:
 
 
 def unpack_rgba8(words: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``(N,) uint32`` -> R, G, B, A ``(N,) uint8`` (R is the low byte)."""
+    """``(N,) uint32`` -> R, G, B, A ``(N,) uint8`` (R is the low byte).
+
+    Read-only strided views of ``words`` (when it already is a native uint32
+    array), as :func:`unpack_half2` gives.
+    """
     words = np.asarray(words, dtype=np.uint32)
-    return tuple(((words >> s) & 0xFF).astype(np.uint8) for s in (0, 8, 16, 24))
+    channels = words[..., None].view(np.uint8)
+    channels.flags.writeable = False
+    order = (0, 1, 2, 3) if np.little_endian else (3, 2, 1, 0)
+    return tuple(channels[..., i] for i in order)

@@ -155,3 +155,52 @@ def test_rgba8_red_in_low_byte():
     word = packing.pack_rgba8(*(np.array([v], np.uint8) for v in (1, 2, 3, 4)))
     assert word[0] == 0x04030201
     assert [c[0] for c in packing.unpack_rgba8(word)] == [1, 2, 3, 4]
+
+
+def _special_bit_patterns() -> np.ndarray:
+    """float32 bit patterns around every boundary the fast paths test, plus random ones."""
+    edges = [0, 1, 0x00800000, 0x33000000, 0x33800000, 0x387FE000, 0x38800000, 0x477FE000, 0x477FF000,
+             0x47000000, 0x7F7FFFFF, 0x7F800000, 0x7F800001, 0x7FC00000, 0x7FFFFFFF]
+    around = np.array(edges, np.int64)[:, None] + np.arange(-300, 301)
+    around = around[(around >= 0) & (around < 1 << 31)].astype(np.uint32)
+    rng = np.random.default_rng(0)
+    rand = rng.integers(0, 1 << 32, 1 << 18, dtype=np.uint64).astype(np.uint32)
+    normal = rng.normal(0, 1, 1 << 16).astype(np.float32).view(np.uint32)
+    bits = np.concatenate([around, rand, normal])
+    return np.concatenate([bits, bits | np.uint32(0x80000000)])
+
+
+@pytest.mark.parametrize("splatvjs", [False, True])
+def test_fast_paths_match_the_exact_converters(splatvjs):
+    # The integer fast path handles the common range and flags the rest; together
+    # they must equal the exact converter everywhere, counts included.
+    x = _special_bit_patterns().view(np.float32)
+    convert = packing.float_to_half_splatvjs if splatvjs else packing.float_to_half
+    counts = packing.HalfCounts()
+    got = convert(x, counts)
+    want, overflow, underflow, nonfinite = packing.float_to_half_exact(x, splatvjs=splatvjs)
+    assert np.array_equal(got, want)
+    assert (counts.overflow, counts.underflow, counts.nonfinite) == (
+        int(overflow.sum()), int(underflow.sum()), int(nonfinite.sum()))
+    # Any shape; 2-D input gives the same bits.
+    assert np.array_equal(convert(x[: 1 << 16].reshape(256, 256)).ravel(), want[: 1 << 16])
+
+
+def test_fast_path_flags_exactly_what_it_cannot_convert():
+    x = np.array([1.0, -2.5, 6.1035156e-05, 65504, 0.0, 1e-6, 65505, np.inf, np.nan], np.float32)
+    out = np.empty(len(x), np.uint16)
+    flagged = packing.float_to_half_into(x, out)
+    assert flagged.tolist() == [False, False, False, False, True, True, True, True, True]
+    assert out[:4].tolist() == [0x3C00, 0xC100, 0x0400, 0x7BFF]
+
+
+def test_unpack_views_do_not_copy_and_are_read_only():
+    words = np.array([0x04030201, 0xAABBCCDD], np.uint32)
+    lo, hi = packing.unpack_half2(words)
+    assert lo.tolist() == [0x0201, 0xCCDD] and hi.tolist() == [0x0403, 0xAABB]
+    assert np.shares_memory(lo, words) and not lo.flags.writeable
+    strided = np.arange(32, dtype=np.uint32).reshape(8, 4)[:, 1] * np.uint32(0x10001)
+    lo, hi = packing.unpack_half2(strided)
+    assert np.array_equal(lo, strided & 0xFFFF) and np.array_equal(hi, strided >> 16)
+    r, g, b, a = packing.unpack_rgba8(words)
+    assert [r[1], g[1], b[1], a[1]] == [0xDD, 0xCC, 0xBB, 0xAA]

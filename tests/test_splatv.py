@@ -318,3 +318,165 @@ def test_compat_quiets_signalling_nan_positions_like_the_browser():
     assert pack(cols, compat=True)[0][0, 0] == 0x7FC00001
     assert pack(cols, compat=True)[0][0, 2] == 0xFFC00005
     assert pack(cols)[0][0, 0] == 0x7F800001
+
+
+# --------------------------------------------------------------------------
+# The fast writer (blocks packed by threads, integer half conversion, packed-key
+# sort, camera percentiles by sorting) against a plain reference of the format.
+
+
+def reference_texture(cols: dict, compat: bool, sort: bool) -> np.ndarray:
+    """Records the straightforward way: per column, exact converters, stable argsort."""
+    with np.errstate(all="ignore"):
+        def halves(name):
+            v = cols[name]
+            if name in splatv.EXP_ATTRIBUTES:
+                lin = np.exp(v.astype(np.float64)).astype(np.float32)
+                if compat:
+                    lin[np.isnan(v)] = v[np.isnan(v)]
+                    return packing.float_to_half_exact(lin, splatvjs=True)[0]
+                out = packing.float_to_half_exact(lin)[0]
+                out[np.isnan(v)] = packing.float_to_half_exact(v[np.isnan(v)])[0]
+                return out
+            return packing.float_to_half_exact(v, splatvjs=compat)[0]
+
+        n = len(cols["x"])
+        recs = np.zeros((n, 16), np.uint32)
+        for w, name in splatv.POSITION_WORDS.items():
+            bits = packing.f32_bits(cols[name]).copy()
+            if compat:
+                bits[np.isnan(cols[name])] |= np.uint32(0x00400000)
+            recs[:, w] = bits
+        for w, (lo, hi) in splatv.HALF_WORDS.items():
+            recs[:, w] = packing.pack_half2(halves(lo), halves(hi) if hi else np.zeros(n, np.uint16))
+        unorm = packing.unorm8_truncate if compat else packing.unorm8_nearest
+        rgba = [unorm(cols[f"f_dc_{i}"].astype(np.float64) * 255.0)[0] for i in range(3)]
+        rgba.append(unorm(splatv._sigmoid255(cols["opacity"]))[0])
+        recs[:, 7] = packing.pack_rgba8(*rgba)
+        if sort:
+            key = splatv.importance(cols)
+            recs = recs[np.argsort(-(key.astype(np.float32) if compat else key), kind="stable")]
+    return recs
+
+
+def fast_path_columns(n: int, seed: int) -> dict:
+    """Hostile columns plus ties in importance, NaN keys and exact zeros."""
+    cols = hostile_columns(n, seed)
+    cols["scale_0"][::97] = -3.0
+    cols["scale_1"][::97] = -2.0
+    cols["scale_2"][::97] = -1.0
+    cols["opacity"][::97] = 0.5
+    cols["opacity"][5::211] = np.nan
+    cols["motion_3"][::3] = 0.0
+    # Keys that differ only in their last few bits (sigmoid(20 + k ulp) in double),
+    # shuffled: the float64 key's bits that the row number displaces decide their order.
+    rng = np.random.default_rng(seed)
+    near = slice(300, 340)
+    for name in ("scale_0", "scale_1", "scale_2"):
+        cols[name][near] = -2.0
+    ulps = np.nextafter(np.float32(20), np.float32(30)) - np.float32(20)
+    cols["opacity"][near] = np.float32(20) + ulps * (rng.permutation(40) // 2).astype(np.float32)
+    cols["x"][::401] = np.array([0x7F800001], np.uint32).view(np.float32)[0]
+    return cols
+
+
+@pytest.mark.parametrize("compat", [None, "splatv-js"])
+@pytest.mark.parametrize("sort", ["importance", "none"])
+@pytest.mark.parametrize("from_ply", [False, True])
+def test_threaded_block_writer_matches_reference(tmp_path, monkeypatch, compat, sort, from_ply):
+    # Small blocks so that a few thousand splats make many blocks on several threads;
+    # from a PLY, the columns are fields of one memory-mapped row buffer (in a
+    # shuffled order with extra properties), which the writer copies by runs.
+    from .conftest import write_ply
+
+    monkeypatch.setattr(splatv, "BLOCK", 256)
+    monkeypatch.setattr(splatv, "KEY_BLOCK", 700)
+    monkeypatch.setattr(splatv, "WORKERS", 3)
+    cols = fast_path_columns(5000 + 37, 21)
+    if from_ply:
+        order = list(COLUMNS[10:]) + ["nx"] + list(COLUMNS[:10])
+        cols["nx"] = np.zeros(len(cols["x"]), np.float32)
+        scene = splatconv.read(write_ply(tmp_path / "s.ply", cols, order=order, extra_props=("extra",)))
+        assert splatv._BlockSource(scene.columns).fields is not None
+    else:
+        scene = Scene(columns=cols)
+        assert splatv._BlockSource(scene.columns).fields is None
+    data = write_bytes(scene, compat=compat, sort=sort)
+    want = reference_texture(cols, compat == "splatv-js", sort == "importance")
+    assert np.array_equal(splatv_records(data)[: len(want)], want)
+    records, report = splatv.encode(scene, compat=compat, sort=sort)
+    assert np.array_equal(records[: len(want)], want) and not records[len(want):].any()
+    # Counts as the reference converters give them, attribute by attribute, in slot order.
+    assert list(report.half) == [name for pair in splatv.HALF_WORDS.values() for name in pair if name]
+    for name, c in report.half.items():
+        with np.errstate(all="ignore"):
+            v = cols[name]
+            if name in splatv.EXP_ATTRIBUTES:
+                v = np.exp(v.astype(np.float64)).astype(np.float32)
+        _, overflow, underflow, nonfinite = packing.float_to_half_exact(v, splatvjs=compat is not None)
+        assert (c.overflow, c.underflow, c.nonfinite) == (overflow.sum(), underflow.sum(), nonfinite.sum()), name
+
+
+def test_importance_order_is_the_stable_descending_argsort():
+    rng = np.random.default_rng(4)
+    for n in (0, 1, 2, 7, 1000, 5000):
+        for dtype in (np.float64, np.float32):
+            key = rng.choice([0.0, -0.0, 1.0, 2.5, np.inf, -np.inf, np.nan, -1.0], n).astype(dtype)
+            key[: n // 2] = rng.normal(0, 1, n // 2)
+            with np.errstate(invalid="ignore"):
+                want = np.argsort(-key, kind="stable")
+            assert np.array_equal(splatv.importance_order(key), want), (n, dtype)
+    # float64 keys that differ only in the bits the row number displaces: the
+    # order must still follow the full key.
+    key = 1.0 + rng.integers(0, 64, 1 << 14) * np.finfo(np.float64).eps
+    key[::5] = key[1::5]
+    assert np.array_equal(splatv.importance_order(key), np.argsort(-key, kind="stable"))
+
+
+def test_framing_box_is_numpys_percentile():
+    from splatconv import cameras
+
+    rng = np.random.default_rng(8)
+    for n in (1, 2, 3, 50, 51, 1001):
+        for scale in (1.0, 1e30):
+            pts = (rng.normal(0, 1, (3, n)) * scale).astype(np.float32)
+            pts[0, ::7] = np.nan
+            pts[2, 3::11] = np.inf
+            finite = np.isfinite(pts).all(axis=0)
+            want = (np.percentile(pts[:, finite].T.astype(np.float64), [2, 98], axis=0) if finite.any()
+                    else np.zeros((2, 3)))
+            lo, hi = cameras.framing_box(*pts)
+            assert np.array_equal(lo, want[0]) and np.array_equal(hi, want[1]), n
+            assert cameras.framing_camera(*pts) == cameras.camera_for_box(lo, hi)
+
+
+@pytest.mark.parametrize("sort", [None, "importance"])
+def test_ply_writer_writes_row_tables_whole_with_the_same_bytes(tmp_path, sort):
+    # A scene read from .splatv (or a lite PLY with zero normals) is one table in
+    # the written row layout; the PLY writer writes it whole. Same bytes as from
+    # separate columns; nonzero normals in a source PLY still come out as zeros.
+    from splatconv.formats import ply
+
+    from .conftest import lite_columns_with_normals, write_ply
+
+    cols = fast_path_columns(3000, 5)
+    src = tmp_path / "a.splatv"
+    splatconv.write(Scene(columns=cols), src, sort="none")
+    decoded = splatconv.read(src)
+    assert ply._lite_rows_of(decoded) is not None
+    copies = Scene(columns={k: np.array(v) for k, v in decoded.columns.items()}, cameras=decoded.cameras)
+    assert ply._lite_rows_of(copies) is None
+    whole, by_column = io.BytesIO(), io.BytesIO()
+    ply.write(decoded, whole, sort=sort)
+    ply.write(copies, by_column, sort=sort)
+    assert whole.getvalue() == by_column.getvalue()
+
+    full = lite_columns_with_normals(random_columns(500, 6))
+    full["ny"] = np.full(500, 0.5, np.float32)
+    scene = splatconv.read(write_ply(tmp_path / "n.ply", full))
+    assert ply._lite_rows_of(scene) is None
+    out = io.BytesIO()
+    ply.write(scene, out, sort=sort)
+    body = np.frombuffer(out.getvalue()[-500 * 128:], ply.LITE_DTYPE)
+    assert not body["ny"].any() and np.array_equal(body["x"] if sort is None else np.sort(body["x"]),
+                                                   full["x"] if sort is None else np.sort(full["x"]))

@@ -24,9 +24,8 @@ NAME = "ply"
 SUFFIXES = (".ply",)
 
 #: Property order of the lite layout as SpacetimeGaussians writes it.
-LITE_LAYOUT = (model.POSITION + model.TRBF + ("nx", "ny", "nz") + model.MOTION + model.COLOR
-               + model.OPACITY + model.SCALE + model.ROTATION + model.OMEGA)
-NORMALS = ("nx", "ny", "nz")
+LITE_LAYOUT = model.LITE_ROW
+NORMALS = model.NORMALS
 #: Properties a plain 3DGS file must have.
 GS_REQUIRED = model.POSITION + model.COLOR + model.OPACITY + model.SCALE + model.ROTATION
 #: Properties a lite file must have.
@@ -43,13 +42,33 @@ _FULL_FEATURE = re.compile(r"^f_t_\d+$|^f_dc_([3-9]|\d\d+)$")
 _MAX_HEADER = 16 << 20
 
 
+def _read_header_bytes(f, file_size: int) -> bytes:
+    """The file's first bytes up to its ``end_header`` line (at most ``_MAX_HEADER``).
+
+    Reads in growing steps: headers are usually well under a kilobyte, and a
+    16 MB read up front would cost more than the rest of opening the file.
+    """
+    head = b""
+    step = 1 << 16
+    limit = min(file_size, _MAX_HEADER)
+    while len(head) < limit:
+        chunk = f.read(min(step, limit - len(head)))
+        if not chunk:
+            break
+        head += chunk
+        if re.search(rb"end_header\r?\n", head[-len(chunk) - 12:]):
+            break
+        step *= 4
+    return head
+
+
 def _minimum_body(f, path: str, file_size: int) -> None:
     """Fail fast when the header declares more rows than the file can hold.
 
     plyfile would otherwise try to allocate e.g. 10^12 ASCII rows up front. Only
     sizes are checked here; plyfile parses and validates the header for real.
     """
-    head = f.read(min(file_size, _MAX_HEADER))
+    head = _read_header_bytes(f, file_size)
     f.seek(0)
     end = re.search(rb"end_header\r?\n", head)
     if not head.startswith(b"ply") or end is None:
@@ -254,15 +273,21 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options):
     -------
     WriteReport
     """
-    from .splatv import WriteReport, importance  # the importance key is splatv's notion
+    from .splatv import WriteReport, importance, importance_order  # the importance key is splatv's notion
 
     n = scene.count
     report = WriteReport(count=n)
     order = None
     if sort == "importance":
-        with np.errstate(invalid="ignore"):
-            order = np.argsort(-importance(scene.columns), kind="stable")
+        order = importance_order(importance(scene.columns))
     stream.write(header_bytes(n, scene.cameras))
+    rows = _lite_rows_of(scene)
+    if rows is not None:
+        # The columns are fields of rows already in the written layout: write them whole.
+        for start in range(0, n, BLOCK):
+            block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK], axis=0)
+            stream.write(memoryview(block))
+        return report
     block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
     for start in range(0, n, BLOCK):
         stop = min(start + BLOCK, n)
@@ -272,3 +297,25 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options):
             out[name] = np.asarray(scene.columns[name])[rows]
         stream.write(memoryview(out).cast("B"))
     return report
+
+
+def _lite_rows_of(scene: Scene):
+    """The scene's rows as the lite layout writes them, ``(N, 128) uint8``, if they already are; else None.
+
+    True of a scene read from a ``.splatv`` (see :func:`splatconv.model.lite_rows`)
+    or from a little-endian float32 lite PLY in the standard order whose normals
+    are zero: the rows can then be written as they are.
+    """
+    if not np.little_endian or scene.count == 0:
+        return None
+    found = model.row_fields([np.asarray(scene.columns[name]) for name in COLUMNS])
+    if found is None:
+        return None
+    matrix, fields = found
+    if (fields != [LITE_LAYOUT.index(name) for name in COLUMNS] or matrix.shape[1] != len(LITE_LAYOUT)
+            or matrix.strides[0] != LITE_DTYPE.itemsize):
+        return None
+    normals = matrix[:, LITE_LAYOUT.index(NORMALS[0]):LITE_LAYOUT.index(NORMALS[-1]) + 1]
+    if normals.view(np.uint32).any():
+        return None  # the writer writes zero normals (+0.0)
+    return matrix.view(np.uint8)
