@@ -91,77 +91,103 @@ def _nan_to_half(bits: np.ndarray) -> np.ndarray:
     return (((bits >> 16) & HALF_SIGN_BIT) | HALF_INF_BITS | mant).astype(np.uint16)
 
 
-#: Bits (sign cleared) of the float32 range the fast accurate path converts: from
-#: 2^-14, the smallest normal half, to 65504, the largest half. Inside it the
-#: result is a normal half and rounding never saturates.
-_NEAREST_LO = 0x38800000
+#: Bits (sign cleared) of the float32 values the fast paths convert, besides
+#: zero: from 2^-14, the smallest normal half, up to 65504 (accurate: larger
+#: values saturate and are counted) or below 32768 (splaTV's converter, whose
+#: ``floatToHalf`` is a plain truncation for float32 exponents 113 to 141).
+_FAST_LO = 0x38800000
 _NEAREST_HI = 0x477FE000
+_SPLATVJS_HI = 0x46FFFFFF
+#: 2^-112: multiplying by it moves a float32 exponent onto the half's bias
+#: (127 - 15 = 112), exactly for results in the half's normal range, and keeps
+#: zero zero.
+_REBIAS = np.float32(2.0**-112)
 #: Rounding bias minus the exponent rebias (127 - 15 = 112), modulo 2^32.
 _NEAREST_ADD = (0x0FFF - (112 << 23)) & 0xFFFFFFFF
-#: Bits (sign cleared) of the float32 range the fast splaTV path converts:
-#: float32 exponents 113 to 141, where floatToHalf is a plain truncation.
-_SPLATVJS_LO = 0x38800000
-_SPLATVJS_HI = 0x47000000
+#: Bits of 2^-25, the largest float32 that rounds to a zero half, less one.
+_UNDERFLOW_MAX = 0x33000000
+#: Bits of float32 0.5.
+_HALF_BITS = 0x3F000000
+_NO_INDEX = np.zeros(0, dtype=np.intp)
+_NO_INDEX.flags.writeable = False
 
 
 def float_to_half_into(x: np.ndarray, out: np.ndarray, *, splatvjs: bool = False,
                        scratch: np.ndarray | None = None) -> np.ndarray:
-    """Convert the common case in a few integer passes; flag the rest.
+    """Convert the common case in a few integer passes; say where they are wrong.
 
-    ``numpy``'s float16 cast runs about 6 ns a value with no SIMD; the integer
-    passes here cost a third of that. They are exact only where the result is a
-    normal half (and, for :func:`float_to_half`, no saturation), so every other
-    value -- zero, tiny, huge, infinite, NaN -- is flagged for the exact
-    converters, which callers run on that (usually empty) subset.
+    ``numpy``'s float16 cast runs about 1.6 ns a value; the passes here cost
+    about half of that. The accurate path is exact for every value up to 65504
+    in magnitude: normal halves by integer rounding, zero and subnormal halves
+    by one float addition that rounds at the half's subnormal step. The
+    splaTV-compatible path is exact for zero and wherever floatToHalf is a plain
+    truncation (float32 exponents 113 to 141). Every other value -- huge,
+    infinite, NaN, and for splaTV's converter tiny -- is listed for the exact
+    converters, which callers run on that (usually empty) subset. Reductions
+    find out whether there are any, so the common case writes no mask.
 
     Parameters
     ----------
     x : float32 ndarray, any shape, C-contiguous
-    out : uint16 ndarray, same shape as ``x``
-        Receives the half bits; flagged entries hold garbage.
+    out : uint16 ndarray, same shape as ``x``, C-contiguous
+        Receives the half bits; listed entries hold garbage.
     splatvjs : bool
         Truncate as :func:`float_to_half_splatvjs` instead of rounding as
         :func:`float_to_half`.
     scratch : uint32 ndarray, optional
         At least ``scratch_size(x.size)`` elements to work in, instead of
-        allocating; the returned flags are a view into it.
+        allocating.
 
     Returns
     -------
-    bool ndarray, same shape as ``x``
-        True where ``out`` must be replaced by the exact converter's result.
+    (K,) intp ndarray
+        Flat indices (into ``x.reshape(-1)``) where ``out`` must be replaced by
+        the exact converter's result, ascending.
     """
     n = x.size
     if scratch is None:
         scratch = np.empty(scratch_size(n), dtype=np.uint32)
-    u = x.view(np.uint32)
-    a = scratch[:n].reshape(x.shape)
-    t = scratch[n:2 * n].reshape(x.shape)
-    flagged = scratch[2 * n:].view(np.bool_)[:n].reshape(x.shape)
+    u = x.reshape(-1).view(np.uint32)
+    a, t, d = scratch[:n], scratch[n:2 * n], scratch[2 * n:3 * n]
     np.bitwise_and(u, np.uint32(0x7FFFFFFF), out=a)
-    np.right_shift(a, np.uint32(13), out=t)
     if splatvjs:
-        t -= np.uint32(112 << 10)
-        lo, hi = _SPLATVJS_LO, _SPLATVJS_HI - 1
+        hi = _SPLATVJS_HI
+        np.subtract(a, np.uint32(1), out=t)  # zero wraps to the top: only tiny nonzero values fall below
+        suspect = n and (a.max() > hi or t.min() < _FAST_LO - 1)
+        with np.errstate(all="ignore"):  # NaN and huge inputs are listed below
+            np.multiply(a.view(np.float32), _REBIAS, out=t.view(np.float32))
+        t >>= np.uint32(13)
     else:
-        # Round half to even at bit 13: add 0xFFF plus the lowest kept bit.
+        hi = _NEAREST_HI
+        # Normal halves: round half to even at bit 13 (add 0xFFF plus the
+        # lowest kept bit) and rebias the exponent.
+        np.right_shift(a, np.uint32(13), out=t)
         t &= np.uint32(1)
         t += a
         t += np.uint32(_NEAREST_ADD)
         t >>= np.uint32(13)
-        lo, hi = _NEAREST_LO, _NEAREST_HI
-    # One unsigned compare tests lo <= a <= hi: values below lo wrap to the top.
-    a -= np.uint32(lo)
-    np.greater(a, np.uint32(hi - lo), out=flagged)
-    sign = np.right_shift(u, np.uint32(16), out=a)
-    sign &= np.uint32(HALF_SIGN_BIT)
-    np.bitwise_or(t, sign, out=out, casting="unsafe")
-    return flagged
+        # Zero and subnormal halves: adding 0.5 leaves the value's bits on the
+        # half's subnormal step (2^-24, the ulp of 0.5) rounded to nearest even.
+        with np.errstate(all="ignore"):  # NaN inputs are listed below
+            np.add(a.view(np.float32), np.float32(0.5), out=d.view(np.float32))
+        d -= np.uint32(_HALF_BITS)
+        np.copyto(t, d, where=a < np.uint32(_FAST_LO))
+        # Listed too, to be counted: nonzero values that become zero.
+        np.subtract(a, np.uint32(1), out=d)
+        suspect = n and (a.max() > hi or d.min() < _UNDERFLOW_MAX)
+    np.right_shift(u, np.uint32(16), out=a)
+    a &= np.uint32(HALF_SIGN_BIT)
+    np.bitwise_or(t, a, out=out.reshape(-1), casting="unsafe")
+    if not suspect:
+        return _NO_INDEX
+    np.bitwise_and(u, np.uint32(0x7FFFFFFF), out=a)
+    np.subtract(a, np.uint32(1), out=t)
+    return np.flatnonzero((a > hi) | (t < (_FAST_LO - 1 if splatvjs else _UNDERFLOW_MAX)))
 
 
 def scratch_size(n: int) -> int:
     """uint32 elements of working space :func:`float_to_half_into` needs for ``n`` values."""
-    return 2 * n + -(-n // 4)
+    return 3 * n
 
 
 def float_to_half(x: np.ndarray, counts: HalfCounts | None = None) -> np.ndarray:
@@ -213,11 +239,10 @@ def _convert(x, counts: HalfCounts | None, splatvjs: bool) -> np.ndarray:
     if not x.flags.c_contiguous:
         x = x.copy()
     out = np.empty(x.shape, dtype=np.uint16)
-    flagged = float_to_half_into(x, out, splatvjs=splatvjs)
-    if flagged.any():
+    idx = float_to_half_into(x, out, splatvjs=splatvjs)
+    if len(idx):
         # Values in the fast range add nothing to the counts, so counting the
-        # flagged subset alone gives the totals.
-        idx = np.flatnonzero(flagged)
+        # listed subset alone gives the totals.
         half, overflow, underflow, nonfinite = float_to_half_exact(x.reshape(-1)[idx], splatvjs=splatvjs)
         out.reshape(-1)[idx] = half
         if counts is not None:

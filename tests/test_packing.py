@@ -186,12 +186,21 @@ def test_fast_paths_match_the_exact_converters(splatvjs):
     assert np.array_equal(convert(x[: 1 << 16].reshape(256, 256)).ravel(), want[: 1 << 16])
 
 
-def test_fast_path_flags_exactly_what_it_cannot_convert():
-    x = np.array([1.0, -2.5, 6.1035156e-05, 65504, 0.0, 1e-6, 65505, np.inf, np.nan], np.float32)
+def test_fast_path_lists_exactly_what_it_cannot_convert():
+    x = np.array([1.0, -2.5, 6.1035156e-05, 65504, 65519.996, 0.0, -0.0, 1e-6, -3e-8, 2.9e-8, 65520, np.inf,
+                  np.nan], np.float32)
     out = np.empty(len(x), np.uint16)
-    flagged = packing.float_to_half_into(x, out)
-    assert flagged.tolist() == [False, False, False, False, True, True, True, True, True]
-    assert out[:4].tolist() == [0x3C00, 0xC100, 0x0400, 0x7BFF]
+    # 65519.996 rounds to 65504 but is past it: saturated and counted, so listed;
+    # 2.9e-8 (below 2^-25) becomes zero: listed to be counted as underflow.
+    assert packing.float_to_half_into(x, out).tolist() == [4, 9, 10, 11, 12]
+    assert out[[0, 1, 2, 3, 5, 6, 7, 8]].tolist() == [0x3C00, 0xC100, 0x0400, 0x7BFF, 0x0000, 0x8000, 0x0011,
+                                                      0x8001]
+    # splaTV's converter: the fast range ends below 32768.
+    y = np.array([32767.998, 32768, -0.0, 6e-5], np.float32)
+    assert packing.float_to_half_into(y, out[:4], splatvjs=True).tolist() == [1, 3]
+    assert out[[0, 2]].tolist() == [0x77FF, 0x8000]
+    # Nothing unusual: nothing listed, and no mask is written.
+    assert len(packing.float_to_half_into(np.ones((3, 5), np.float32), np.empty((3, 5), np.uint16))) == 0
 
 
 def test_unpack_views_do_not_copy_and_are_read_only():

@@ -246,7 +246,10 @@ def test_reader_pads_short_texture_and_drops_trailing_zero_records(tmp_path):
     scene = splatconv.read(p)
     assert scene.count == 1500
     assert sum("shorter than" in n for n in scene.notes) == 1
+    assert "record 1499 is cut after 54 of its 64 bytes: file truncated?" in " ".join(scene.notes)
     assert scene.meta["declared_bytes"] == 4096 * 2 * 16
+    p.write_bytes(data)  # whole records: not cut
+    assert not any("is cut" in n for n in splatconv.read(p).notes)
     assert np.array_equal(packing.f32_bits(scene.columns["x"][:1499]), recs[:1499, 0])
 
 
@@ -389,18 +392,21 @@ def test_threaded_block_writer_matches_reference(tmp_path, monkeypatch, compat, 
     # shuffled order with extra properties), which the writer copies by runs.
     from .conftest import write_ply
 
-    monkeypatch.setattr(splatv, "BLOCK", 256)
-    monkeypatch.setattr(splatv, "KEY_BLOCK", 700)
-    monkeypatch.setattr(splatv, "WORKERS", 3)
+    from splatconv.formats import _splatv_writer as engine
+
+    monkeypatch.setattr(engine, "BLOCK", 256)
+    monkeypatch.setattr(engine, "KEY_BLOCK", 700)
+    monkeypatch.setattr(engine, "HALF_ROWS", 100)
+    monkeypatch.setattr(engine, "WORKERS", 3)
     cols = fast_path_columns(5000 + 37, 21)
     if from_ply:
         order = list(COLUMNS[10:]) + ["nx"] + list(COLUMNS[:10])
         cols["nx"] = np.zeros(len(cols["x"]), np.float32)
         scene = splatconv.read(write_ply(tmp_path / "s.ply", cols, order=order, extra_props=("extra",)))
-        assert splatv._BlockSource(scene.columns).fields is not None
+        assert engine._Source(scene.columns).rows_whole
     else:
         scene = Scene(columns=cols)
-        assert splatv._BlockSource(scene.columns).fields is None
+        assert not engine._Source(scene.columns).rows_whole
     data = write_bytes(scene, compat=compat, sort=sort)
     want = reference_texture(cols, compat == "splatv-js", sort == "importance")
     assert np.array_equal(splatv_records(data)[: len(want)], want)
@@ -448,6 +454,18 @@ def test_framing_box_is_numpys_percentile():
             lo, hi = cameras.framing_box(*pts)
             assert np.array_equal(lo, want[0]) and np.array_equal(hi, want[1]), n
             assert cameras.framing_camera(*pts) == cameras.camera_for_box(lo, hi)
+
+
+def test_framing_box_of_a_large_scene_looks_at_evenly_strided_points():
+    from splatconv import cameras
+
+    n = 3 * cameras.FRAMING_SAMPLES + 5  # step 4: 49,153 points taken
+    pts = np.random.default_rng(9).normal(0, 1, (3, n)).astype(np.float32)
+    pts[:, 1::4] = 1000.0  # never taken: must not move the box
+    lo, hi = cameras.framing_box(*pts)
+    want = np.percentile(pts[:, ::4].T.astype(np.float64), [2, 98], axis=0)
+    assert np.array_equal(lo, want[0]) and np.array_equal(hi, want[1])
+    assert hi.max() < 5
 
 
 @pytest.mark.parametrize("sort", [None, "importance"])

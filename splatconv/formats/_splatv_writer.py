@@ -1,0 +1,519 @@
+"""The ``.splatv`` writer's engine: records packed a block of rows at a time, by threads.
+
+:mod:`splatconv.formats.splatv` says what a record holds; this module makes a
+million of them in about a tenth of a second on two cores, with numpy alone.
+What that takes, measured on the machines this was built on:
+
+* Work in the record's own layout. A block of input rows is copied, a few
+  runs of adjacent fields at a time, into a working block ``W`` of 32 float32
+  columns per row: column ``j`` holds what half slot ``j`` of the record stores
+  (columns 0-2 the position). One flat float -> half conversion of ``W`` then
+  *is* the record block, but for three position words and the colour word,
+  copied in afterwards. No transposes, no per-attribute strided stores.
+* Few, long numpy calls. A call costs about a microsecond however short, and
+  threads hand the GIL over at every call, so blocks are large; the half
+  conversion runs on groups of rows small enough to stay in cache.
+* Reuse memory. Fresh pages cost a fault each (and a virtual machine's host
+  may fault again behind it): working arrays belong to a thread and are reused
+  block after block, and output blocks come from a ring.
+* Exponentials on contiguous values only, so that every row gets numpy's same
+  SIMD ``exp`` (a strided loop may use another implementation, whose last bit
+  can differ).
+
+Sorted output takes two passes: one in input order for the importance key,
+then, after the sort, one in output order that gathers each block's rows from
+the input, packs them and hands them to the writing thread.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import threading
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from .. import packing
+from ..cameras import camera_for_box, framing_box
+from ..model import COLUMNS, row_fields
+from .splatv import (COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, POSITION_WORDS, WORDS_PER_SPLAT, WriteReport,
+                     _importance_order, importance)
+
+#: Rows packed at a time: long numpy calls, few GIL hand-overs.
+BLOCK = 1 << 14
+#: Rows of the input-order (importance key) pass at a time.
+KEY_BLOCK = 1 << 16
+#: Rows of a block converted to halves at a time: the conversion's temporaries
+#: (two uint32 per value) stay in a core's cache.
+HALF_ROWS = 1 << 11
+#: Packing threads (the calling thread writes meanwhile). Beyond the cores,
+#: more only add GIL hand-overs.
+WORKERS = max(1, min(os.cpu_count() or 2, 3))
+
+# --------------------------------------------------------------------------
+# The working layouts, derived from the record layout.
+
+#: Columns of the working block: the record's 32 half slots.
+SLOTS = 2 * WORDS_PER_SPLAT
+#: Half slot -> attribute it stores (None: position, colour or an unused zero half).
+SLOT_NAMES = [None] * SLOTS
+for _w, _pair in HALF_WORDS.items():
+    for _k, _name in enumerate(_pair):
+        SLOT_NAMES[2 * _w + _k] = _name
+#: Attribute -> working column: half attributes at their slot, positions at their word.
+_W_COLUMN = {name: slot for slot, name in enumerate(SLOT_NAMES) if name is not None}
+_W_COLUMN.update({name: w for w, name in POSITION_WORDS.items()})
+_POSITION_COLUMNS = slice(min(POSITION_WORDS), max(POSITION_WORDS) + 1)
+assert list(POSITION_WORDS) == list(range(_POSITION_COLUMNS.start, _POSITION_COLUMNS.stop))
+#: Working columns that stay zero: nothing is copied there (unused halves, and
+#: the slots under the position tail and the colour word).
+_ZERO_COLUMNS = [j for j in range(SLOTS) if j not in _W_COLUMN.values()]
+assert all(SLOT_NAMES[j] is None for j in _ZERO_COLUMNS)
+#: The exp() attributes: logarithms in, linear values into ``W``.
+_EXP_NAMES = tuple(name for name in SLOT_NAMES if name in EXP_ATTRIBUTES)
+#: The values the exponentials are taken of, per row: -opacity then the logs.
+_EXPONENTS = ("opacity",) + _EXP_NAMES
+#: Colour and opacity, per row (opacity becomes alpha in place).
+_RGBA = ("f_dc_0", "f_dc_1", "f_dc_2", "opacity")
+#: What the importance key reads, per row.
+_KEY = ("opacity", "scale_0", "scale_1", "scale_2")
+#: Byte of the colour word within a record.
+_COLOR_BYTE = 4 * COLOR_WORD
+#: Names of the half attributes in slot order, as reports list them.
+HALF_NAMES = tuple(name for name in SLOT_NAMES if name is not None)
+
+
+def new_counts() -> WriteReport:
+    """Counters in the order the notes list them: halves in slot order, colour, alpha."""
+    return WriteReport(half={name: packing.HalfCounts() for name in HALF_NAMES},
+                       clamped={"color": 0, "alpha": 0}, nan_bytes={"color": 0, "alpha": 0})
+
+
+def merge_counts(report: WriteReport, part: WriteReport) -> None:
+    """Add a block's counts to ``report``."""
+    for name, c in part.half.items():
+        report.half.setdefault(name, packing.HalfCounts()).add(c)
+    for table, other in ((report.clamped, part.clamped), (report.nan_bytes, part.nan_bytes)):
+        for name, count in other.items():
+            table[name] = table.get(name, 0) + count
+
+
+# --------------------------------------------------------------------------
+# Reading blocks of rows
+
+
+def _runs(pairs) -> list:
+    """Group ``(destination column, source field)`` pairs into runs adjacent in both.
+
+    Returns a list of ``(destination start, source start, length)``.
+    """
+    runs = []
+    for dst, src in sorted(pairs):
+        if runs and runs[-1][0] + runs[-1][2] == dst and runs[-1][1] + runs[-1][2] == src:
+            runs[-1][2] += 1
+        else:
+            runs.append([dst, src, 1])
+    return [tuple(r) for r in runs]
+
+
+def _copy_runs(dst: np.ndarray, src: np.ndarray, runs) -> None:
+    """Copy column runs between ``(M, *)`` float32 arrays whose rows are contiguous.
+
+    A run of several columns moves as one item per row (a void view), which
+    costs about what one column does.
+    """
+    for d, s, k in runs:
+        if k == 1:
+            np.copyto(dst[:, d], src[:, s])
+        else:
+            item = np.dtype((np.void, 4 * k))
+            np.copyto(dst[:, d:d + k].view(item)[:, 0], src[:, s:s + k].view(item)[:, 0])
+
+
+class _Source:
+    """Blocks of a scene's rows as ``(M, F)`` float32 arrays, and where each attribute is in them.
+
+    When every column is a float32 field of one row-major buffer (a
+    memory-mapped binary PLY, or a table from :func:`splatconv.model.lite_rows`),
+    a block is a slice of that buffer, or its rows gathered whole. Otherwise the
+    columns are copied into a block laid out as :data:`splatconv.model.COLUMNS`.
+    """
+
+    def __init__(self, columns: dict):
+        self.columns = [np.asarray(columns[name]) for name in COLUMNS]
+        found = row_fields(self.columns)
+        if found is not None:
+            self.matrix, fields = found
+            # One void item per row, to gather whole rows.
+            self.items = self.matrix.view(np.dtype((np.void, self.matrix.shape[1] * 4)))[:, 0]
+        else:
+            self.matrix = None
+            fields = range(len(COLUMNS))
+        self.field = dict(zip(COLUMNS, fields))
+        self.width = self.matrix.shape[1] if self.matrix is not None else len(COLUMNS)
+        # Runs from a block into the working arrays.
+        self.w_runs = _runs((_W_COLUMN[name], self.field[name]) for name in _W_COLUMN
+                            if name not in EXP_ATTRIBUTES)
+        self.exp_runs = _runs((i, self.field[name]) for i, name in enumerate(_EXPONENTS))
+        self.rgba_runs = _runs((i, self.field[name]) for i, name in enumerate(_RGBA))
+
+    @property
+    def rows_whole(self) -> bool:
+        """Whether blocks come from one row buffer (see the class docstring)."""
+        return self.matrix is not None
+
+    def block(self, rows, scratch: "_Scratch") -> np.ndarray:
+        """The rows ``rows`` (a slice, or an ``(M,)`` index array): ``(M, F)`` float32."""
+        if self.matrix is not None:
+            if isinstance(rows, slice):
+                return self.matrix[rows]
+            m = len(rows)
+            # mode="clip": with mode="raise" (the default) numpy buffers ``out``.
+            taken = np.take(self.items, rows, out=scratch.get("rows", m, self.items.dtype), mode="clip")
+            return taken[:, None].view(np.float32)
+        m = len(range(*rows.indices(len(self.columns[0])))) if isinstance(rows, slice) else len(rows)
+        block = scratch.get("rows", (m, self.width), np.float32)
+        with np.errstate(over="ignore", invalid="ignore"):  # float64 columns built outside the model
+            for i, col in enumerate(self.columns):
+                block[:, i] = col[rows]
+        return block
+
+    def column(self, name: str, rows) -> np.ndarray:
+        """One attribute of some rows (a copy or a view): ``(M,)``."""
+        return self.columns[COLUMNS.index(name)][rows]
+
+
+class _Scratch:
+    """Working arrays reused block after block (for one thread).
+
+    Temporaries of a few hundred kilobytes or more go through mmap and back on
+    every allocation, and fresh pages are slow to touch; reusing a few buffers
+    avoids both.
+    """
+
+    def __init__(self):
+        self.buffers = {}
+
+    def get(self, name: str, shape, dtype, zero: bool = False) -> np.ndarray:
+        """An array of ``shape`` and ``dtype``, the same memory on every call with ``name``.
+
+        Uninitialised, or zeros when first made with ``zero`` (callers keep
+        some columns zero by never writing them).
+        """
+        dtype = np.dtype(dtype)
+        size = math.prod(shape if isinstance(shape, tuple) else (shape,)) * dtype.itemsize
+        buf = self.buffers.get(name)
+        if buf is None or len(buf) < size:
+            buf = self.buffers[name] = (np.zeros if zero else np.empty)(size, dtype=np.uint8)
+        return buf[:size].view(dtype).reshape(shape)
+
+
+# --------------------------------------------------------------------------
+# Packing one block
+
+
+def pack(source: _Source, rows, out: np.ndarray, compat: bool, counts: WriteReport, scratch: _Scratch) -> None:
+    """Pack the records of some rows.
+
+    Parameters
+    ----------
+    source : _Source
+    rows : slice or (M,) intp ndarray
+        The rows, in output order.
+    out : (M, 16) uint32 ndarray, C-contiguous
+        Every word is written.
+    compat : bool
+        Model splaTV's JavaScript converter bit for bit instead of rounding.
+    counts : WriteReport
+        Counts are added to it (from :func:`new_counts`).
+    scratch : _Scratch
+    """
+    block = source.block(rows, scratch)
+    m = len(block)
+    work = scratch.get("work", (m, SLOTS), np.float32, zero=True)
+    _copy_runs(work, block, source.w_runs)
+    logs = scratch.get("logs", (m, len(_EXPONENTS)), np.float32)
+    _copy_runs(logs, block, source.exp_runs)
+    rgba = scratch.get("rgba", (m, 4), np.float32)
+    _copy_runs(rgba, block, source.rgba_runs)
+
+    # Exponentials in double, rounded to float32 as the texture stores them
+    # (splaTV's JavaScript does the same arithmetic in double).
+    wide = scratch.get("exp", logs.shape, np.float64)
+    with np.errstate(all="ignore"):  # hostile values overflow and give NaN by design
+        np.copyto(wide, logs)
+        np.negative(wide[:, 0], out=wide[:, 0])  # sigmoid's exp(-opacity)
+        np.exp(wide, out=wide)
+        linear = scratch.get("linear", logs.shape, np.float32)
+        np.copyto(linear, wide, casting="same_kind")
+    for i, name in enumerate(_EXP_NAMES, start=1):
+        np.copyto(work[:, _W_COLUMN[name]], linear[:, i])
+
+    halves = out.view(np.uint16)
+    _halves(work, halves, logs, compat, counts, scratch)
+
+    # Positions: the float32 bits as they are, over what the conversion put there.
+    item = np.dtype((np.void, 4 * _POSITION_COLUMNS.stop))
+    np.copyto(out[:, :_POSITION_COLUMNS.stop].view(item)[:, 0], work[:, :_POSITION_COLUMNS.stop].view(item)[:, 0])
+
+    _colour(rgba, wide[:, 0], out, compat, counts, scratch)
+
+
+def _halves(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, compat: bool, counts: WriteReport,
+            scratch: _Scratch) -> None:
+    """Half bits of the working block, exact where the fast path says it is not.
+
+    Parameters
+    ----------
+    work : (M, 32) float32 ndarray
+    halves : (M, 32) uint16 ndarray
+    logs : (M, len(_EXPONENTS)) float32 ndarray
+        The logarithms of the exp() attributes: a NaN logarithm is stored as
+        itself (payload kept), not as exp(NaN).
+    """
+    m = len(work)
+    step = min(m, HALF_ROWS)
+    temp = scratch.get("half", packing.scratch_size(step * SLOTS), np.uint32)
+    listed = []
+    for r in range(0, m, step):
+        found = packing.float_to_half_into(work[r:r + step], halves[r:r + step], splatvjs=compat, scratch=temp)
+        if len(found):
+            listed.append(found + r * SLOTS)
+    if listed:
+        _exceptions(work, halves, logs, np.concatenate(listed), compat, counts)
+
+
+#: Working column -> index in the ``logs`` array, for the exp() attributes (else -1).
+_LOG_INDEX = np.array([_EXPONENTS.index(name) if name in EXP_ATTRIBUTES else -1 for name in SLOT_NAMES])
+#: Working columns whose halves are stored.
+_STORED = np.array([name is not None for name in SLOT_NAMES])
+
+
+def _exceptions(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, listed: np.ndarray, compat: bool,
+                counts: WriteReport) -> None:
+    """The exact converters on the values the fast path listed (tiny, huge, non-finite), counted."""
+    rows, cols = np.divmod(listed, SLOTS)
+    if compat:
+        # The browser reads positions through DataView.getFloat32 into a double,
+        # which quiets signalling NaNs (sets the top mantissa bit).
+        at = cols < _POSITION_COLUMNS.stop
+        nan = np.isnan(work[rows[at], cols[at]])
+        if nan.any():
+            bits = work.view(np.uint32)
+            bits[rows[at][nan], cols[at][nan]] |= np.uint32(0x00400000)
+    keep = _STORED[cols]
+    rows, cols = rows[keep], cols[keep]
+    if not len(rows):
+        return
+    picked = work[rows, cols]
+    # NaN logarithms of exp() attributes: the logarithm itself is stored.
+    at = np.flatnonzero(_LOG_INDEX[cols] >= 0)
+    raw = logs[rows[at], _LOG_INDEX[cols[at]]]
+    nan = np.isnan(raw)
+    nan_at, nan_logs = at[nan], raw[nan]
+    if compat:
+        picked[nan_at] = nan_logs
+    half, overflow, underflow, nonfinite = packing.float_to_half_exact(picked, splatvjs=compat)
+    if not compat and len(nan_at):
+        half[nan_at] = packing.float_to_half_exact(nan_logs)[0]
+    halves[rows, cols] = half
+    for what, mask in (("overflow", overflow), ("underflow", underflow), ("nonfinite", nonfinite)):
+        per_column = np.bincount(cols[mask], minlength=SLOTS)
+        for col in np.flatnonzero(per_column):
+            c = counts.half[SLOT_NAMES[col]]
+            setattr(c, what, getattr(c, what) + int(per_column[col]))
+
+
+def _colour(rgba: np.ndarray, exp_neg_opacity: np.ndarray, out: np.ndarray, compat: bool, counts: WriteReport,
+            scratch: _Scratch) -> None:
+    """The colour word: RGB x255 and sigmoid(opacity) x255, clamped, then rounded or truncated.
+
+    Parameters
+    ----------
+    rgba : (M, 4) float32 ndarray
+        f_dc_0..2 and opacity (the last is not read).
+    exp_neg_opacity : (M,) float64 ndarray
+        exp(-opacity).
+    out : (M, 16) uint32 ndarray
+    """
+    m = len(rgba)
+    scaled = scratch.get("scaled", (m, 4), np.float64)
+    with np.errstate(all="ignore"):
+        np.copyto(scaled, rgba)
+        alpha = scaled[:, 3]
+        np.add(exp_neg_opacity, 1.0, out=alpha)
+        np.divide(1.0, alpha, out=alpha)  # sigmoid, in double as splaTV's JS does
+        scaled *= 255.0
+        if not (scaled.min() >= 0.0 and scaled.max() <= 255.0):  # also true for NaN
+            for channel, name in enumerate(("color", "color", "color", "alpha")):
+                v = scaled[:, channel]
+                nan = np.isnan(v)
+                counts.clamped[name] += int(np.count_nonzero((v < 0) | (v > 255)))
+                counts.nan_bytes[name] += int(np.count_nonzero(nan))
+                v[nan] = 0.0
+                np.clip(v, 0.0, 255.0, out=v)
+        if not compat:
+            np.rint(scaled, out=scaled)
+        # compat truncates, which the float -> uint8 cast does for values in [0, 255].
+        rgba8 = scratch.get("rgba8", (m, 4), np.uint8)
+        np.copyto(rgba8, scaled, casting="unsafe")
+    np.copyto(out[:, COLOR_WORD], rgba8.view("<u4")[:, 0])
+
+
+# --------------------------------------------------------------------------
+# The importance key
+
+
+def key_block(source: _Source, rows: slice, key: np.ndarray, scratch: _Scratch) -> None:
+    """:func:`splatconv.formats.splatv.importance` of some rows, into ``key``, ``(M,) float64``.
+
+    The same operations in the same order, on contiguous values, so the same bits.
+    """
+    m = len(key)
+    parts = scratch.get("key", (len(_KEY), m), np.float64)
+    with np.errstate(all="ignore"):
+        for i, name in enumerate(_KEY):
+            np.copyto(parts[i], source.column(name, rows))
+        np.negative(parts[0], out=parts[0])
+        np.exp(parts, out=parts)
+        np.multiply(parts[1], parts[2], out=key)
+        key *= parts[3]
+        parts[0] += 1.0
+        np.divide(1.0, parts[0], out=parts[0])
+        key *= parts[0]
+
+
+# --------------------------------------------------------------------------
+# The whole texture
+
+
+class Plan:
+    """A scene's records in output order, packed a block at a time.
+
+    The constructor runs the input-order pass (the importance key), sorts and
+    frames; :meth:`blocks` or :meth:`into` then pack the records in output
+    order.
+
+    Threads: blocks are independent, so helper threads pack them side by side
+    while the calling thread writes finished ones (numpy and file writes release
+    the GIL). Working arrays are per thread and reused, and record blocks come
+    from a ring.
+    """
+
+    def __init__(self, scene, compat: bool, sort: str | None, camera: bool, report: WriteReport, helpers,
+                 *, streaming: bool = True):
+        n = scene.count
+        self.n = n
+        self.compat = compat
+        self.helpers = helpers
+        self.source = _Source(scene.columns)
+        self.order = None
+        self.cameras = None
+        self.local = threading.local()
+        # Blocks in flight on the helpers; a record block's ring slot is reused
+        # once the caller is done with it.
+        self.ahead = 2 * WORKERS if helpers is not None else 0
+        self.outs = [None] * (self.ahead + 1) if streaming else None
+        if camera:
+            report.notes.append("no cameras given; wrote one camera that frames the scene")
+            camera_job = self._run(self._frame, scene.columns)
+        if (sort or "importance") != "none":
+            key = np.empty(n, dtype=np.float64)
+            for _ in self._ahead(lambda start: key_block(self.source, self._rows(start, KEY_BLOCK),
+                                                         key[start:start + KEY_BLOCK], self._scratch()),
+                                 range(0, n, KEY_BLOCK)):
+                pass
+            sort_key = key
+            if compat:
+                # splaTV keeps the key in a Float32Array and sorts with (b, a) => s[a] - s[b].
+                with np.errstate(over="ignore"):
+                    sort_key = key.astype(np.float32)
+                nan = int(np.count_nonzero(np.isnan(sort_key)))
+                if nan:
+                    report.notes.append(
+                        f"{nan} splats have a NaN importance; splaTV's comparator makes their order "
+                        "engine-defined, splatconv puts them last")
+            # The key's memory becomes the order's.
+            self.order = _importance_order(sort_key, key.view(np.uint64), self._key_of)
+        if camera:
+            self.cameras = [camera_job()]
+
+    def _run(self, fn, *args):
+        """Run ``fn`` on a helper (or now, without one); returns a callable giving its result."""
+        if self.helpers is None:
+            result = fn(*args)
+            return lambda: result
+        return self.helpers.submit(fn, *args).result
+
+    def _ahead(self, fn, starts):
+        """Yield ``fn(start)`` for each start in order, helpers up to ``self.ahead`` blocks ahead.
+
+        When ``fn`` starts on a block, the caller is done with every block
+        ``self.ahead + 1`` or more before it.
+        """
+        if self.helpers is None:
+            yield from map(fn, starts)
+            return
+        pending = deque()
+        for start in starts:
+            pending.append(self.helpers.submit(fn, start))
+            if len(pending) > self.ahead:
+                yield pending.popleft().result()
+        while pending:
+            yield pending.popleft().result()
+
+    def _scratch(self) -> _Scratch:
+        """This thread's working arrays."""
+        scratch = getattr(self.local, "scratch", None)
+        if scratch is None:
+            scratch = self.local.scratch = _Scratch()
+        return scratch
+
+    def _key_of(self, rows: np.ndarray) -> np.ndarray:
+        """:func:`importance` of some rows, computed again from the scene (the same bits)."""
+        return importance({name: self.source.column(name, rows) for name in _KEY})
+
+    @staticmethod
+    def _frame(columns: dict) -> dict:
+        return camera_for_box(*framing_box(columns["x"], columns["y"], columns["z"]))
+
+    def _rows(self, start: int, size: int) -> slice:
+        return slice(start, min(start + size, self.n))
+
+    def _record_block(self, start: int, out: np.ndarray | None = None):
+        """Output records ``start:start + BLOCK``, ``(M, 16) uint32`` (into ``out`` or a ring slot), and counts."""
+        rows = self._rows(start, BLOCK)
+        m = rows.stop - rows.start
+        if out is None:
+            slot = (start // BLOCK) % len(self.outs)
+            if self.outs[slot] is None:
+                self.outs[slot] = np.empty((BLOCK, WORDS_PER_SPLAT), dtype="<u4")
+            out = self.outs[slot][:m]
+        counts = new_counts()
+        pack(self.source, rows if self.order is None else self.order[rows], out, self.compat, counts,
+             self._scratch())
+        return out, counts
+
+    def blocks(self, report: WriteReport):
+        """Yield ``(M, 16) uint32`` record blocks in output order, adding their counts to ``report``.
+
+        A yielded block's memory is reused once the next one is asked for.
+        """
+        for out, counts in self._ahead(self._record_block, range(0, self.n, BLOCK)):
+            merge_counts(report, counts)
+            yield out
+
+    def into(self, records: np.ndarray, report: WriteReport) -> None:
+        """Pack every record into ``records`` (``(N, 16) uint32``), adding the counts to ``report``."""
+        def job(start):
+            return self._record_block(start, records[start:min(start + BLOCK, self.n)])[1]
+
+        for counts in self._ahead(job, range(0, self.n, BLOCK)):
+            merge_counts(report, counts)
+
+
+def helpers(n: int):
+    """Helper threads when there is more than one block to pack, else None."""
+    return ThreadPoolExecutor(max_workers=WORKERS) if n > BLOCK and WORKERS > 1 else None
