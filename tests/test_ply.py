@@ -117,3 +117,37 @@ def test_3dgs_to_lite_ply_keeps_values(tmp_path, gs_ply):
     scene = splatconv.read(out)
     assert scene.variant == model.VARIANT_LITE
     assert np.array_equal(scene.columns["scale_2"], splatconv.read(gs_ply).columns["scale_2"])
+
+
+def _with_list_property(path, cols: dict, name: str, *, text: bool) -> str:
+    """A PLY whose vertex element has a list property ``name`` besides ``cols``."""
+    n = len(cols["x"])
+    fields = [(k, "f4") for k in cols] + [(name, object)]
+    arr = np.empty(n, dtype=fields)
+    for k, v in cols.items():
+        arr[k] = v
+    for i in range(n):
+        arr[name][i] = np.arange(i % 4, dtype=np.int32)
+    element = plyfile.PlyElement.describe(arr, "vertex", len_types={name: "u1"}, val_types={name: "i4"})
+    plyfile.PlyData([element], text=text).write(str(path))
+    return str(path)
+
+
+@pytest.mark.parametrize("text", [False, True])
+def test_list_property_in_vertex_is_ignored_and_listed(tmp_path, text):
+    cols = lite_columns_with_normals(random_columns(50, 8))
+    path = _with_list_property(tmp_path / "list.ply", cols, "neighbours", text=text)
+    scene = splatconv.read(path)
+    assert scene.count == 50 and scene.variant == model.VARIANT_LITE
+    assert scene.meta["ignored_properties"] == ["neighbours"]
+    for name in model.COLUMNS:
+        assert np.array_equal(scene.columns[name], cols[name]), name
+
+
+def test_list_property_named_like_an_attribute_is_refused(tmp_path):
+    cols = lite_columns_with_normals(random_columns(5, 8))
+    del cols["opacity"]
+    path = _with_list_property(tmp_path / "list.ply", cols, "opacity", text=False)
+    with pytest.raises(UnsupportedError) as e:
+        splatconv.read(path)
+    assert "property opacity is a list, not one number a splat" in str(e.value)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import re
+import warnings
 
 import numpy as np
 import plyfile
@@ -112,7 +113,10 @@ def _open(path: str) -> plyfile.PlyData:
             raise FormatError("file is empty", path)
         _minimum_body(f, path, size)
         try:
-            return plyfile.PlyData.read(f, mmap="r")
+            with warnings.catch_warnings():
+                # An empty list in an ASCII row: plyfile reads it right, numpy warns.
+                warnings.filterwarnings("ignore", "loadtxt: input contained no data")
+                return plyfile.PlyData.read(f, mmap="r")
         except plyfile.PlyHeaderParseError as e:
             raise FormatError(f"bad header: {e.message}", path,
                               (f"line {e.line}",) if e.line else ()) from None
@@ -176,13 +180,15 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
         raise UnsupportedError(f"not a splat file: no 'vertex' element (elements: {names})", path)
     vertex = ply["vertex"]
     names = [p.name for p in vertex.properties]
+    # A list property is never a splat attribute: ignored like any extra
+    # property, unless it takes an attribute's name.
     list_props = [p.name for p in vertex.properties if isinstance(p, plyfile.PlyListProperty)]
-    if list_props:
-        raise UnsupportedError(f"list properties in 'vertex' are not splat attributes: {', '.join(list_props)}",
-                               path)
     try:
-        variant = detect_variant(names)
+        variant = detect_variant([p for p in names if p not in list_props])
     except UnsupportedError as e:
+        clash = [p for p in list_props if p in set(LITE_REQUIRED) | set(GS_REQUIRED)]
+        if clash:
+            raise UnsupportedError(f"property {', '.join(clash)} is a list, not one number a splat", path) from None
         raise UnsupportedError(e.message, path) from None
     data = vertex.data
     n = len(data)
