@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-import os
+import textwrap
 
 
 def to_json(data) -> str:
@@ -112,24 +112,41 @@ def _g(v) -> str:
     return "-" if v is None else f"{v:.4g}"
 
 
+#: Columns the human ``stats`` output fits in.
+TEXT_WIDTH = 100
+#: Stands for the middle of a path too long for the text table.
+_ELISION = "..."
+#: Characters of an elided path kept, at least.
+_MIN_PATH = 12
+
+
+def _elide(text: str, width: int) -> str:
+    """``text`` cut to ``width`` characters by replacing its middle (more of the end is kept)."""
+    if len(text) <= width:
+        return text
+    keep = max(width - len(_ELISION), 2)
+    head = keep // 3
+    return text[:head] + _ELISION + text[len(text) - (keep - head):]
+
+
 def _stats_tables(data: dict) -> list:
-    """(title, headers, rows) tables of a stats report."""
+    """(title, headers, rows, left-aligned columns) tables of a stats report; paths in full."""
     tables = []
     level = data["files"][0]["zstd_level"]
     rows = []
     for f in data["files"]:
-        name = os.path.basename(f["path"]) if f["path"] is not None else "(as converted)"
+        name = f["path"] if f["path"] is not None else "(as converted)"
         rows.append([f["role"], name, _num(f["bytes"]), _num(f["bytes_per_splat"], "{:,.2f}"),
                      _num(f["zstd_bytes"]), _num(f["ratio"], "{:.3f}"), _num(f["zstd_ratio"], "{:.3f}")])
-    tables.append(("files", ["file", "path", "bytes", "B/splat", f"zstd-{level}", "ratio", "zstd ratio"], rows))
+    tables.append(("files", ["file", "path", "bytes", "B/splat", f"zstd-{level}", "ratio", "zstd ratio"], rows, 2))
     m = data["motion"]
     tables.append(("motion and rotation speed (per unit time)", ["magnitude", "p50", "p90", "p99", "max"],
-                   [[k, _g(v["p50"]), _g(v["p90"]), _g(v["p99"]), _g(v["max"])] for k, v in m.items()]))
+                   [[k, _g(v["p50"]), _g(v["p90"]), _g(v["p99"]), _g(v["max"])] for k, v in m.items()], 1))
     keys = ["max_abs_error", "max_rel_error", "rmse", "nonfinite", "overflow", "underflow", "subnormal", "clamped"]
     heads = ["attribute", "max abs err", "max rel err", "rmse", "nonfinite", "overflow", "underflow", "subnormal",
              "clamped"]
     rows = [[g] + [_g(a[k]) if k in keys[:3] else _num(a[k]) for k in keys] for g, a in data["attributes"].items()]
-    tables.append(("attributes (converted against source, in viewer units)", heads, rows))
+    tables.append(("attributes (converted against source, in viewer units)", heads, rows, 1))
     return tables
 
 
@@ -154,35 +171,61 @@ def _summary_lines(data: dict) -> list:
     if dmg is not None:
         hurt = [f"{g}: {d['infinity']:,} to infinity, {d['garbled']:,} garbled" for g, d in dmg.items()
                 if d["infinity"] or d["garbled"]]
-        lines.append("splaTV's own converter would corrupt: " + ("; ".join(hurt) if hurt else "nothing"))
+        why = (" (garbled: a nonzero half written where the nearest half is zero)"
+               if any(d["garbled"] for d in dmg.values()) else "")
+        lines.append("splaTV's own converter would corrupt: " + ("; ".join(hurt) if hurt else "nothing") + why)
+    return lines
+
+
+def _aligned(heads: list, rows: list, left: int, elide: int | None = None) -> list:
+    """Aligned table lines that fit :data:`TEXT_WIDTH` columns.
+
+    Column ``elide`` (a path) is shortened to the room the others leave; when
+    that is not enough, the gap between columns narrows from two spaces to one,
+    and then numbers lose their thousands separators.
+    """
+    for gap, plain in ((2, False), (1, False), (1, True)):
+        table = [heads] + [[str(c).replace(",", "") if plain and i >= left else str(c) for i, c in enumerate(r)]
+                           for r in rows]
+        widths = [max(len(c) for c in col) for col in zip(*table)]
+        if elide is not None:
+            room = TEXT_WIDTH - 2 - gap * (len(widths) - 1) - sum(widths) + widths[elide]
+            widths[elide] = min(widths[elide], max(room, _MIN_PATH, len(heads[elide])))
+        if 2 + gap * (len(widths) - 1) + sum(widths) <= TEXT_WIDTH:
+            break
+    lines = []
+    for r in table:
+        cells = [_elide(c, w) if i == elide else c for i, (c, w) in enumerate(zip(r, widths))]
+        cells = [c.ljust(w) if i < left else c.rjust(w) for i, (c, w) in enumerate(zip(cells, widths))]
+        lines.append("  " + (" " * gap).join(cells).rstrip())
     return lines
 
 
 def stats_text(data: dict) -> str:
-    """Compact aligned tables (under 100 columns) of a stats report."""
+    """Compact aligned tables of a stats report, every line within :data:`TEXT_WIDTH` columns.
+
+    Paths too long for the files table lose their middle (``--json`` keeps them
+    whole); summary lines wrap.
+    """
     out = []
-    for title, heads, rows in _stats_tables(data):
-        widths = [max(len(str(c)) for c in col) for col in zip(heads, *rows)]
+    for title, heads, rows, left in _stats_tables(data):
         out.append(title + ":")
-        for r in [heads] + rows:
-            left = 2 if title == "files" else 1
-            cells = [str(c).ljust(w) if i < left else str(c).rjust(w) for i, (c, w) in enumerate(zip(r, widths))]
-            out.append("  " + "  ".join(cells).rstrip())
+        out.extend(_aligned(heads, rows, left, elide=heads.index("path") if "path" in heads else None))
         out.append("")
-    out.extend(_summary_lines(data))
+    for line in _summary_lines(data):
+        out.extend(textwrap.wrap(line, TEXT_WIDTH, subsequent_indent="  ", break_on_hyphens=False))
     return "\n".join(out)
 
 
 def stats_markdown(data: dict) -> str:
     """The report as Markdown tables, for a pull request."""
     out = []
-    for title, heads, rows in _stats_tables(data):
+    for title, heads, rows, left in _stats_tables(data):
         out.append(f"**{title}**\n")
         out.append("| " + " | ".join(heads) + " |")
-        left = 2 if title == "files" else 1
         out.append("|" + "|".join("---" if i < left else "---:" for i in range(len(heads))) + "|")
         for r in rows:
-            out.append("| " + " | ".join(str(c) for c in r) + " |")
+            out.append("| " + " | ".join(str(c).replace("|", "\\|") for c in r) + " |")
         out.append("")
     out.extend(f"- {line}" for line in _summary_lines(data))
     return "\n".join(out)

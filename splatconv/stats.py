@@ -1,4 +1,5 @@
-"""Reports as data: what a scene file holds (``info``). Never prints."""
+"""Reports as data: what a scene file holds (``info``), what a conversion costs and loses
+(``stats``). Never prints."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import math
 import numpy as np
 
 from .formats import splatv
-from .model import COLUMNS, GROUPS, Scene
+from .model import COLOR, COLUMNS, GROUPS, Scene
 
 #: Temporal opacity below which the viewer skips a splat.
 TEMPORAL_CUTOFF = 0.02
@@ -132,6 +133,10 @@ def motion_summary(cols: dict) -> dict:
     }
 
 
+#: Smallest normal half: converted values below it (and not zero) are subnormal.
+_HALF_MIN_NORMAL = 2.0**-14
+
+
 def _counts(source_cols: dict, converted_cols: dict, group: str) -> dict:
     """Per-group counts: nonfinite, overflow, underflow, subnormal, clamped."""
     from .compare import HALF_MAX, viewer_values
@@ -144,7 +149,11 @@ def _counts(source_cols: dict, converted_cols: dict, group: str) -> dict:
            "clamped": 0}
     if group in HALF_GROUPS:
         out["overflow"] = int(np.count_nonzero(finite & (np.abs(a) > HALF_MAX)))
-        out["subnormal"] = int(np.count_nonzero((b != 0) & (np.abs(b) < 2.0**-14)))
+        # Compared in float32: a half read back through exp() may land a hair
+        # below 2^-14 in double, never in float32.
+        with np.errstate(over="ignore"):
+            b32 = np.abs(b.astype(np.float32))
+        out["subnormal"] = int(np.count_nonzero((b32 != 0) & (b32 < _HALF_MIN_NORMAL)))
     if group != "position":
         out["underflow"] = int(np.count_nonzero(finite & (a != 0) & (b == 0)))
     if group == "color":
@@ -155,28 +164,69 @@ def _counts(source_cols: dict, converted_cols: dict, group: str) -> dict:
 def splatvjs_damage(cols: dict) -> dict:
     """What splaTV's own converter would corrupt in these attributes, per group.
 
-    ``infinity``: finite values it writes as infinity (|x| >= 32768 after exp);
-    ``garbled``: tiny values (2^-56 <= |x| < 2^-45) its shift wraps into nonzero
-    garbage where the true half is zero.
+    Parameters
+    ----------
+    cols : dict of str to (N,) ndarray
+        Model columns of the source.
+
+    Returns
+    -------
+    dict
+        For each group stored as halves, ``infinity``: finite values (after
+        exp for scales) it writes as infinity, those of magnitude 32768 or more
+        once rounded to float32; ``garbled``: values it writes as a nonzero half
+        where the nearest half is zero -- its shift count wraps modulo 32, and it
+        keeps a float32 subnormal's top mantissa bits -- which are exactly the
+        magnitudes in [2^-136, 2^-126), [2^-120, 2^-109), [2^-88, 2^-77) and
+        [2^-56, 2^-45).
     """
     from .compare import viewer_values
-    from .packing import f32_bits, float_to_half_splatvjs
+    from .packing import float_to_half, float_to_half_splatvjs
 
     out = {}
     for group in HALF_GROUPS:
         with np.errstate(over="ignore", invalid="ignore"):
-            v = viewer_values(cols, group).astype(np.float32).ravel()
-        bits = f32_bits(v)
-        exp = (bits >> 23) & 0xFF
-        tiny = (exp >= 1) & (exp <= 81)
-        garbled = tiny & ((float_to_half_splatvjs(v) & 0x7FFF) != 0)
-        out[group] = {"infinity": int(np.count_nonzero(np.isfinite(v) & (np.abs(v) >= 32768))),
+            exact = viewer_values(cols, group).ravel()
+            v = exact.astype(np.float32)  # the converter stores through a Float32Array
+        garbled = ((float_to_half_splatvjs(v) & 0x7FFF) != 0) & ((float_to_half(v) & 0x7FFF) == 0)
+        out[group] = {"infinity": int(np.count_nonzero(np.isfinite(exact) & (np.abs(v) >= 32768))),
                       "garbled": int(np.count_nonzero(garbled))}
     return out
 
 
+def _texture_columns(cols: dict) -> dict:
+    """Columns of a scene read from a ``.splatv``, giving back the texture's own values.
+
+    The model keeps float32 logarithms and logits chosen so that writing them
+    gives the same halves and bytes again; through exp() and the sigmoid they
+    come within about 2e-6 (relative) of what the viewer reads, not onto it.
+    These float64 columns give the halves and bytes / 255 to double precision,
+    so the reported errors are the texture's own.
+
+    Parameters
+    ----------
+    cols : dict of str to (N,) float32 ndarray
+
+    Returns
+    -------
+    dict of str to (N,) ndarray
+        ``cols`` with the scale, temporal scale, colour and opacity columns
+        replaced by float64 ones.
+    """
+    out = dict(cols)
+    with np.errstate(all="ignore"):  # 0 -> log 0, bytes 0 and 255 -> infinite logits
+        for name in splatv.EXP_ATTRIBUTES:
+            stored = np.exp(np.asarray(cols[name], dtype=np.float64)).astype(np.float16)  # the nearest half
+            out[name] = np.log(stored.astype(np.float64))
+        for name in COLOR:
+            out[name] = np.rint(np.asarray(cols[name], dtype=np.float64) * 255) / 255
+        alpha = np.rint(255 / (1 + np.exp(-np.asarray(cols["opacity"], dtype=np.float64)))) / 255
+        out["opacity"] = np.log(alpha) - np.log1p(-alpha)
+    return out
+
+
 def _sizes(path: str, level: int) -> tuple:
-    """(uncompressed bytes, zstd bytes at ``level``) of a file, ``.zst`` or not."""
+    """(bytes, zstd bytes at ``level``) of a file's content: a ``.zst`` file's decompressed."""
     import os
 
     from .transport import compressed_size, plain_input
@@ -200,18 +250,51 @@ def _file_entry(role: str, path, fmt: str, size: int, count: int, zstd_bytes: in
     }
 
 
+def _simulated_conversion(source: Scene, level: int) -> tuple:
+    """What ``convert`` would write for ``source``: (scene it decodes to, bytes, zstd bytes).
+
+    The file is written once through the zstd counter, which keeps none of it,
+    then encoded again in memory to decode: two uncompressed copies of it never
+    exist at once.
+    """
+    from .cameras import framing_camera
+    from .transport import written_sizes
+
+    size, zstd_bytes = written_sizes(lambda out: splatv.write(source, out), level)
+    records, _ = splatv.encode(source)
+    columns, _ = splatv.decode_records(records[:source.count])
+    cols = source.columns
+    cameras = source.cameras or [framing_camera(cols["x"], cols["y"], cols["z"])]
+    return Scene(columns=columns, cameras=cameras), size, zstd_bytes
+
+
+def _viewer_limits(scene: Scene) -> dict:
+    """The ``viewer`` checks of the file the viewer would load (``scene``)."""
+    # A .splatv's texture is as tall as its header says, whatever it holds;
+    # anything else is as tall as converting it would declare.
+    texheight = scene.meta.get("texheight", splatv.texture_height(scene.count))
+    xyz = np.stack([scene.columns[c] for c in ("x", "y", "z")])
+    return {
+        "texture_height": texheight,
+        "fits_max_texture_size": {str(s): texheight <= s for s in MAX_TEXTURE_SIZES},
+        "cameras": len(scene.cameras or []),
+        "empty_cameras": not scene.cameras,
+        "nan_positions": int(np.count_nonzero((~np.isfinite(xyz)).any(axis=0))),
+    }
+
+
 def stats_report(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
                  color: str = "auto") -> dict:
     """The ``stats`` report as JSON-able data (keys documented in ``specs/stats.md``).
 
     With one file, the conversion it would get (default writer) is simulated in
-    memory and reported as ``converted``, with ``path`` null.
+    memory and reported as ``converted``, with ``path`` null; a ``.splatv`` (or
+    an empty PLY, which ``convert`` refuses) is reported as what it is.
     """
     from . import read
-    from .compare import align, compare_scenes
-    from .formats import format_for, splatv
-    from .model import Scene
-    from .transport import DEFAULT_LEVEL, compressed_size_of
+    from .compare import align, group_errors
+    from .formats import format_for
+    from .transport import DEFAULT_LEVEL
 
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     source = read(source_path, color=color)
@@ -220,51 +303,41 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
     files = [_file_entry("source", source_path, src_fmt, src_bytes, source.count, src_zstd, level, src_bytes)]
     if converted_path is not None:
         converted = read(converted_path, color=color)
+        conv_fmt = format_for(converted_path).NAME
         order = align(source, converted, source_path, converted_path)
         conv_bytes, conv_zstd = _sizes(converted_path, level)
-        files.append(_file_entry("converted", converted_path, format_for(converted_path).NAME, conv_bytes,
-                                 converted.count, conv_zstd, level, src_bytes))
+        files.append(_file_entry("converted", converted_path, conv_fmt, conv_bytes, converted.count, conv_zstd,
+                                 level, src_bytes))
+    elif src_fmt == "splatv" or source.count == 0:
+        converted, conv_fmt, order = source, src_fmt, None  # already what the viewer reads
     else:
-        order = None
-        if src_fmt == "splatv":
-            converted = source  # already what the viewer reads
-        else:
-            from .cameras import framing_camera
-
-            # Exactly what convert would write: default writer, importance order.
-            records, _ = splatv.encode(source)
-            cams = source.cameras or [framing_camera(source.columns["x"], source.columns["y"], source.columns["z"])]
-            header = splatv.header_bytes(source.count, cams)
-            columns, _ = splatv.decode_records(records[:source.count])
-            converted = Scene(columns=columns, cameras=cams)
-            order = align(source, converted)
-            size = len(header) + records.nbytes
-            files.append(_file_entry("converted", None, "splatv", size, source.count,
-                                     compressed_size_of([header, memoryview(records)], level), level, src_bytes))
-    errors = compare_scenes(source, converted, order)
+        converted, size, zstd_bytes = _simulated_conversion(source, level)
+        conv_fmt = "splatv"
+        order = align(source, converted)
+        files.append(_file_entry("converted", None, conv_fmt, size, source.count, zstd_bytes, level, src_bytes))
     src_cols = source.columns if order is None else source.take(order)
+    conv_cols = converted.columns
+    if src_fmt == "splatv":
+        src_cols = _texture_columns(src_cols)
+    if conv_fmt == "splatv":
+        conv_cols = _texture_columns(conv_cols)
     attributes = {}
-    for group, e in errors.items():
+    for group in GROUPS:
+        e = group_errors(src_cols, conv_cols, group)
         attributes[group] = {"max_abs_error": e.max_abs_error, "max_rel_error": e.max_rel_error, "rmse": e.rmse,
-                             **_counts(src_cols, converted.columns, group)}
-    info = describe(converted, files[-1]["path"] or source_path, files[-1]["format"])
-    texheight = splatv.texture_height(converted.count)
-    xyz = np.stack([converted.columns[c] for c in ("x", "y", "z")])
-    nan_pos = int(np.count_nonzero((~np.isfinite(xyz)).any(axis=0)))
-    cameras = converted.cameras
+                             **_counts(src_cols, conv_cols, group)}
+    info = describe(converted, files[-1]["path"] or source_path, conv_fmt)
+    # The viewer loads the .splatv side; with none (PLY to PLY), the converted file as converting would make it.
+    viewed = source if src_fmt == "splatv" and conv_fmt != "splatv" else converted
     return {
         "files": files,
         "count": source.count,
         "bounds": info["bounds"],
-        "time": time_coverage(converted.columns),
-        "motion": motion_summary(converted.columns),
+        "time": time_coverage(conv_cols),
+        "motion": motion_summary(conv_cols),
         "attributes": attributes,
         "viewer": {
-            "texture_height": texheight,
-            "fits_max_texture_size": {str(s): texheight <= s for s in MAX_TEXTURE_SIZES},
-            "cameras": len(cameras or []),
-            "empty_cameras": not cameras,
-            "nan_positions": nan_pos,
+            **_viewer_limits(viewed),
             "splatv_js_damage": splatvjs_damage(source.columns) if src_fmt != "splatv" else None,
         },
     }

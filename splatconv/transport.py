@@ -23,12 +23,25 @@ class _Counter:
         self.count = 0
 
     def write(self, data) -> int:
-        n = len(data)
+        n = memoryview(data).nbytes  # len() of a 2-D array's memoryview counts rows
         self.count += n
         return n
 
 
+class _Tee:
+    """A write-only stream that counts what passes and hands it on."""
+
+    def __init__(self, counter: _Counter, out):
+        self.counter = counter
+        self.out = out
+
+    def write(self, data) -> int:
+        self.counter.write(data)
+        return self.out.write(data)
+
+
 def compressor(level: int = DEFAULT_LEVEL):
+    """The ``zstandard.ZstdCompressor`` every ``.zst`` output and size goes through."""
     import zstandard
 
     # threads=-1: one worker per core; the frame is the same format either way.
@@ -43,13 +56,26 @@ def compressed_size(path: str | os.PathLike, level: int = DEFAULT_LEVEL) -> int:
     return sink.count
 
 
-def compressed_size_of(chunks, level: int = DEFAULT_LEVEL) -> int:
-    """Bytes of the concatenated byte chunks compressed with zstd at ``level``."""
-    sink = _Counter()
-    with compressor(level).stream_writer(sink, closefd=False) as w:
-        for chunk in chunks:
-            w.write(chunk)
-    return sink.count
+def written_sizes(write, level: int = DEFAULT_LEVEL) -> tuple[int, int]:
+    """Sizes of what ``write(stream)`` writes, plain and zstd-compressed at ``level``.
+
+    The bytes are compressed as they are written and then dropped: nothing is
+    kept but the compressor's own window and in-flight jobs.
+
+    Parameters
+    ----------
+    write : callable
+        Called once with a binary write-only stream.
+
+    Returns
+    -------
+    plain, compressed : int
+        Bytes.
+    """
+    plain, sink = _Counter(), _Counter()
+    with compressor(level).stream_writer(sink, closefd=False) as z:
+        write(_Tee(plain, z))
+    return plain.count, sink.count
 
 
 def is_compressed(path) -> bool:

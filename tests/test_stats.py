@@ -28,47 +28,210 @@ def half(x: float) -> float:
         return math.copysign(65504.0, x)
 
 
-@pytest.fixture
-def hostile(tmp_path):
-    cols = lite_columns_with_normals(random_columns(64, 9))
-    cols["scale_0"][0] = 20.0            # exp(20) > 65504: overflow (and infinity in splaTV's converter)
-    cols["scale_1"][1] = math.log(40000)  # 40000: fine as a half, infinity in splaTV's converter
-    cols["motion_3"][2] = np.nan          # non-finite
-    cols["rot_1"][3] = 1e-6               # becomes a half subnormal
-    cols["motion_2"][4] = 1e-9            # nonzero that becomes zero
-    cols["motion_0"][5] = 1e-15           # splaTV's shift wraps: garbage instead of zero
-    cols["f_dc_0"][6] = 1.5               # clamped
-    cols["f_dc_2"][7] = -0.2              # clamped
-    return cols, write_ply(tmp_path / "hostile.ply", cols)
+# --------------------------------------------------------------------------
+# An independent model of both writers, from specs/splatv.md and splaTV's
+# JavaScript: plain numpy and Python, nothing from splatconv.
+
+HALF_MAX = 65504.0
+GROUPS = {
+    "position": ["x", "y", "z"], "rotation": [f"rot_{i}" for i in range(4)],
+    "scale": [f"scale_{i}" for i in range(3)], "color": [f"f_dc_{i}" for i in range(3)], "opacity": ["opacity"],
+    "motion": [f"motion_{i}" for i in range(9)], "omega": [f"omega_{i}" for i in range(4)],
+    "trbf": ["trbf_center", "trbf_scale"],
+}
+HALF_GROUPS = ("rotation", "scale", "motion", "omega", "trbf")
 
 
-def test_counts_and_errors_of_a_hostile_source(tmp_path, hostile):
-    cols, src = hostile
+def viewer_units(cols: dict, group: str) -> np.ndarray:
+    """(N, k) float64: linear scales, clamped colour, sigmoid opacity."""
+    v = np.stack([cols[n].astype(np.float64) for n in GROUPS[group]], axis=1)
+    with np.errstate(over="ignore"):
+        if group == "scale":
+            v = np.exp(v)
+        elif group == "trbf":
+            v[:, 1] = np.exp(v[:, 1])
+        elif group == "color":
+            v = np.clip(v, 0, 1)
+        elif group == "opacity":
+            v = 1 / (1 + np.exp(-v))
+    return v
+
+
+def js_float_to_half(x) -> float:
+    """The value of the half splaTV's floatToHalf makes of float32 ``x``, transcribed from its JavaScript."""
+    f = int(np.float32(x).view(np.uint32))
+    sign = -1.0 if f >> 31 else 1.0
+    exp, frac = (f >> 23) & 0xFF, f & 0x7FFFFF
+    if exp >= 142:  # |x| >= 32768, infinity, NaN
+        return sign * math.inf
+    if exp >= 113:
+        return sign * (1 + (frac >> 13) / 1024) * 2.0 ** (exp - 127)
+    if exp > 0:
+        frac = (frac | 0x800000) >> ((113 - exp) & 31)  # JavaScript's >> takes the count modulo 32
+    return sign * (frac >> 13) * 2.0**-24  # new exponent 0 (bit 10 set by a wrapped shift: the same value)
+
+
+def texture_values(cols: dict, group: str, compat: bool) -> np.ndarray:
+    """What the viewer reads back from the texture, in viewer units."""
+    if group == "position":
+        return viewer_units(cols, group)
+    if group in ("color", "opacity"):
+        raw = np.stack([cols[n].astype(np.float64) for n in GROUPS[group]], axis=1)
+        v = raw if group == "color" else 1 / (1 + np.exp(-raw))
+        scaled = np.clip(np.nan_to_num(v * 255, nan=0.0), 0, 255)
+        return (np.trunc(scaled) if compat else np.rint(scaled)) / 255
+    with np.errstate(over="ignore", invalid="ignore"):
+        v32 = viewer_units(cols, group).astype(np.float32)  # both writers round to float32 first
+    if compat:
+        return np.vectorize(js_float_to_half, otypes=[np.float64])(v32)
+    with np.errstate(over="ignore"):
+        h = v32.astype(np.float16).astype(np.float64)
+    return np.where(np.isinf(h) & np.isfinite(v32), np.copysign(HALF_MAX, v32), h)  # saturated
+
+
+def expected_attributes(cols: dict, compat: bool) -> dict:
+    out = {}
+    for group in GROUPS:
+        a = viewer_units(cols, group)
+        b = texture_values(cols, group, compat)
+        both = np.isfinite(a) & np.isfinite(b)
+        err = np.abs(a[both] - b[both])
+        nz = a[both] != 0
+        raw = np.stack([cols[n] for n in GROUPS[group]], axis=1)
+        half = group in HALF_GROUPS
+        out[group] = {
+            "max_abs_error": float(err.max()),
+            "max_rel_error": float((err[nz] / np.abs(a[both][nz])).max()),
+            "rmse": float(np.sqrt(np.mean(err ** 2))),
+            "nonfinite": int(np.sum(~np.isfinite(b))),
+            "overflow": int(np.sum(np.isfinite(a) & (np.abs(a) > HALF_MAX))) if half else 0,
+            "underflow": int(np.sum(np.isfinite(a) & (a != 0) & (b == 0))) if group != "position" else 0,
+            "subnormal": int(np.sum((b != 0) & (np.abs(b) < 2.0**-14))) if half else 0,
+            "clamped": int(np.sum((raw < 0) | (raw > 1))) if group == "color" else 0,
+        }
+    return out
+
+
+def hostile_columns(n: int = 16) -> dict:
+    """Benign values from simple formulas, then one hostile value per row."""
+    i = np.arange(n, dtype=np.float64)
+    cols = {"x": i, "y": 2 * i, "z": -i, "trbf_center": 0.1 + 0.05 * i, "trbf_scale": np.log(0.2 + 0.01 * i),
+            "opacity": -1 + 0.1 * i}
+    for k in range(9):
+        cols[f"motion_{k}"] = 0.01 * (k + 1) + 0.001 * i
+    for k in range(3):
+        cols[f"f_dc_{k}"] = 0.2 + 0.03 * i + 0.01 * k
+        cols[f"scale_{k}"] = np.log(0.01 + 0.001 * (i + k))
+    for k in range(4):
+        cols[f"rot_{k}"] = 0.5 + 0.02 * i - 0.1 * k
+        cols[f"omega_{k}"] = 0.05 + 0.01 * k + 0.003 * i
+    cols = {k: v.astype(np.float32) for k, v in cols.items()}
+    cols["scale_0"][0] = 20.0               # exp(20) > 65504: overflow; saturates (default), infinity (splaTV)
+    cols["scale_1"][1] = math.log(40000)    # a half, but >= 32768: infinity in splaTV's converter
+    cols["motion_3"][2] = np.nan            # NaN: stays NaN (default), infinity (splaTV)
+    cols["rot_1"][3] = 1e-6                 # a half subnormal in both
+    cols["motion_2"][4] = 1e-9              # below 2^-25: zero in both
+    cols["motion_0"][5] = 1e-15             # zero (default); garbage subnormal 0x0048 (splaTV)
+    cols["f_dc_0"][6] = 1.5                 # clamped
+    cols["f_dc_2"][7] = -0.2                # clamped
+    cols["omega_0"][8] = 70000.0            # overflow: saturates (default), infinity (splaTV)
+    cols["trbf_center"][9] = 3e-5           # a half subnormal in both
+    cols["scale_2"][10] = math.log(2.0**-50)  # zero (default); garbage (splaTV)
+    cols["opacity"][11] = 50.0              # alpha 255
+    cols["opacity"][12] = -50.0             # sigmoid 2e-22: alpha 0, underflow
+    cols["scale_0"][13] = 100.0             # exp(100) overflows float32: infinity in both
+    cols["rot_3"][14] = 3e-8                # 2^-24 (default, rounds up); zero (splaTV truncates)
+    cols["scale_1"][15] = math.log(2.0**-14)  # 2^-14 in float32: the smallest normal half, not subnormal
+    return lite_columns_with_normals(cols)
+
+
+#: Counts worked out by hand from the comments above: (group, key) -> (default, splatv-js).
+HAND_COUNTS = {
+    ("rotation", "subnormal"): (2, 1), ("rotation", "underflow"): (0, 1),
+    ("scale", "overflow"): (2, 2), ("scale", "nonfinite"): (1, 3), ("scale", "underflow"): (1, 0),
+    ("scale", "subnormal"): (0, 1),
+    ("color", "clamped"): (2, 2), ("opacity", "underflow"): (1, 1),
+    ("motion", "nonfinite"): (1, 1), ("motion", "underflow"): (2, 1), ("motion", "subnormal"): (0, 1),
+    ("omega", "overflow"): (1, 1), ("omega", "nonfinite"): (0, 1),
+    ("trbf", "subnormal"): (1, 1),
+}
+
+
+@pytest.mark.parametrize("compat", [False, True], ids=["default", "splatv-js"])
+def test_errors_and_counts_match_an_independent_model(tmp_path, compat):
+    cols = hostile_columns()
+    src = write_ply(tmp_path / "hostile.ply", cols)
     conv = tmp_path / "h.splatv"
-    assert run("convert", src, conv).exit_code == 0
-    data = json.loads(run("stats", src, conv, "--json", "--zstd-level", "3").stdout)
-    a = data["attributes"]
-    assert a["scale"]["overflow"] == 1
-    assert a["motion"]["nonfinite"] == 1
-    assert a["rotation"]["subnormal"] >= 1
-    assert a["motion"]["underflow"] == 2  # 1e-9 and 1e-15
-    assert a["color"]["clamped"] == 2
-    assert a["position"] == {"max_abs_error": 0.0, "max_rel_error": 0.0, "rmse": 0.0, "nonfinite": 0,
-                             "overflow": 0, "underflow": 0, "subnormal": 0, "clamped": 0}
-    # Independent: omega is stored as plain halves, rounded to nearest.
-    om = np.stack([cols[f"omega_{i}"] for i in range(4)], axis=1).astype(np.float64)
-    err = np.abs(om - np.vectorize(half)(om))
-    assert a["omega"]["max_abs_error"] == pytest.approx(err.max(), rel=1e-12)
-    assert a["omega"]["rmse"] == pytest.approx(np.sqrt((err ** 2).mean()), rel=1e-9)
-    nz = om != 0
-    assert a["omega"]["max_rel_error"] == pytest.approx((err[nz] / np.abs(om[nz])).max(), rel=1e-9)
-    # Colour: clamp, x255, round -> error against the clamped value.
-    c = np.clip(np.stack([cols[f"f_dc_{i}"] for i in range(3)], axis=1).astype(np.float64), 0, 1)
-    ce = np.abs(c - np.round(c * 255) / 255)
-    assert a["color"]["max_abs_error"] == pytest.approx(ce.max(), abs=1e-7)
-    dmg = data["viewer"]["splatv_js_damage"]
-    assert dmg["scale"]["infinity"] == 2  # exp(20) and 40000: both >= 32768
-    assert dmg["motion"]["garbled"] == 1
+    assert run("convert", src, conv, *(["--compat", "splatv-js"] if compat else [])).exit_code == 0
+    data = json.loads(run("stats", src, conv, "--json", "--zstd-level", "1").stdout)
+    expected = expected_attributes(cols, compat)
+    for (group, key), counts in HAND_COUNTS.items():  # the model agrees with the reasoning
+        assert expected[group][key] == counts[compat], (group, key)
+    for group, e in expected.items():
+        for key in ("nonfinite", "overflow", "underflow", "subnormal", "clamped"):
+            if (group, key) not in HAND_COUNTS:
+                assert e[key] == 0, (group, key)
+    assert expected["position"]["max_abs_error"] == 0
+    if not compat:  # no value sits where rounding via float32 and rounding once differ
+        for group in HALF_GROUPS:
+            with np.errstate(over="ignore"):
+                once = viewer_units(cols, group).astype(np.float16)
+                twice = viewer_units(cols, group).astype(np.float32).astype(np.float16)
+            np.testing.assert_array_equal(once, twice)
+    for group, e in expected.items():
+        got = data["attributes"][group]
+        assert list(got) == list(e)
+        for key, value in e.items():
+            assert got[key] == pytest.approx(value, rel=1e-9, abs=1e-15), (group, key)
+    dmg = data["viewer"]["splatv_js_damage"]  # of the source: the same for both
+    assert dmg == {"rotation": {"infinity": 0, "garbled": 0}, "scale": {"infinity": 3, "garbled": 1},
+                   "motion": {"infinity": 0, "garbled": 1}, "omega": {"infinity": 1, "garbled": 0},
+                   "trbf": {"infinity": 0, "garbled": 0}}
+
+
+def test_the_single_file_report_is_the_default_writers(tmp_path):
+    cols = hostile_columns()
+    src = write_ply(tmp_path / "hostile.ply", cols)
+    data = json.loads(run("stats", src, "--json", "--zstd-level", "1").stdout)
+    for group, e in expected_attributes(cols, False).items():
+        for key, value in e.items():
+            assert data["attributes"][group][key] == pytest.approx(value, rel=1e-9, abs=1e-15), (group, key)
+
+
+#: splaTV's garbage bands: magnitudes it writes as a nonzero half where the nearest half is zero.
+GARBAGE_BANDS = [(2.0**-136, 2.0**-126), (2.0**-120, 2.0**-109), (2.0**-88, 2.0**-77), (2.0**-56, 2.0**-45)]
+
+
+def _f32_below(x: float) -> np.float32:
+    return np.nextafter(np.float32(x), np.float32(0))
+
+
+@pytest.mark.parametrize("lo, hi", GARBAGE_BANDS)
+def test_garbled_counts_each_band_and_nothing_just_outside(lo, hi):
+    from splatconv.stats import splatvjs_damage
+
+    inside = [lo, _f32_below(hi), -lo, (lo * hi) ** 0.5]
+    outside = [_f32_below(lo), hi, -hi, 0.0]
+    # The model agrees: garbage inside, zero just outside.
+    assert all(js_float_to_half(v) != 0 for v in inside)
+    assert all(js_float_to_half(v) == 0 for v in outside)
+    for values, count in ((inside, len(inside)), (outside, 0)):
+        cols = lite_columns_with_normals(random_columns(len(values), 2))
+        cols["motion_4"] = np.array(values, dtype=np.float32)
+        assert splatvjs_damage(cols)["motion"] == {"infinity": 0, "garbled": count}
+
+
+def test_garbled_through_a_ply_and_between_the_bands(tmp_path):
+    inside = [v for lo, hi in GARBAGE_BANDS for v in (lo, _f32_below(hi))]
+    between = [2.0**-140, 2.0**-125, 2.0**-100, 2.0**-60, 2.0**-40, 2.0**-25, 2.0**-20]
+    cols = lite_columns_with_normals(random_columns(len(inside + between), 5))
+    cols["omega_2"] = np.array(inside + between, dtype=np.float32)  # float32 subnormals included
+    src = write_ply(tmp_path / "tiny.ply", cols)
+    data = json.loads(run("stats", src, "--json", "--zstd-level", "1").stdout)
+    assert data["viewer"]["splatv_js_damage"]["omega"] == {"infinity": 0, "garbled": len(inside)}
+    text = " ".join(run("stats", src, "--zstd-level", "1").stdout.split())  # undo the wrapping
+    assert (f"splaTV's own converter would corrupt: omega: 0 to infinity, {len(inside)} garbled "
+            "(garbled: a nonzero half written where the nearest half is zero)") in text
 
 
 def test_files_sizes_and_zstd(tmp_path, lite_ply):
@@ -132,6 +295,48 @@ def test_viewer_limits(tmp_path):
     assert "cameras 0 (EMPTY: the viewer needs one)" in text
 
 
+def tall_splatv(path, texheight: int):
+    """One splat in a .splatv whose header declares ``texheight`` rows (data not padded)."""
+    from .conftest import splatv_bytes
+
+    rec = np.zeros((1, 16), "<u4")
+    rec[0, 0] = np.float32(1.0).view(np.uint32)
+    rec[0, 15] = 0x3C00 << 16  # trbf_scale 1
+    chunk = {"type": "splat", "size": 4096 * texheight * 16, "texwidth": 4096, "texheight": texheight,
+             "cameras": [{"id": 0, "img_name": "c", "width": 8, "height": 8, "position": [0, 0, -5],
+                          "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "fx": 8, "fy": 8}]}
+    path.write_bytes(splatv_bytes(rec, chunks=[chunk], pad=False))
+    return path
+
+
+@pytest.mark.parametrize("texheight, fits", [(65536, {"8192": False, "16384": False}),
+                                              (12000, {"8192": False, "16384": True}),
+                                              (8192, {"8192": True, "16384": True})])
+def test_texture_height_is_the_declared_one(tmp_path, texheight, fits):
+    tall = tall_splatv(tmp_path / "tall.splatv", texheight)
+    back = tmp_path / "back.ply"
+    assert run("convert", tall, back).exit_code == 0
+    # Alone, as SOURCE (against a PLY of it) and as CONVERTED: the viewer sizes its texture by the header.
+    for args in ((tall,), (tall, back), (back, tall)):
+        data = json.loads(run("stats", *args, "--json", "--zstd-level", "1").stdout)
+        assert data["count"] == 1
+        assert data["viewer"]["texture_height"] == texheight, args
+        assert data["viewer"]["fits_max_texture_size"] == fits, args
+        assert data["viewer"]["cameras"] == 1 and not data["viewer"]["empty_cameras"]
+    text = run("stats", tall, "--zstd-level", "1").stdout
+    assert f"viewer: texture 4096x{texheight} (fits 8192: {'yes' if fits['8192'] else 'NO'}, " in text
+
+
+def test_texture_height_of_a_ply_is_what_converting_declares(tmp_path):
+    p = write_ply(tmp_path / "s.ply", lite_columns_with_normals(random_columns(2049, 6)))
+    conv = tmp_path / "s.splatv"
+    assert run("convert", p, conv).exit_code == 0
+    declared = json.loads(run("info", conv, "--json").stdout)["texture"]["height"]
+    assert declared == 3  # ceil(2049 / 1024)
+    for args in ((p,), (p, conv)):
+        assert json.loads(run("stats", *args, "--json", "--zstd-level", "1").stdout)["viewer"]["texture_height"] == 3
+
+
 def test_text_fits_100_columns_and_markdown(lite_ply, tmp_path):
     text = run("stats", lite_ply, "--zstd-level", "1").stdout
     assert max(len(line) for line in text.splitlines()) <= 100
@@ -140,6 +345,43 @@ def test_text_fits_100_columns_and_markdown(lite_ply, tmp_path):
     assert "| attribute | max abs err |" in md and "**files**" in md
     r = run("stats", lite_ply, "--json", "--markdown")
     assert r.exit_code == 2 and r.stderr == "Error: --json and --markdown cannot be used together\n"
+
+
+@pytest.mark.parametrize("length", [64, 200])
+def test_long_paths_are_elided_in_text_only(tmp_path, lite_ply, length):
+    folder = tmp_path / ("d" * 40)
+    folder.mkdir()
+    src = folder / ("s" * (length - 4) + ".ply")
+    src.write_bytes(lite_ply.read_bytes())
+    conv = folder / ("c" * (length - 7) + ".splatv")
+    assert run("convert", src, conv).exit_code == 0
+    for args in ((src,), (src, conv)):
+        text = run("stats", *args, "--zstd-level", "1").stdout
+        lines = text.splitlines()
+        assert max(len(line) for line in lines) <= 100, max(lines, key=len)
+        rows = [line for line in lines if line.startswith(("  source ", "  converted "))]
+        assert len(rows) == 2 and all("..." in r for r in rows[: len(args)])
+        assert "sssss.ply " in rows[0]  # the end of the name survives
+        if len(args) == 2:
+            assert "ccccc.splatv " in rows[1]
+        data = json.loads(run("stats", *args, "--json", "--zstd-level", "1").stdout)
+        assert [f["path"] for f in data["files"]][: len(args)] == [str(a) for a in args]
+        md = run("stats", *args, "--markdown", "--zstd-level", "1").stdout
+        assert f"| source | {src} |" in md
+
+
+def test_text_fits_100_columns_with_huge_counts(lite_ply):
+    from splatconv.report import stats_text
+    from splatconv.stats import stats_report
+
+    data = stats_report(str(lite_ply), zstd_level=1)
+    for a in data["attributes"].values():  # as many as a 67-million-splat texture could hold
+        a.update(nonfinite=268_435_456, overflow=268_435_456, underflow=268_435_456, subnormal=99_999_999,
+                 clamped=201_326_592, max_abs_error=3.402e38, max_rel_error=1.0, rmse=1.234e-30)
+    data["viewer"].update(texture_height=65536, nan_positions=67_108_864, empty_cameras=True, cameras=0)
+    text = stats_text(data)
+    assert max(len(line) for line in text.splitlines()) <= 100
+    assert "268435456" in text and "NaN positions 67,108,864" in " ".join(text.split())
 
 
 def test_json_keys_are_documented():

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
+import pytest
 import zstandard
 from click.testing import CliRunner
 
@@ -59,3 +61,102 @@ def test_errors_inside_a_zst_name_the_zst_file(tmp_path):
     assert r.exit_code == 1
     assert r.stderr == f"Error: {bad}: not a .splatv file: magic 0x00000000, expected 0x0000674b\n"
     assert not list(tmp_path.glob("splatconv-*"))
+
+
+def test_stats_of_zst_inputs_are_of_the_content(tmp_path, lite_ply):
+    packed_ply, packed = tmp_path / "s.ply.zst", tmp_path / "s.splatv.zst"
+    assert run("convert", lite_ply, packed_ply, "--zstd-level", "1").exit_code == 0
+    assert run("convert", lite_ply, packed, "--zstd-level", "1").exit_code == 0
+    data = json.loads(run("stats", packed_ply, packed, "--json", "--zstd-level", "9").stdout)
+    for f, path in zip(data["files"], (packed_ply, packed)):
+        content = unzstd(path)
+        assert f["bytes"] == len(content)
+        assert f["bytes_per_splat"] == round(len(content) / 3000, 3)
+        # The content compressed again at the level asked for (one frame, one job at this size),
+        # not the size of the file on disk, written at level 1.
+        assert f["zstd_level"] == 9
+        again = zstandard.ZstdCompressor(level=9, threads=-1, write_content_size=True).compress(content)
+        assert f["zstd_bytes"] == len(again)
+        assert f["zstd_bytes"] != path.stat().st_size
+    src, out = data["files"]
+    assert out["ratio"] == round(out["bytes"] / src["bytes"], 6)
+    assert out["zstd_ratio"] == round(out["zstd_bytes"] / src["bytes"], 6)
+
+
+class _SpyWriter:
+    """Wraps a zstd stream writer, recording the size of every write it is given."""
+
+    def __init__(self, inner, sizes):
+        self.inner, self.sizes = inner, sizes
+
+    def write(self, data):
+        self.sizes.append(memoryview(data).nbytes)
+        return self.inner.write(data)
+
+    def __enter__(self):
+        self.inner.__enter__()
+        return self
+
+    def __exit__(self, *exc):
+        return self.inner.__exit__(*exc)
+
+
+@pytest.fixture
+def compressor_writes(monkeypatch):
+    """Sizes of the writes every zstd stream writer made by splatconv.transport receives."""
+    from splatconv import transport
+
+    sizes, real = [], transport.compressor
+
+    class Spy:
+        def __init__(self, level):
+            self.real = real(level)
+
+        def stream_writer(self, *args, **kwargs):
+            return _SpyWriter(self.real.stream_writer(*args, **kwargs), sizes)
+
+    monkeypatch.setattr(transport, "compressor", Spy)
+    return sizes
+
+
+#: Splats of the streaming tests: an 18.75 MiB texture.
+STREAM_SPLATS = 300 * 1024
+#: Largest write the compressor may get: a small part of the texture.
+MAX_WRITE = 2 << 20
+
+
+def _big_scene():
+    from splatconv.model import COLUMNS, Scene
+
+    cols = {name: np.zeros(STREAM_SPLATS, np.float32) for name in COLUMNS}  # compresses fast
+    cols["x"] = np.arange(STREAM_SPLATS, dtype=np.float32)
+    return Scene(columns=cols)
+
+
+def test_zst_output_is_compressed_as_it_is_written(tmp_path, compressor_writes):
+    import splatconv
+
+    out = tmp_path / "big.splatv.zst"
+    splatconv.write(_big_scene(), out, zstd_level=1)
+    content = unzstd(out)
+    assert len(content) > STREAM_SPLATS * 64
+    # Handed over in many small pieces, never the whole texture at once.
+    assert sum(compressor_writes) == len(content)
+    assert max(compressor_writes) <= MAX_WRITE
+    assert len(compressor_writes) >= len(content) // MAX_WRITE
+
+
+def test_sizes_of_a_conversion_are_measured_as_it_is_written(compressor_writes):
+    import io
+
+    from splatconv.formats import splatv
+    from splatconv.transport import written_sizes
+
+    scene = _big_scene()
+    plain, packed = written_sizes(lambda out: splatv.write(scene, out), 1)
+    assert sum(compressor_writes) == plain
+    assert max(compressor_writes) <= MAX_WRITE
+    whole = io.BytesIO()
+    splatv.write(scene, whole)
+    assert plain == len(whole.getvalue())
+    assert packed == pytest.approx(len(zstandard.ZstdCompressor(level=1).compress(whole.getvalue())), rel=0.05)
