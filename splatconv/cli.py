@@ -6,6 +6,7 @@ Library errors become one ``Error: ...`` line: exit 1 for bad input, 2 for usage
 from __future__ import annotations
 
 import functools
+import math
 import os
 
 import click
@@ -40,6 +41,34 @@ def _library_errors(fn):
             raise _Failure("out of memory", 1) from None
 
     return wrapper
+
+
+class _FiniteFloat(click.ParamType):
+    """A float option that must be finite (and, with ``positive``, above zero).
+
+    NaN compares false with everything, so ``--min-psnr nan`` would pass every
+    frame and ``--time nan`` would draw nothing meaningful: refuse them as usage errors.
+    """
+
+    name = "float"
+
+    def __init__(self, positive: bool = False):
+        self.positive = positive
+
+    def convert(self, value, param, ctx):
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            self.fail(f"{value!r} is not a number.", param, ctx)
+        if not math.isfinite(number):
+            self.fail(f"{value!r} is not a finite number.", param, ctx)
+        if self.positive and not number > 0:
+            self.fail(f"{value!r} is not a positive number.", param, ctx)
+        return number
+
+
+_FINITE = _FiniteFloat()
+_POSITIVE = _FiniteFloat(positive=True)
 
 
 def _notes(notes) -> None:
@@ -108,15 +137,18 @@ def info(path, as_json, color):
 @main.command()
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
-@click.option("--time", "time_", type=float, default=0.5, show_default=True,
+@click.option("--time", "time_", type=_FINITE, default=0.5, show_default=True,
               help="Scene time of the frame (the viewer plays 0..1).")
 @click.option("--camera", type=int, help="Header camera to view from (default 0).")
 @click.option("--view", help="Column-major view matrix as the viewer keeps it in its URL hash: "
                              "a JSON list of 16 numbers.")
-@click.option("--size", help="Image size WxH. Default: the camera's, scaled down to at most 1280 wide "
-                             "(fx, fy scale along).")
-@click.option("--fx", type=float, help="Focal length in pixels (default: the camera's).")
-@click.option("--fy", type=float, help="Focal length in pixels (default: the camera's).")
+@click.option("--size", help="Image size WxH. Default: the camera's, scaled down to at most 1280 wide, "
+                             "fx and fy scaled along. An explicit size keeps the camera's fx and fy, as "
+                             "the viewer does in a window of that size.")
+@click.option("--fx", type=_POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
+                                           "default size).")
+@click.option("--fy", type=_POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
+                                           "default size).")
 @click.option("--frames", type=click.IntRange(1, 1000), default=1, show_default=True,
               help="Sweep N times over [0, 1]: an animated .gif or .webp, or a labelled "
                    "contact sheet for .png.")
@@ -168,18 +200,24 @@ def stats(source, converted, as_json, markdown, zstd_level, color):
     click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))
 
 
-def _view_options(fn):
-    """Camera, time and size options shared by verify and diff."""
-    fn = click.option("--size", help="Image size WxH (default: each camera's, scaled to at most 640 wide).")(fn)
-    fn = click.option("--cameras", "cameras", default=None,
-                      help="Cameras to draw from: 'all' or indices like 0,2.")(fn)
-    fn = click.option("--times", default=None, help="Comma-separated scene times.")(fn)
-    fn = click.option("--min-psnr", type=float, default=40.0, show_default=True,
-                      help="Every frame must reach this PSNR (dB) to pass.")(fn)
-    fn = click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")(fn)
-    fn = click.option("--color", type=click.Choice(splatconv.COLOR_MODES), default="auto", show_default=True,
-                      help="How to read PLY f_dc_0..2 (see convert).")(fn)
-    return fn
+def _view_options(times: str, cameras: str):
+    """Camera, time and size options shared by verify and diff, with each command's defaults."""
+
+    def decorate(fn):
+        fn = click.option("--size", help="Image size WxH (default: each camera's, scaled down to at most 640 "
+                                         "wide). fx and fy scale with the size (unlike render: these compare what "
+                                         "the camera saw).")(fn)
+        fn = click.option("--cameras", "cameras", default=None,
+                          help=f"Cameras to draw from: 'all' or indices like 0,2 [default: {cameras}].")(fn)
+        fn = click.option("--times", default=None, help=f"Comma-separated scene times [default: {times}].")(fn)
+        fn = click.option("--min-psnr", type=_FINITE, default=40.0, show_default=True,
+                          help="Every frame must reach this PSNR (dB) to pass; a finite number.")(fn)
+        fn = click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")(fn)
+        fn = click.option("--color", type=click.Choice(splatconv.COLOR_MODES), default="auto", show_default=True,
+                          help="How to read PLY f_dc_0..2 (see convert).")(fn)
+        return fn
+
+    return decorate
 
 
 def _finish(data: dict, as_json: bool, parts) -> None:
@@ -196,35 +234,36 @@ def _finish(data: dict, as_json: bool, parts) -> None:
 @main.command()
 @click.argument("source", type=click.Path(dir_okay=False))
 @click.argument("converted", type=click.Path(dir_okay=False))
-@_view_options
+@_view_options(times="0,0.25,0.5,0.75,1", cameras="all")
 @click.option("--report-dir", type=click.Path(file_okay=False),
-              help="Write each frame's images, a diff heatmap and a side-by-side picture here.")
+              help="Write each frame's images, a diff heatmap and a side-by-side picture here "
+                   "(cam<I>_t<T>_{source,converted,diff,side_by_side}.png).")
+@click.option("--force", is_flag=True, help="Replace files in --report-dir if they exist.")
 @_library_errors
-def verify(source, converted, size, cameras, times, min_psnr, as_json, color, report_dir):
+def verify(source, converted, size, cameras, times, min_psnr, as_json, color, report_dir, force):
     """Check that CONVERTED still shows what SOURCE does.
 
     Compares every attribute against what half-float and 8-bit quantization can
     explain, then draws SOURCE through the float reference path and CONVERTED as
     stored, from the same cameras (default: all) at the same times (default
     0,0.25,0.5,0.75,1), and compares the pixels. Exits 0 when every frame reaches
-    --min-psnr and no attribute drifted, 1 otherwise.
+    --min-psnr and no attribute drifted, 1 otherwise. Existing --report-dir files
+    are refused before anything is drawn unless --force.
     """
     from splatconv.render import camera as cam
-    from splatconv.render.verify import DEFAULT_TIMES, parse_times, verify as run_verify, write_report_dir
+    from splatconv.render.verify import DEFAULT_TIMES, parse_times, verify as run_verify
     from splatconv.report import frames_text, structure_text, verdict_text
 
     outcome = run_verify(source, converted, times=parse_times(times) if times else DEFAULT_TIMES,
                          cameras=cameras or "all", size=cam.parse_size(size) if size else None,
-                         min_psnr=min_psnr, color=color, keep_images=report_dir is not None)
-    if report_dir:
-        write_report_dir(outcome, report_dir)
+                         min_psnr=min_psnr, color=color, report_dir=report_dir, force=force)
     _finish(outcome.as_dict(), as_json, (structure_text, frames_text, verdict_text))
 
 
 @main.command()
 @click.argument("a", type=click.Path(dir_okay=False))
 @click.argument("b", type=click.Path(dir_okay=False))
-@_view_options
+@_view_options(times="0.5", cameras="0")
 @click.option("--out", type=click.Path(dir_okay=False), help="Write a heatmap of the (worst) difference here (.png).")
 @click.option("--reference", is_flag=True, help="Draw scene files' attributes unquantized.")
 @click.option("--force", is_flag=True, help="Replace --out if it exists.")
@@ -232,15 +271,21 @@ def verify(source, converted, size, cameras, times, min_psnr, as_json, color, re
 def diff(a, b, size, cameras, times, min_psnr, as_json, color, out, reference, force):
     """Compare A and B: two images, or two scene files drawn the same way.
 
-    Prints PSNR, largest and mean error and the share of pixels off per frame;
-    exits 0 when every frame reaches --min-psnr, 1 otherwise.
+    Scene files are drawn at time 0.5 from camera 0 unless --times / --cameras
+    say otherwise (one frame; verify draws five times from every camera). Prints
+    PSNR, largest and mean error and the share of pixels off per frame (for two
+    images, one row named by the files); exits 0 when every frame reaches
+    --min-psnr, 1 otherwise.
     """
     from splatconv.render.commands import diff_files
+    from splatconv.render.diff import images_text, images_verdict_text
     from splatconv.report import frames_text, verdict_text
 
     outcome = diff_files(a, b, size=size, cameras=cameras, times=times, min_psnr=min_psnr, color=color,
                          out=out, reference=reference, force=force)
-    _finish(outcome.as_dict(), as_json, (frames_text, verdict_text))
+    images = bool(outcome.frames) and bool(outcome.frames[0].names)
+    parts = (images_text, images_verdict_text) if images else (frames_text, verdict_text)
+    _finish(outcome.as_dict(), as_json, parts)
 
 
 if __name__ == "__main__":  # pragma: no cover

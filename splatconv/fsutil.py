@@ -46,6 +46,9 @@ def atomic_writer(output: str | os.PathLike):
     """Open a temporary file beside ``output``; rename it over ``output`` on success.
 
     On any exception the temporary file is removed and ``output`` is untouched.
+    An ``OSError`` that names no file or only the temporary one (a full disk, a
+    file size limit: ``write`` says "File too large" and nothing else) is made to
+    name ``output``, so the user learns which write failed.
 
     Yields
     ------
@@ -54,7 +57,11 @@ def atomic_writer(output: str | os.PathLike):
     """
     output = os.fspath(output)
     parent = os.path.dirname(os.path.abspath(output))
-    fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + os.path.basename(output) + ".", suffix=".part")
+    try:
+        fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + os.path.basename(output) + ".", suffix=".part")
+    except OSError as e:
+        e.filename, e.filename2 = output, None  # not the random temporary name
+        raise
     try:
         with os.fdopen(fd, "wb") as f:
             yield f
@@ -62,7 +69,9 @@ def atomic_writer(output: str | os.PathLike):
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
         os.replace(tmp, output)
-    except BaseException:
+    except BaseException as e:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(e, OSError) and e.filename in (None, tmp):
+            e.filename, e.filename2 = output, None
         raise

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import struct
@@ -235,9 +236,86 @@ def test_lossy_steps_are_reported(tmp_path):
 
 
 def test_help_for_every_command():
-    for cmd in ([], ["convert"], ["info"]):
-        r = run(*cmd, "--help")
-        assert r.exit_code == 0 and "Usage:" in r.stdout
+    assert set(main.commands) >= {"convert", "info", "render", "verify", "diff", "stats"}
+    r = run("--help")
+    assert r.exit_code == 0 and r.stdout.startswith("Usage: main [OPTIONS] COMMAND")
+    listing = r.stdout
+    for name, command in main.commands.items():
+        r = run(name, "--help")
+        assert r.exit_code == 0, (name, r.output)
+        assert r.stdout.startswith(f"Usage: main {name} ")
+        assert command.help and command.help.strip(), name
+        first_paragraph = " ".join(command.help.strip().split("\n\n")[0].split())
+        assert first_paragraph and first_paragraph in " ".join(r.stdout.split()), name
+        assert f"\n  {name} " in listing  # listed in the group's help
+
+
+def test_help_documents_each_commands_defaults():
+    diff_help = " ".join(run("diff", "--help").stdout.split())
+    assert "[default: 0.5]" in diff_help and "[default: 0]" in diff_help
+    assert "drawn at time 0.5 from camera 0" in diff_help
+    verify_help = " ".join(run("verify", "--help").stdout.split())
+    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: all]" in verify_help
+    for cmd in ("verify", "diff"):
+        assert "fx and fy scale with the size" in " ".join(run(cmd, "--help").stdout.split()), cmd
+    assert "An explicit size keeps the camera's fx and fy" in " ".join(run("render", "--help").stdout.split())
+
+
+class _FailingWrites:
+    """A binary file that fails like a full disk or a file size limit after ``budget`` bytes."""
+
+    def __init__(self, f, budget: int, code: int, message: str):
+        self._f, self._left, self._error = f, budget, OSError(code, message)
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        if len(view) > self._left:
+            self._f.write(view[:self._left])
+            self._left = 0
+            raise self._error  # as write(2) reports it: no file name
+        self._left -= len(view)
+        return self._f.write(view)
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        return self._f.__exit__(*exc)
+
+    def __getattr__(self, name):
+        return getattr(self._f, name)
+
+
+def fail_writes_after(monkeypatch, budget: int, code: int, message: str) -> None:
+    """Make files opened by the atomic writer fail with ``OSError(code)`` after ``budget`` bytes."""
+    from splatconv import fsutil
+
+    real = os.fdopen
+    monkeypatch.setattr(fsutil.os, "fdopen", lambda fd, *a, **kw: _FailingWrites(real(fd, *a, **kw), budget,
+                                                                                  code, message))
+
+
+@pytest.mark.parametrize("code,message", [(errno.EFBIG, "File too large"), (errno.ENOSPC, "No space left on device")])
+@pytest.mark.parametrize("output", ["x.splatv", "x.ply", "x.splatv.zst"])
+def test_os_error_while_writing_names_the_output_and_leaves_nothing(tmp_path, lite_ply, monkeypatch, code,
+                                                                    message, output):
+    monkeypatch.chdir(tmp_path)
+    before = sorted(tmp_path.iterdir())
+    fail_writes_after(monkeypatch, 1000, code, message)
+    r = run("convert", lite_ply, output)
+    assert r.exit_code == 1 and r.stdout == ""
+    assert r.stderr == f"Error: {output}: {message}\n"
+    assert sorted(tmp_path.iterdir()) == before  # no partial output, no temporary file
+
+
+def test_os_error_replacing_an_output_keeps_the_old_one(tmp_path, lite_ply, monkeypatch):
+    out = tmp_path / "x.splatv"
+    out.write_bytes(b"old")
+    fail_writes_after(monkeypatch, 10, errno.ENOSPC, "No space left on device")
+    r = run("convert", lite_ply, out, "--force")
+    assert r.exit_code == 1 and r.stderr == f"Error: {out}: No space left on device\n"
+    assert out.read_bytes() == b"old" and sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [lite_ply.name, "x.splatv"])
 
 
 def test_conversion_does_not_import_moderngl(tmp_path, lite_ply):

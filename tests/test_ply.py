@@ -11,7 +11,7 @@ from splatconv import model
 from splatconv.errors import UnsupportedError
 from splatconv.formats import ply
 
-from .conftest import GS_PROPS, lite_columns_with_normals, random_columns, write_ply
+from .conftest import lite_columns_with_normals, random_columns, write_ply
 
 
 @pytest.mark.parametrize("kw", [

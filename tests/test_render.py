@@ -279,7 +279,6 @@ def test_motion_and_omega(ctx):
         img, ref = draw(ctx, [s], t=t)
         assert_close(img, ref)
     a = img[..., 3].astype(float)
-    xs = np.nonzero(a.sum(axis=0))[0]
     centre_x = (a.sum(axis=0) * np.arange(W)).sum() / a.sum()
     assert centre_x == pytest.approx(W / 2 + FOCAL * 0.3 / 5, abs=0.6)  # moved 0.3 along x
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import errno
 import json
 
 import numpy as np
@@ -60,10 +61,8 @@ def test_ply_renders_like_its_conversion(tmp_path, sample_splatv):
 
 
 def test_view_matrix_option_matches_camera(tmp_path, sample_splatv):
-    from splatconv.render import camera as cam
-
-    cams = json.loads((sample_splatv.parent.parent / "x").read_text()) if False else None
     from splatconv.formats import splatv
+    from splatconv.render import camera as cam
 
     _, chunk, _, _ = splatv.read_records(sample_splatv)
     view = json.dumps(cam.view_matrix(chunk["cameras"][2]))
@@ -71,7 +70,6 @@ def test_view_matrix_option_matches_camera(tmp_path, sample_splatv):
     assert run("render", sample_splatv, tmp_path / "v.png", "--view", view, *common).exit_code == 0
     assert run("render", sample_splatv, tmp_path / "c.png", "--camera", "2", *common).exit_code == 0
     assert np.array_equal(np.asarray(Image.open(tmp_path / "v.png")), np.asarray(Image.open(tmp_path / "c.png")))
-    assert cams is None
 
 
 @pytest.mark.parametrize("name,frames,check", [
@@ -96,7 +94,6 @@ def test_time_sweeps(tmp_path, sample_splatv, name, frames, check):
     (["o.png", "--view", "{"], 2, "Error: --view: invalid JSON: Expecting property name enclosed in double quotes\n"),
     (["o.png", "--size", "12by4"], 2, "Error: --size: expected WIDTHxHEIGHT, got '12by4'\n"),
     (["o.png", "--size", "0x10"], 2, "Error: --size: 0x10 is outside 1..16384\n"),
-    (["o.png", "--fx", "-3"], 2, "Error: --fx must be a positive number\n"),
 ])
 def test_render_usage_errors(tmp_path, sample_splatv, monkeypatch, args, code, message):
     monkeypatch.chdir(tmp_path)
@@ -104,6 +101,80 @@ def test_render_usage_errors(tmp_path, sample_splatv, monkeypatch, args, code, m
     assert r.exit_code == code
     assert r.stderr == message.format(src=sample_splatv)
     assert not (tmp_path / args[0]).exists()
+
+
+@pytest.mark.parametrize("option,value,why", [
+    ("--time", "nan", "is not a finite number"),
+    ("--time", "inf", "is not a finite number"),
+    ("--time", "-inf", "is not a finite number"),
+    ("--fx", "nan", "is not a finite number"),
+    ("--fx", "inf", "is not a finite number"),
+    ("--fx", "-3", "is not a positive number"),
+    ("--fy", "0", "is not a positive number"),
+    ("--fy", "-inf", "is not a finite number"),
+])
+def test_non_finite_or_non_positive_numbers_are_usage_errors(tmp_path, sample_splatv, option, value, why):
+    r = run("render", sample_splatv, tmp_path / "o.png", option, value)
+    assert r.exit_code == 2 and r.stdout == ""
+    assert r.stderr.startswith("Usage: main render ")
+    assert r.stderr.endswith(f"Error: Invalid value for '{option}': '{value}' {why}.\n")
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_library_refuses_non_finite_time_and_focal_length(tmp_path, sample_splatv):
+    from splatconv.errors import UsageError
+    from splatconv.render.commands import render_file
+
+    with pytest.raises(UsageError, match="--time: expected a finite number, got nan"):
+        render_file(sample_splatv, tmp_path / "o.png", time=float("nan"))
+    with pytest.raises(UsageError, match="--fx must be a positive number"):
+        render_file(sample_splatv, tmp_path / "o.png", fx=float("inf"))
+    assert not (tmp_path / "o.png").exists()
+
+
+def test_explicit_size_keeps_the_cameras_focal_length_as_the_viewer_does(tmp_path, sample_splatv):
+    # Camera 0 is 1280x720 with fx = fy = 1000. An explicit --size is a viewer window of
+    # that size: fx = fy = 1000, the camera's. Without --size the preview is the camera's
+    # image scaled to fit 1280 wide, focal lengths scaled along.
+    assert run("render", sample_splatv, tmp_path / "s.png", "--size", "640x360").exit_code == 0
+    assert run("render", sample_splatv, tmp_path / "c.png", "--size", "640x360", "--fx", "1000", "--fy", "1000",
+               ).exit_code == 0
+    assert np.array_equal(np.asarray(Image.open(tmp_path / "s.png")), np.asarray(Image.open(tmp_path / "c.png")))
+    assert run("render", sample_splatv, tmp_path / "f.png", "--size", "640x360", "--fx", "500", "--fy", "500",
+               ).exit_code == 0
+    assert not np.array_equal(np.asarray(Image.open(tmp_path / "s.png")), np.asarray(Image.open(tmp_path / "f.png")))
+
+
+@pytest.mark.parametrize("size,expected", [
+    (None, (640, 360, 500.0, 500.0)),
+    ((640, 360), (640, 360, 500.0, 500.0)),
+    ((2560, 1440), (2560, 1440, 2000.0, 2000.0)),
+    ((640, 640), (640, 640, 500.0, 500.0)),  # another aspect: the whole width still in view
+    ((1280, 360), (1280, 360, 500.0, 500.0)),
+])
+def test_fit_scales_focal_lengths_with_the_size(size, expected):
+    from splatconv.render import camera as cam
+    from splatconv.render.verify import frame_views
+
+    c = {"width": 1280, "height": 720, "fx": 1000.0, "fy": 1000.0, "position": [0, 0, 0],
+         "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}
+    assert cam.fit(c, size, max_width=640) == expected
+    (_, v), = frame_views([c], [0], size, max_width=640)
+    assert (v.width, v.height, v.fx, v.fy) == expected  # verify and diff draw this way
+
+
+@pytest.mark.parametrize("code,message", [(errno.EFBIG, "File too large"), (errno.ENOSPC, "No space left on device")])
+def test_os_error_while_writing_names_the_output_and_leaves_nothing(tmp_path, sample_splatv, monkeypatch,
+                                                                    code, message):
+    from .test_cli import fail_writes_after
+
+    fail_writes_after(monkeypatch, 100, code, message)
+    monkeypatch.chdir(tmp_path)
+    before = sorted(tmp_path.iterdir())
+    r = run("render", sample_splatv, "o.png", "--size", "64x36", "--fx", "50", "--fy", "50")
+    assert r.exit_code == 1 and r.stdout == ""
+    assert r.stderr == f"Error: o.png: {message}\n"
+    assert sorted(tmp_path.iterdir()) == before
 
 
 def test_refuses_existing_output(tmp_path, sample_splatv):

@@ -82,8 +82,29 @@ def parse_size(text: str) -> tuple:
     return w, h
 
 
-def default_size(camera: dict) -> tuple:
-    """The camera's image size, scaled down to at most 1280 wide; and that scale."""
+def fit(camera: dict, size: tuple | None = None, max_width: int = MAX_DEFAULT_WIDTH) -> tuple:
+    """Image size and focal lengths that draw ``camera``'s view at ``size``.
+
+    Parameters
+    ----------
+    camera : dict
+        A ``cameras.json`` camera (``width``, ``height``, ``fx``, ``fy``).
+    size : (int, int), optional
+        (width, height); default the camera's, scaled down to at most ``max_width``.
+
+    Returns
+    -------
+    (width, height, fx, fy) : (int, int, float, float)
+    """
     w, h = int(camera["width"]), int(camera["height"])
-    scale = min(1.0, MAX_DEFAULT_WIDTH / w)
-    return max(1, round(w * scale)), max(1, round(h * scale)), scale
+    if size is None:
+        scale = min(1.0, max_width / w)
+        width, height = max(1, round(w * scale)), max(1, round(h * scale))
+    else:
+        # verify and diff compare what the camera saw, at whatever size: fx and fy scale
+        # with the image rather than cropping its centre; with another aspect ratio the
+        # smaller ratio keeps the camera's whole view in frame. (render keeps the
+        # camera's fx, fy at an explicit size, as the viewer does in a window of that
+        # size: see frames.resolve_view.)
+        (width, height), scale = size, min(size[0] / w, size[1] / h)
+    return width, height, float(camera["fx"]) * scale, float(camera["fy"]) * scale

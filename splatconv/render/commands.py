@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -11,6 +12,11 @@ from ..fsutil import atomic_writer, check_output
 from . import camera as cam
 from . import images
 from .frames import load, render_frames, resolve_view
+
+
+#: ``diff``'s frames for two scene files: one quick frame (``verify`` draws more).
+DIFF_TIMES = (0.5,)
+DIFF_CAMERAS = "0"
 
 
 def render_file(input_path, output_path, *, time=0.5, camera=None, view=None, size=None, fx=None, fy=None,
@@ -29,8 +35,10 @@ def render_file(input_path, output_path, *, time=0.5, camera=None, view=None, si
                          output_path)
     matrix = cam.parse_view(view) if view is not None else None
     dims = cam.parse_size(size) if size is not None else None
+    if not math.isfinite(time):
+        raise UsageError(f"--time: expected a finite number, got {time}")
     for name, value in (("--fx", fx), ("--fy", fy)):
-        if value is not None and not (np.isfinite(value) and value > 0):
+        if value is not None and not (math.isfinite(value) and value > 0):
             raise UsageError(f"{name} must be a positive number")
     check_output(output_path, [input_path], force)
     source = load(input_path, color=color, keep_scene=reference)
@@ -47,14 +55,19 @@ def diff_files(a, b, *, size=None, cameras=None, times=None, min_psnr=40.0, colo
                reference=False, force=False):
     """Compare two images, or two scene files drawn the same way; optionally write a heatmap.
 
+    Scene files are drawn at ``times`` (default 0.5) from ``cameras`` (default
+    ``"0"``): one frame, unlike ``verify``'s five times from every camera. Two
+    images give one frame named by the two paths (no time or camera).
+
     Returns
     -------
     verify.Outcome
     """
     from . import diff as imgdiff
-    from .verify import DEFAULT_MIN_PSNR, Frame, Outcome, diff_scenes, parse_times
+    from .verify import DEFAULT_MIN_PSNR, Frame, Outcome, check_min_psnr, diff_scenes, parse_times
 
     a, b = os.fspath(a), os.fspath(b)
+    min_psnr = check_min_psnr(DEFAULT_MIN_PSNR if min_psnr is None else min_psnr)
     if out is not None:
         if not os.fspath(out).lower().endswith(".png"):
             raise UsageError("--out must be a .png file", out)
@@ -66,12 +79,12 @@ def diff_files(a, b, *, size=None, cameras=None, times=None, min_psnr=40.0, colo
         if size or cameras or times or reference:
             raise UsageError("--size, --cameras, --times and --reference apply to scene files, not images")
         ia, ib = imgdiff.load_image(a), imgdiff.load_image(b)
-        outcome = Outcome(min_psnr=min_psnr if min_psnr is not None else DEFAULT_MIN_PSNR, paths=(a, b))
-        outcome.frames.append(Frame(0.0, 0, imgdiff.compare(ia, ib), (ia, ib)))
+        outcome = Outcome(min_psnr=min_psnr, paths=(a, b))
+        outcome.frames.append(Frame(0.0, 0, imgdiff.compare(ia, ib), (ia, ib), names=(a, b)))
     else:
-        outcome = diff_scenes(a, b, times=parse_times(times) if times else (0.5,), cameras=cameras or "0",
-                              size=cam.parse_size(size) if size else None, min_psnr=min_psnr, color=color,
-                              reference=reference)
+        outcome = diff_scenes(a, b, times=parse_times(times) if times else DIFF_TIMES,
+                              cameras=cameras or DIFF_CAMERAS, size=cam.parse_size(size) if size else None,
+                              min_psnr=min_psnr, color=color, reference=reference)
     if out is not None:
         worst = min(outcome.frames, key=lambda f: f.diff.psnr)
         with atomic_writer(out) as stream:

@@ -85,8 +85,10 @@ def resolve_view(source: Source, *, camera: int | None = None, view: list | None
     The camera (``--camera I``, default 0; a framing camera when the file has none)
     gives the view matrix unless ``view`` is given, and the intrinsics. With no
     ``size``, the image is the camera's size scaled down to at most 1280 wide and
-    fx, fy scale with it, so the preview frames what the camera saw. With an
-    explicit ``size``, fx and fy stay the camera's, as in the viewer's window.
+    fx, fy scale with it (see :func:`camera.fit`), so the preview frames what the
+    camera saw. With an explicit ``size``, fx and fy stay the camera's, as in the
+    viewer's window of that size (so a render at the viewer's window size draws
+    what the viewer draws). ``fx`` and ``fy`` replace either.
     """
     cameras = source.cameras
     if not cameras:
@@ -98,12 +100,11 @@ def resolve_view(source: Source, *, camera: int | None = None, view: list | None
                          source.path)
     c = cameras[index]
     if size is None:
-        width, height, scale = cam.default_size(c)
+        width, height, cfx, cfy = cam.fit(c)
     else:
-        (width, height), scale = size, 1.0
+        (width, height), cfx, cfy = size, float(c["fx"]), float(c["fy"])
     matrix = view if view is not None else cam.view_matrix(c)
-    return View(matrix, fx if fx is not None else float(c["fx"]) * scale,
-                fy if fy is not None else float(c["fy"]) * scale, width, height)
+    return View(matrix, fx if fx is not None else cfx, fy if fy is not None else cfy, width, height)
 
 
 def render_frames(source: Source, view: View, times, *, reference: bool = False,

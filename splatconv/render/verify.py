@@ -17,8 +17,9 @@ import numpy as np
 from .. import read as read_scene
 from ..cameras import framing_camera
 from ..compare import align, compare_scenes
-from ..errors import UsageError
+from ..errors import OutputError, UsageError
 from ..formats import format_for, splatv
+from ..fsutil import atomic_writer, check_output
 from . import camera as cam
 from . import diff as imgdiff
 from .preview import FLOAT_SPLATS_PER_ROW, Renderer, View, float_attributes
@@ -40,6 +41,13 @@ def parse_times(text: str) -> list:
     return times
 
 
+def check_min_psnr(min_psnr: float) -> float:
+    """A finite threshold: NaN compares false with every PSNR, so it would pass everything."""
+    if not math.isfinite(min_psnr):
+        raise UsageError(f"--min-psnr: expected a finite number of dB, got {min_psnr}")
+    return float(min_psnr)
+
+
 def parse_cameras(text: str, available: int) -> list:
     """``--cameras`` value: ``all`` or comma-separated indices."""
     if text == "all":
@@ -55,16 +63,14 @@ def parse_cameras(text: str, available: int) -> list:
 
 
 def frame_views(cameras: list, indices: list, size, max_width: int = VERIFY_MAX_WIDTH) -> list:
-    """(camera index, View) for each chosen camera; default size scaled to max_width."""
+    """(camera index, View) for each chosen camera; default size scaled to max_width.
+
+    fx and fy scale with the size, as in ``render`` (see :func:`camera.fit`).
+    """
     views = []
     for i in indices:
-        c = cameras[i]
-        if size is None:
-            scale = min(1.0, max_width / int(c["width"]))
-            w, h = max(1, round(int(c["width"]) * scale)), max(1, round(int(c["height"]) * scale))
-        else:
-            (w, h), scale = size, min(size[0] / int(c["width"]), size[1] / int(c["height"]))
-        views.append((i, View(cam.view_matrix(c), float(c["fx"]) * scale, float(c["fy"]) * scale, w, h)))
+        w, h, fx, fy = cam.fit(cameras[i], size, max_width)
+        views.append((i, View(cam.view_matrix(cameras[i]), fx, fy, w, h)))
     return views
 
 
@@ -82,10 +88,19 @@ def _float_texels_padded(scene, order, records: int) -> np.ndarray:
 
 @dataclass
 class Frame:
+    """One compared pair: a scene frame (time, camera) or, with ``names``, two image files."""
+
     time: float
     camera: int
     diff: imgdiff.ImageDiff
     images: tuple = ()
+    names: tuple = ()
+
+    def where(self) -> dict:
+        """What was compared: ``{"a", "b"}`` image paths, or ``{"time", "camera"}``."""
+        if self.names:
+            return {"a": self.names[0], "b": self.names[1]}
+        return {"time": self.time, "camera": self.camera}
 
 
 @dataclass
@@ -120,9 +135,8 @@ class Outcome:
             "structure": {g.group: {"max_abs_error": g.max_abs_error, "max_rel_error": g.max_rel_error,
                                     "rmse": g.rmse, "unexplained": g.unexplained, "compared": g.compared,
                                     "ok": not g.unexplained} for g in self.structure.values()},
-            "frames": [{"time": f.time, "camera": f.camera, **f.diff.as_dict()} for f in self.frames],
-            "worst": None if worst is None else {"time": worst.time, "camera": worst.camera,
-                                                 **worst.diff.as_dict()},
+            "frames": [{**f.where(), **f.diff.as_dict()} for f in self.frames],
+            "worst": None if worst is None else {**worst.where(), **worst.diff.as_dict()},
         }
 
 
@@ -137,8 +151,15 @@ def _read(path: str, color: str):
 
 
 def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", size=None,
-           min_psnr=DEFAULT_MIN_PSNR, tolerance=imgdiff.TOLERANCE, color="auto", keep_images=False) -> Outcome:
+           min_psnr=DEFAULT_MIN_PSNR, tolerance=imgdiff.TOLERANCE, color="auto", keep_images=False,
+           report_dir=None, force=False) -> Outcome:
     """Check CONVERTED against SOURCE by attributes and by rendered frames.
+
+    Parameters
+    ----------
+    report_dir : path, optional
+        Write each frame's images there (:func:`write_report_dir`). Checked before
+        anything is drawn: an existing report file is an error unless ``force``.
 
     Returns
     -------
@@ -146,6 +167,7 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
         ``passed`` is False when any frame is below ``min_psnr`` or any attribute
         drifted past what quantization explains.
     """
+    min_psnr = check_min_psnr(min_psnr)
     source_path, converted_path = os.fspath(source_path), os.fspath(converted_path)
     source, _ = _read(source_path, color)
     converted, records = _read(converted_path, color)
@@ -156,6 +178,10 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
     cams = source.cameras or converted.cameras or [framing_camera(source.columns["x"], source.columns["y"],
                                                                   source.columns["z"])]
     views = frame_views(cams, parse_cameras(cameras, len(cams)) if isinstance(cameras, str) else cameras, size)
+    if report_dir is not None:
+        check_report_dir(report_dir, [(i, float(t)) for i, _ in views for t in times],
+                         (source_path, converted_path), force)
+        keep_images = True
     n_records = len(records) if records is not None else splatv.texture_height(source.count) * 1024
     src_rows = _float_texels_padded(source, order, n_records)
     conv_rows = None if records is not None else _float_texels_padded(converted, None, n_records)
@@ -172,6 +198,8 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
         finally:
             b.release()
             a.release()
+    if report_dir is not None:
+        write_report_dir(outcome, report_dir, force)
     return outcome
 
 
@@ -179,6 +207,8 @@ def diff_scenes(path_a, path_b, *, times=(0.5,), cameras="0", size=None, min_psn
                 tolerance=imgdiff.TOLERANCE, color="auto", reference=False) -> Outcome:
     """Draw two scene files the same way and compare the frames (no structure check)."""
     from .frames import load
+
+    min_psnr = check_min_psnr(min_psnr)
 
     a_src = load(path_a, color=color, keep_scene=reference)
     b_src = load(path_b, color=color, keep_scene=reference)
@@ -206,23 +236,70 @@ def diff_scenes(path_a, path_b, *, times=(0.5,), cameras="0", size=None, min_psn
     return outcome
 
 
-def write_report_dir(outcome: Outcome, directory) -> list:
-    """Save each frame's two images, heatmap and side-by-side; returns the paths."""
+#: The images saved per frame by ``--report-dir``, in file-name order of kinds.
+REPORT_KINDS = ("source", "converted", "diff", "side_by_side")
+
+
+def report_files(directory, camera: int, time: float) -> list:
+    """The paths ``--report-dir`` writes for one frame."""
+    stem = os.path.join(os.fspath(directory), f"cam{camera}_t{time:.3f}")
+    return [f"{stem}_{kind}.png" for kind in REPORT_KINDS]
+
+
+def check_report_dir(directory, frames, inputs=(), force: bool = False) -> None:
+    """Refuse a report that would overwrite files, before anything is drawn or written.
+
+    Parameters
+    ----------
+    frames : iterable of (int, float)
+        (camera, time) of each frame to be saved.
+    inputs : iterable of path
+        Never written onto, even with ``force``.
+
+    Raises
+    ------
+    OutputError
+        The folder is a file, or a report file exists and ``force`` is False.
+    UsageError
+        Two frames would be saved under the same names (times equal to 3 decimals).
+    """
     directory = os.fspath(directory)
+    if os.path.exists(directory) and not os.path.isdir(directory):
+        raise OutputError("is not a folder", directory)
+    seen = {}
+    for camera, t in frames:
+        paths = report_files(directory, camera, t)
+        if paths[0] in seen:
+            raise UsageError(f"--report-dir: camera {camera} at t={seen[paths[0]]:g} and at t={t:g} would both be "
+                             f"saved as {os.path.basename(paths[0])}; give cameras and times that differ "
+                             f"(times in the first 3 decimals)")
+        seen[paths[0]] = t
+        if os.path.isdir(directory):
+            for path in paths:
+                check_output(path, inputs, force)
+
+
+def write_report_dir(outcome: Outcome, directory, force: bool = False) -> list:
+    """Save each frame's two images, heatmap and side-by-side; returns the paths.
+
+    Each file is written atomically. Existing files are replaced only with
+    ``force``; none is written when any would be refused.
+    """
+    directory = os.fspath(directory)
+    frames = [f for f in outcome.frames if f.images]
+    check_report_dir(directory, [(f.camera, f.time) for f in frames], outcome.paths, force)
     os.makedirs(directory, exist_ok=True)
     written = []
-    for f in outcome.frames:
-        if not f.images:
-            continue
+    for f in frames:
         a, b = f.images
-        stem = os.path.join(directory, f"cam{f.camera}_t{f.time:.3f}")
         heat = imgdiff.heatmap(a, b)
-        for suffix, img in (("source", a), ("converted", b), ("diff", heat),
-                            ("side_by_side", imgdiff.side_by_side(a, b, heat))):
-            path = f"{stem}_{suffix}.png"
-            imgdiff.save_png(img, path)
+        images = (a, b, heat, imgdiff.side_by_side(a, b, heat))
+        for path, img in zip(report_files(directory, f.camera, f.time), images):
+            with atomic_writer(path) as stream:
+                imgdiff.save_png(img, stream)
             written.append(path)
     return written
 
 
-__all__ = ["verify", "diff_scenes", "write_report_dir", "parse_times", "parse_cameras", "FLOAT_SPLATS_PER_ROW"]
+__all__ = ["verify", "diff_scenes", "write_report_dir", "check_report_dir", "report_files", "parse_times",
+           "parse_cameras", "check_min_psnr", "FLOAT_SPLATS_PER_ROW"]
