@@ -5,11 +5,12 @@ million of them in about a tenth of a second on two cores, with numpy alone.
 What that takes, measured on the machines this was built on:
 
 * Work in the record's own layout. A block of input rows is copied, a few
-  runs of adjacent fields at a time, into a working block ``W`` of 32 float32
-  columns per row: column ``j`` holds what half slot ``j`` of the record stores
-  (columns 0-2 the position). One flat float -> half conversion of ``W`` then
-  *is* the record block, but for three position words and the colour word,
-  copied in afterwards. No transposes, no per-attribute strided stores.
+  runs of adjacent fields at a time, into a working block ``W`` of float32
+  columns, one per half slot of the record from word 3 on (26 a row). One flat
+  float -> half conversion of ``W`` gives the record's last 52 bytes as they
+  are stored, copied in one item a row; the position words come straight from
+  the input and the colour word is made beside. No transposes, no
+  per-attribute strided stores.
 * Few, long numpy calls. A call costs about a microsecond however short, and
   threads hand the GIL over at every call, so blocks are large; the half
   conversion runs on groups of rows small enough to stay in cache.
@@ -55,22 +56,22 @@ WORKERS = max(1, min(os.cpu_count() or 2, 3))
 # --------------------------------------------------------------------------
 # The working layouts, derived from the record layout.
 
-#: Columns of the working block: the record's 32 half slots.
+#: Half slots of a record (two per word).
 SLOTS = 2 * WORDS_PER_SPLAT
 #: Half slot -> attribute it stores (None: position, colour or an unused zero half).
 SLOT_NAMES = [None] * SLOTS
 for _w, _pair in HALF_WORDS.items():
     for _k, _name in enumerate(_pair):
         SLOT_NAMES[2 * _w + _k] = _name
-#: Attribute -> working column: half attributes at their slot, positions at their word.
-_W_COLUMN = {name: slot for slot, name in enumerate(SLOT_NAMES) if name is not None}
-_W_COLUMN.update({name: w for w, name in POSITION_WORDS.items()})
-_POSITION_COLUMNS = slice(min(POSITION_WORDS), max(POSITION_WORDS) + 1)
-assert list(POSITION_WORDS) == list(range(_POSITION_COLUMNS.start, _POSITION_COLUMNS.stop))
-#: Working columns that stay zero: nothing is copied there (unused halves, and
-#: the slots under the position tail and the colour word).
-_ZERO_COLUMNS = [j for j in range(SLOTS) if j not in _W_COLUMN.values()]
-assert all(SLOT_NAMES[j] is None for j in _ZERO_COLUMNS)
+#: The working block covers the slots from the first half word to the end of
+#: the record: the position words come first, in the record and in the model.
+_FIRST = 2 * min(HALF_WORDS)
+_WIDTH = SLOTS - _FIRST
+_POSITIONS = tuple(POSITION_WORDS[w] for w in range(min(HALF_WORDS)))
+#: Working column -> attribute whose half it holds (None: always zero; the
+#: colour word's two slots are overwritten).
+_W_NAMES = SLOT_NAMES[_FIRST:]
+_W_COLUMN = {name: j for j, name in enumerate(_W_NAMES) if name is not None}
 #: The exp() attributes: logarithms in, linear values into ``W``.
 _EXP_NAMES = tuple(name for name in SLOT_NAMES if name in EXP_ATTRIBUTES)
 #: The values the exponentials are taken of, per row: -opacity then the logs.
@@ -79,8 +80,6 @@ _EXPONENTS = ("opacity",) + _EXP_NAMES
 _RGBA = ("f_dc_0", "f_dc_1", "f_dc_2", "opacity")
 #: What the importance key reads, per row.
 _KEY = ("opacity", "scale_0", "scale_1", "scale_2")
-#: Byte of the colour word within a record.
-_COLOR_BYTE = 4 * COLOR_WORD
 #: Names of the half attributes in slot order, as reports list them.
 HALF_NAMES = tuple(name for name in SLOT_NAMES if name is not None)
 
@@ -153,9 +152,10 @@ class _Source:
             fields = range(len(COLUMNS))
         self.field = dict(zip(COLUMNS, fields))
         self.width = self.matrix.shape[1] if self.matrix is not None else len(COLUMNS)
-        # Runs from a block into the working arrays.
+        # Runs from a block into the working arrays, and into the position words.
         self.w_runs = _runs((_W_COLUMN[name], self.field[name]) for name in _W_COLUMN
                             if name not in EXP_ATTRIBUTES)
+        self.position_runs = _runs((w, self.field[name]) for w, name in enumerate(_POSITIONS))
         self.exp_runs = _runs((i, self.field[name]) for i, name in enumerate(_EXPONENTS))
         self.rgba_runs = _runs((i, self.field[name]) for i, name in enumerate(_RGBA))
 
@@ -232,7 +232,9 @@ def pack(source: _Source, rows, out: np.ndarray, compat: bool, counts: WriteRepo
     """
     block = source.block(rows, scratch)
     m = len(block)
-    work = scratch.get("work", (m, SLOTS), np.float32, zero=True)
+    if not m:
+        return
+    work = scratch.get("work", (m, _WIDTH), np.float32, zero=True)
     _copy_runs(work, block, source.w_runs)
     logs = scratch.get("logs", (m, len(_EXPONENTS)), np.float32)
     _copy_runs(logs, block, source.exp_runs)
@@ -251,12 +253,20 @@ def pack(source: _Source, rows, out: np.ndarray, compat: bool, counts: WriteRepo
     for i, name in enumerate(_EXP_NAMES, start=1):
         np.copyto(work[:, _W_COLUMN[name]], linear[:, i])
 
-    halves = out.view(np.uint16)
+    halves = scratch.get("halves", (m, _WIDTH), np.uint16)
     _halves(work, halves, logs, compat, counts, scratch)
+    tail = np.dtype((np.void, 2 * _WIDTH))
+    np.copyto(out.view(np.uint16)[:, _FIRST:].view(tail)[:, 0], halves.view(tail)[:, 0])
 
-    # Positions: the float32 bits as they are, over what the conversion put there.
-    item = np.dtype((np.void, 4 * _POSITION_COLUMNS.stop))
-    np.copyto(out[:, :_POSITION_COLUMNS.stop].view(item)[:, 0], work[:, :_POSITION_COLUMNS.stop].view(item)[:, 0])
+    # Positions: the float32 bits as they are.
+    _copy_runs(out.view(np.float32), block, source.position_runs)
+    if compat:
+        # The browser reads positions through DataView.getFloat32 into a double,
+        # which quiets signalling NaNs (sets the top mantissa bit).
+        position = out[:, :len(_POSITIONS)]
+        nan = np.isnan(position.view(np.float32))
+        if nan.any():
+            position[nan] |= np.uint32(0x00400000)
 
     _colour(rgba, wide[:, 0], out, compat, counts, scratch)
 
@@ -267,42 +277,34 @@ def _halves(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, compat: bool
 
     Parameters
     ----------
-    work : (M, 32) float32 ndarray
-    halves : (M, 32) uint16 ndarray
+    work : (M, 26) float32 ndarray
+    halves : (M, 26) uint16 ndarray
     logs : (M, len(_EXPONENTS)) float32 ndarray
         The logarithms of the exp() attributes: a NaN logarithm is stored as
         itself (payload kept), not as exp(NaN).
     """
     m = len(work)
     step = min(m, HALF_ROWS)
-    temp = scratch.get("half", packing.scratch_size(step * SLOTS), np.uint32)
+    temp = scratch.get("half", packing.scratch_size(step * _WIDTH), np.uint32)
     listed = []
     for r in range(0, m, step):
         found = packing.float_to_half_into(work[r:r + step], halves[r:r + step], splatvjs=compat, scratch=temp)
         if len(found):
-            listed.append(found + r * SLOTS)
+            listed.append(found + r * _WIDTH)
     if listed:
         _exceptions(work, halves, logs, np.concatenate(listed), compat, counts)
 
 
 #: Working column -> index in the ``logs`` array, for the exp() attributes (else -1).
-_LOG_INDEX = np.array([_EXPONENTS.index(name) if name in EXP_ATTRIBUTES else -1 for name in SLOT_NAMES])
+_LOG_INDEX = np.array([_EXPONENTS.index(name) if name in EXP_ATTRIBUTES else -1 for name in _W_NAMES])
 #: Working columns whose halves are stored.
-_STORED = np.array([name is not None for name in SLOT_NAMES])
+_STORED = np.array([name is not None for name in _W_NAMES])
 
 
 def _exceptions(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, listed: np.ndarray, compat: bool,
                 counts: WriteReport) -> None:
     """The exact converters on the values the fast path listed (tiny, huge, non-finite), counted."""
-    rows, cols = np.divmod(listed, SLOTS)
-    if compat:
-        # The browser reads positions through DataView.getFloat32 into a double,
-        # which quiets signalling NaNs (sets the top mantissa bit).
-        at = cols < _POSITION_COLUMNS.stop
-        nan = np.isnan(work[rows[at], cols[at]])
-        if nan.any():
-            bits = work.view(np.uint32)
-            bits[rows[at][nan], cols[at][nan]] |= np.uint32(0x00400000)
+    rows, cols = np.divmod(listed, _WIDTH)
     keep = _STORED[cols]
     rows, cols = rows[keep], cols[keep]
     if not len(rows):
@@ -320,9 +322,9 @@ def _exceptions(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, listed: 
         half[nan_at] = packing.float_to_half_exact(nan_logs)[0]
     halves[rows, cols] = half
     for what, mask in (("overflow", overflow), ("underflow", underflow), ("nonfinite", nonfinite)):
-        per_column = np.bincount(cols[mask], minlength=SLOTS)
+        per_column = np.bincount(cols[mask], minlength=_WIDTH)
         for col in np.flatnonzero(per_column):
-            c = counts.half[SLOT_NAMES[col]]
+            c = counts.half[_W_NAMES[col]]
             setattr(c, what, getattr(c, what) + int(per_column[col]))
 
 
@@ -390,130 +392,128 @@ def key_block(source: _Source, rows: slice, key: np.ndarray, scratch: _Scratch) 
 
 
 class Plan:
-    """A scene's records in output order, packed a block at a time.
+    """What writing a scene's texture takes, in pieces the drivers below run.
 
-    The constructor runs the input-order pass (the importance key), sorts and
-    frames; :meth:`blocks` or :meth:`into` then pack the records in output
-    order.
-
-    Threads: blocks are independent, so helper threads pack them side by side
-    while the calling thread writes finished ones (numpy and file writes release
-    the GIL). Working arrays are per thread and reused, and record blocks come
-    from a ring.
+    :meth:`keys` computes the importance key of a range of input rows,
+    :meth:`sort` turns the key into the output order, and :meth:`block` packs
+    one block of output records. Working arrays belong to a thread.
     """
 
-    def __init__(self, scene, compat: bool, sort: str | None, camera: bool, report: WriteReport, helpers,
-                 *, streaming: bool = True):
-        n = scene.count
-        self.n = n
+    def __init__(self, scene, compat: bool, sort: str | None):
+        self.n = scene.count
         self.compat = compat
-        self.helpers = helpers
+        self.sorted = (sort or "importance") != "none"
+        self.columns = scene.columns
         self.source = _Source(scene.columns)
         self.order = None
-        self.cameras = None
         self.local = threading.local()
-        # Blocks in flight on the helpers; a record block's ring slot is reused
-        # once the caller is done with it.
-        self.ahead = 2 * WORKERS if helpers is not None else 0
-        self.outs = [None] * (self.ahead + 1) if streaming else None
-        if camera:
-            report.notes.append("no cameras given; wrote one camera that frames the scene")
-            camera_job = self._run(self._frame, scene.columns)
-        if (sort or "importance") != "none":
-            key = np.empty(n, dtype=np.float64)
-            for _ in self._ahead(lambda start: key_block(self.source, self._rows(start, KEY_BLOCK),
-                                                         key[start:start + KEY_BLOCK], self._scratch()),
-                                 range(0, n, KEY_BLOCK)):
-                pass
-            sort_key = key
-            if compat:
-                # splaTV keeps the key in a Float32Array and sorts with (b, a) => s[a] - s[b].
-                with np.errstate(over="ignore"):
-                    sort_key = key.astype(np.float32)
-                nan = int(np.count_nonzero(np.isnan(sort_key)))
-                if nan:
-                    report.notes.append(
-                        f"{nan} splats have a NaN importance; splaTV's comparator makes their order "
-                        "engine-defined, splatconv puts them last")
-            # The key's memory becomes the order's.
-            self.order = _importance_order(sort_key, key.view(np.uint64), self._key_of)
-        if camera:
-            self.cameras = [camera_job()]
 
-    def _run(self, fn, *args):
-        """Run ``fn`` on a helper (or now, without one); returns a callable giving its result."""
-        if self.helpers is None:
-            result = fn(*args)
-            return lambda: result
-        return self.helpers.submit(fn, *args).result
-
-    def _ahead(self, fn, starts):
-        """Yield ``fn(start)`` for each start in order, helpers up to ``self.ahead`` blocks ahead.
-
-        When ``fn`` starts on a block, the caller is done with every block
-        ``self.ahead + 1`` or more before it.
-        """
-        if self.helpers is None:
-            yield from map(fn, starts)
-            return
-        pending = deque()
-        for start in starts:
-            pending.append(self.helpers.submit(fn, start))
-            if len(pending) > self.ahead:
-                yield pending.popleft().result()
-        while pending:
-            yield pending.popleft().result()
-
-    def _scratch(self) -> _Scratch:
+    def scratch(self) -> _Scratch:
         """This thread's working arrays."""
         scratch = getattr(self.local, "scratch", None)
         if scratch is None:
             scratch = self.local.scratch = _Scratch()
         return scratch
 
+    def frame(self) -> dict:
+        """The camera that frames the scene, for a scene that has none."""
+        return camera_for_box(*framing_box(self.columns["x"], self.columns["y"], self.columns["z"]))
+
+    def keys(self, start: int, stop: int, key: np.ndarray) -> None:
+        """:func:`importance` of input rows ``start:stop`` into ``key[start:stop]``."""
+        for first in range(start, stop, KEY_BLOCK):
+            rows = slice(first, min(first + KEY_BLOCK, stop))
+            key_block(self.source, rows, key[rows], self.scratch())
+
+    def sort(self, key: np.ndarray, report: WriteReport | None) -> None:
+        """Set the output order from the key, ``(N,) float64``, whose memory it takes.
+
+        ``report`` (None: say nothing) gets the note about NaN keys in compat mode.
+        """
+        sort_key = key
+        if self.compat:
+            # splaTV keeps the key in a Float32Array and sorts with (b, a) => s[a] - s[b].
+            with np.errstate(over="ignore"):
+                sort_key = key.astype(np.float32)
+            nan = int(np.count_nonzero(np.isnan(sort_key)))
+            if nan and report is not None:
+                report.notes.append(
+                    f"{nan} splats have a NaN importance; splaTV's comparator makes their order "
+                    "engine-defined, splatconv puts them last")
+        self.order = _importance_order(sort_key, key.view(np.uint64), self._key_of)
+
     def _key_of(self, rows: np.ndarray) -> np.ndarray:
         """:func:`importance` of some rows, computed again from the scene (the same bits)."""
         return importance({name: self.source.column(name, rows) for name in _KEY})
 
-    @staticmethod
-    def _frame(columns: dict) -> dict:
-        return camera_for_box(*framing_box(columns["x"], columns["y"], columns["z"]))
-
-    def _rows(self, start: int, size: int) -> slice:
-        return slice(start, min(start + size, self.n))
-
-    def _record_block(self, start: int, out: np.ndarray | None = None):
-        """Output records ``start:start + BLOCK``, ``(M, 16) uint32`` (into ``out`` or a ring slot), and counts."""
-        rows = self._rows(start, BLOCK)
-        m = rows.stop - rows.start
-        if out is None:
-            slot = (start // BLOCK) % len(self.outs)
-            if self.outs[slot] is None:
-                self.outs[slot] = np.empty((BLOCK, WORDS_PER_SPLAT), dtype="<u4")
-            out = self.outs[slot][:m]
+    def block(self, start: int, out: np.ndarray) -> WriteReport:
+        """Pack output records ``start:start + len(out)`` into ``out``; their counts."""
+        rows = slice(start, start + len(out))
         counts = new_counts()
         pack(self.source, rows if self.order is None else self.order[rows], out, self.compat, counts,
-             self._scratch())
-        return out, counts
+             self.scratch())
+        return counts
 
-    def blocks(self, report: WriteReport):
-        """Yield ``(M, 16) uint32`` record blocks in output order, adding their counts to ``report``.
 
-        A yielded block's memory is reused once the next one is asked for.
-        """
-        for out, counts in self._ahead(self._record_block, range(0, self.n, BLOCK)):
-            merge_counts(report, counts)
-            yield out
-
-    def into(self, records: np.ndarray, report: WriteReport) -> None:
-        """Pack every record into ``records`` (``(N, 16) uint32``), adding the counts to ``report``."""
-        def job(start):
-            return self._record_block(start, records[start:min(start + BLOCK, self.n)])[1]
-
-        for counts in self._ahead(job, range(0, self.n, BLOCK)):
-            merge_counts(report, counts)
+def _ahead(pool, fn, items, depth: int):
+    """Yield ``fn(item)`` for each item in order, computed by ``pool`` up to ``depth`` items ahead."""
+    if pool is None:
+        yield from map(fn, items)
+        return
+    pending = deque()
+    for item in items:
+        pending.append(pool.submit(fn, item))
+        if len(pending) > depth:
+            yield pending.popleft().result()
+    while pending:
+        yield pending.popleft().result()
 
 
 def helpers(n: int):
     """Helper threads when there is more than one block to pack, else None."""
     return ThreadPoolExecutor(max_workers=WORKERS) if n > BLOCK and WORKERS > 1 else None
+
+
+def prepare(plan: Plan, camera: bool, report: WriteReport, pool) -> list | None:
+    """The key pass and the sort (if sorted), and a framing camera (if asked): threads.
+
+    Returns the cameras to write, or None to keep the scene's.
+    """
+    framed = pool.submit(plan.frame).result if camera and pool is not None else (plan.frame if camera else None)
+    if plan.sorted:
+        key = np.empty(plan.n, dtype=np.float64)
+        for _ in _ahead(pool, lambda start: plan.keys(start, min(start + KEY_BLOCK, plan.n), key),
+                        range(0, plan.n, KEY_BLOCK), WORKERS):
+            pass
+        plan.sort(key, report)
+    if camera:
+        report.notes.append("no cameras given; wrote one camera that frames the scene")
+        return [framed()]
+    return None
+
+
+def blocks(plan: Plan, report: WriteReport, pool):
+    """Yield ``(M, 16) uint32`` output blocks in order, adding their counts to ``report``: threads.
+
+    A yielded block's memory is reused once the next one is asked for: blocks
+    come from a ring as long as the helpers can be ahead.
+    """
+    depth = 2 * WORKERS if pool is not None else 0
+    ring = [np.empty((BLOCK, WORDS_PER_SPLAT), dtype="<u4") for _ in range(min(depth + 1, -(-plan.n // BLOCK)))]
+
+    def job(start):
+        out = ring[(start // BLOCK) % len(ring)][:min(BLOCK, plan.n - start)]
+        return out, plan.block(start, out)
+
+    for out, counts in _ahead(pool, job, range(0, plan.n, BLOCK), depth):
+        merge_counts(report, counts)
+        yield out
+
+
+def into(plan: Plan, records: np.ndarray, report: WriteReport, pool) -> None:
+    """Pack every record into ``records`` (``(N, 16) uint32``), adding the counts to ``report``: threads."""
+    def job(start):
+        return plan.block(start, records[start:min(start + BLOCK, plan.n)])
+
+    for counts in _ahead(pool, job, range(0, plan.n, BLOCK), 2 * WORKERS):
+        merge_counts(report, counts)

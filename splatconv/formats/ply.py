@@ -19,6 +19,7 @@ import plyfile
 from .. import model
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError
+from ..fsutil import populate
 from ..model import COLUMNS, Scene, constant_column
 
 NAME = "ply"
@@ -191,6 +192,7 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
             raise UnsupportedError(f"property {', '.join(clash)} is a list, not one number a splat", path) from None
         raise UnsupportedError(e.message, path) from None
     data = vertex.data
+    populate(data)
     n = len(data)
     notes = []
     used = set(LITE_REQUIRED if variant == model.VARIANT_LITE else GS_REQUIRED) | set(NORMALS)

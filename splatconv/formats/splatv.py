@@ -338,15 +338,16 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
 
     is_compat = compat == "splatv-js"
     report = WriteReport(count=n, texheight=texture_height(n))
-    helpers = engine.helpers(n)
+    plan = engine.Plan(scene, is_compat, sort)
+    pool = engine.helpers(n)
     try:
-        plan = engine.Plan(scene, is_compat, sort, not scene.cameras, report, helpers)
-        stream.write(header_bytes(n, plan.cameras or scene.cameras))
-        for block in plan.blocks(report):
+        cameras = engine.prepare(plan, not scene.cameras, report, pool)
+        stream.write(header_bytes(n, cameras or scene.cameras))
+        for block in engine.blocks(plan, report, pool):
             stream.write(memoryview(block))
     finally:
-        if helpers is not None:
-            helpers.shutdown(cancel_futures=True)
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
     padding = report.texheight * SPLATS_PER_ROW - n
     stream.write(bytes(padding * RECORD_BYTES))
     report.notes.extend(_write_notes(report, is_compat))
@@ -369,12 +370,14 @@ def encode(scene: Scene, *, compat: str | None = None, sort: str | None = "impor
     report = WriteReport(count=n, texheight=texture_height(n))
     records = np.empty((report.texheight * SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4")
     records[n:] = 0
-    helpers = engine.helpers(n)
+    plan = engine.Plan(scene, is_compat, sort)
+    pool = engine.helpers(n)
     try:
-        engine.Plan(scene, is_compat, sort, False, report, helpers, streaming=False).into(records, report)
+        engine.prepare(plan, False, report, pool)
+        engine.into(plan, records, report, pool)
     finally:
-        if helpers is not None:
-            helpers.shutdown(cancel_futures=True)
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
     report.notes.extend(_write_notes(report, is_compat))
     return records, report
 
