@@ -3,19 +3,27 @@
 What it measures, on a synthetic Spacetime Gaussians lite PLY (32 float32
 properties a row, 128 bytes a splat; 1,000,000 splats = 128 MB by default):
 
-* the I/O floor: reading the whole input into a preallocated buffer plus writing
-  a file the size of the ``.splatv`` output from a preallocated buffer, warm
-  (page cache), median of several runs;
-* PLY -> .splatv (default, accurate mode): in-process conversion seconds (median),
+* the I/O floor, as the issue that set the target defines it: "the time to
+  merely read that input and write an output of the same size" -- reading the
+  whole input into a preallocated buffer plus writing a file of the input's size
+  from a preallocated buffer, warm (page cache), median of several runs. Also
+  the tighter floor with the write cut to the ``.splatv`` output's size (half
+  the input), against which the ratio is shown too;
+* PLY -> .splatv (default, accurate mode): in-process conversion seconds
+  (median; the library's modules are loaded before the clock starts, as numpy
+  is before the floor's), the seconds that first use spends loading them,
   whole-command wall seconds including interpreter start (``python -c`` and the
   ``splatconv convert`` console script), peak RSS of the converting process, and
-  the ratio conversion / I/O floor;
-* PLY -> .splatv with ``compat="splatv-js"``, and .splatv -> PLY, the same way.
+  the ratios conversion / I/O floor;
+* PLY -> .splatv with ``compat="splatv-js"``, PLY -> .splatv.zst (zstd level 3,
+  to show the compressed output streams), and .splatv -> PLY, the same way.
 
-Every conversion runs in a fresh child process so that its peak RSS (from
-``os.wait4``) is that conversion's alone. A final block compares the default
-mode against the targets (at most 2.5x the I/O floor, at most 350 MB peak RSS).
-The exit status is 0 whatever the figures; it is a report, not a test.
+Like the floor's writes, every conversion replaces the previous run's output
+(atomically, through a temporary file), so both pay for the page cache the
+replaced file frees. Every conversion runs in a fresh child process so that its
+peak RSS (from ``os.wait4``) is that conversion's alone. A final block compares
+the default mode against the targets (at most 2.5x the I/O floor, at most 350 MB
+peak RSS). The exit status is 0 whatever the figures; it is a report, not a test.
 
 Run::
 
@@ -47,12 +55,18 @@ TARGET_RSS_MB = 350.0
 #: Bytes of .splatv header assumed for the floor's output file.
 SPLATV_HEADER_BYTES = 400
 
-#: Child snippet: convert argv[1] -> argv[2] (compat argv[3] or "-") and print seconds.
+#: Child snippet: convert argv[1] -> argv[2] (compat argv[3] or "-", zstd level
+#: argv[4] or "-") and print the seconds of loading the library's modules, then of
+#: the conversion.
 CHILD = """\
 import sys, time, splatconv
-compat = None if sys.argv[3] == "-" else sys.argv[3]
 t = time.perf_counter()
-splatconv.convert(sys.argv[1], sys.argv[2], compat=compat, force=True)
+import splatconv.formats, splatconv.formats._splatv_writer, splatconv.fsutil, splatconv.transport
+print("BENCH_LOAD", time.perf_counter() - t)
+compat = None if sys.argv[3] == "-" else sys.argv[3]
+level = None if sys.argv[4] == "-" else int(sys.argv[4])
+t = time.perf_counter()
+splatconv.convert(sys.argv[1], sys.argv[2], compat=compat, force=True, zstd_level=level)
 print("BENCH_SECONDS", time.perf_counter() - t)
 """
 
@@ -150,10 +164,12 @@ def run_child(argv: list) -> dict:
     """
     p = subprocess.run([PYTHON, "-c", LAUNCHER, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
     text = p.stdout.decode("utf-8", "replace")
-    result = {"seconds": None}
+    result = {"seconds": None, "load": None}
     for line in text.splitlines():
         if line.startswith("BENCH_SECONDS "):
             result["seconds"] = float(line.split()[1])
+        elif line.startswith("BENCH_LOAD "):
+            result["load"] = float(line.split()[1])
         elif line.startswith("BENCH_CHILD "):
             code, wall, maxrss_kib = line.split()[1:]
             result.update(code=int(code), wall=float(wall), rss_mb=int(maxrss_kib) * 1024 / 1e6)
@@ -162,14 +178,16 @@ def run_child(argv: list) -> dict:
     return result
 
 
-def measure(src: str, dst: str, compat: str | None, repeat: int, cli: bool) -> dict:
+def measure(src: str, dst: str, compat: str | None, repeat: int, cli: bool, level: int | None = None) -> dict:
     """Convert ``src`` -> ``dst`` ``repeat`` times via ``python -c`` (and the CLI if asked).
 
-    Returns medians of conversion and wall seconds and the largest peak RSS.
+    Returns medians of conversion, module-loading and wall seconds and the largest peak RSS.
     """
-    runs = [run_child([PYTHON, "-c", CHILD, src, dst, compat or "-"]) for _ in range(repeat)]
+    args = [PYTHON, "-c", CHILD, src, dst, compat or "-", "-" if level is None else str(level)]
+    runs = [run_child(args) for _ in range(repeat)]
     result = {
         "seconds": statistics.median(r["seconds"] for r in runs),
+        "load": statistics.median(r["load"] for r in runs),
         "wall": statistics.median(r["wall"] for r in runs),
         "rss_mb": max(r["rss_mb"] for r in runs),
     }
@@ -230,12 +248,18 @@ def run(args, work: str) -> int:
 
     out_bytes = splatv_size(n)
     read_s = time_read(src, args.io_repeat)
-    write_s = time_write(os.path.join(work, "floor.bin"), out_bytes, args.io_repeat)
+    write_s = time_write(os.path.join(work, "floor.bin"), in_bytes, args.io_repeat)
+    write_out_s = time_write(os.path.join(work, "floor-out.bin"), out_bytes, args.io_repeat)
     floor = read_s + write_s
-    print(f"I/O floor (warm page cache, median of {args.io_repeat})")
-    print(row(f"read {in_bytes / 1e6:.1f} MB", f"{read_s:.3f} s", f"{in_bytes / read_s / 1e9:.2f} GB/s"))
-    print(row(f"write {out_bytes / 1e6:.1f} MB", f"{write_s:.3f} s", f"{out_bytes / write_s / 1e9:.2f} GB/s"))
-    print(row("floor = read + write", f"{floor:.3f} s"))
+    tight = read_s + write_out_s
+    print(f"I/O floor (warm page cache, median of {args.io_repeat}; each write replaces the last)")
+    print(row(f"read {in_bytes / 1e6:.1f} MB (the input)", f"{read_s:.3f} s", f"{in_bytes / read_s / 1e9:.2f} GB/s"))
+    print(row(f"write {in_bytes / 1e6:.1f} MB (an output of the same size)", f"{write_s:.3f} s",
+              f"{in_bytes / write_s / 1e9:.2f} GB/s"))
+    print(row("floor = read + write", f"{floor:.3f} s", "the issue's definition"))
+    print(row(f"write {out_bytes / 1e6:.1f} MB (the .splatv's size)", f"{write_out_s:.3f} s",
+              f"{out_bytes / write_out_s / 1e9:.2f} GB/s"))
+    print(row("tighter floor = read + that write", f"{tight:.3f} s"))
     print()
 
     base = baseline_rss()
@@ -244,7 +268,9 @@ def run(args, work: str) -> int:
 
     default = measure(src, dst, None, args.repeat, cli=True)
     print(f"PLY -> .splatv (default, accurate; output {os.path.getsize(dst) / 1e6:.1f} MB)")
-    print(row("conversion, in process", f"{default['seconds']:.3f} s", f"{default['seconds'] / floor:.2f}x floor"))
+    print(row("conversion, in process", f"{default['seconds']:.3f} s",
+              f"{default['seconds'] / floor:.2f}x floor, {default['seconds'] / tight:.2f}x tighter floor"))
+    print(row("loading splatconv's modules (first use)", f"{default['load']:.3f} s"))
     print(row("wall, python -c (incl. interpreter start)", f"{default['wall']:.3f} s"))
     print(row("wall, splatconv convert (console script)", f"{default['cli_wall']:.3f} s"))
     print(row("peak RSS, python -c", f"{default['rss_mb']:.0f} MB"))
@@ -256,6 +282,13 @@ def run(args, work: str) -> int:
     print(row("conversion, in process", f"{compat['seconds']:.3f} s", f"{compat['seconds'] / floor:.2f}x floor"))
     print(row("wall, python -c", f"{compat['wall']:.3f} s"))
     print(row("peak RSS", f"{compat['rss_mb']:.0f} MB"))
+
+    zst = measure(src, dst + ".zst", None, args.repeat, cli=False, level=3)
+    print(f"PLY -> .splatv.zst (zstd level 3, compressed while written; "
+          f"output {os.path.getsize(dst + '.zst') / 1e6:.1f} MB)")
+    print(row("conversion, in process", f"{zst['seconds']:.3f} s"))
+    print(row("peak RSS", f"{zst['rss_mb']:.0f} MB",
+              f"{zst['rss_mb'] - default['rss_mb']:+.0f} MB against plain .splatv output"))
 
     reverse = measure(dst, back, None, args.repeat, cli=False)
     rev_floor_note = f"{os.path.getsize(dst) / 1e6:.1f} MB -> {os.path.getsize(back) / 1e6:.1f} MB"
@@ -269,6 +302,9 @@ def run(args, work: str) -> int:
     rss = max(default["rss_mb"], default["cli_rss_mb"])
     print("targets (PLY -> .splatv, default mode)")
     print(row(f"conversion <= {TARGET_RATIO}x I/O floor", f"{ratio:.2f}x", "PASS" if ratio <= TARGET_RATIO else "FAIL"))
+    tight_ratio = default["seconds"] / tight
+    print(row(f"  (against the tighter floor, {TARGET_RATIO}x)", f"{tight_ratio:.2f}x",
+              "met" if tight_ratio <= TARGET_RATIO else "not met"))
     print(row(f"peak RSS <= {TARGET_RSS_MB:.0f} MB", f"{rss:.0f} MB", "PASS" if rss <= TARGET_RSS_MB else "FAIL"))
     return 0
 

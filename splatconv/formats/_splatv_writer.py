@@ -1,8 +1,9 @@
 """The ``.splatv`` writer's engine: records packed a block of rows at a time, by threads.
 
 :mod:`splatconv.formats.splatv` says what a record holds; this module makes a
-million of them in about a tenth of a second on two cores, with numpy alone.
-What that takes, measured on the machines this was built on:
+million of them, sorted, in well under a fifth of a second on two cores with
+numpy alone (``bench/bench_convert.py``). What that takes, measured on the
+machines this was built on:
 
 * Work in the record's own layout. A block of input rows is copied, a few
   runs of adjacent fields at a time, into a working block ``W`` of float32
@@ -12,8 +13,12 @@ What that takes, measured on the machines this was built on:
   the input and the colour word is made beside. No transposes, no
   per-attribute strided stores.
 * Few, long numpy calls. A call costs about a microsecond however short, and
-  threads hand the GIL over at every call, so blocks are large; the half
-  conversion runs on groups of rows small enough to stay in cache.
+  threads hand the GIL over at every call (dear on a virtual machine, where
+  waking the other CPU takes longer than a short call), so blocks are large;
+  the half conversion runs on groups of rows small enough to stay in cache.
+  Even so two threads pack only about 1.3 times as fast as one: numpy gives
+  the GIL up only inside its loops. (Two forked processes were tried too:
+  about 10% faster, not worth forking inside a library call.)
 * Reuse memory. Fresh pages cost a fault each (and a virtual machine's host
   may fault again behind it): working arrays belong to a thread and are reused
   block after block, and output blocks come from a ring.
