@@ -4,7 +4,8 @@ The library API::
 
     scene = splatconv.read("scene.ply")          # -> Scene (columnar model)
     report = splatconv.write(scene, "scene.splatv")
-    report = splatconv.convert("scene.ply", "scene.splatv", compat="splatv-js")
+    scene, report = splatconv.convert("scene.ply", "scene.splatv", compat="splatv-js")
+    print(report.notes)                          # every lossy step, in words
 """
 
 from __future__ import annotations

@@ -157,7 +157,10 @@ def _counts(source_cols: dict, converted_cols: dict, group: str) -> dict:
     if group != "position":
         out["underflow"] = int(np.count_nonzero(finite & (a != 0) & (b == 0)))
     if group == "color":
-        out["clamped"] = int(np.count_nonzero((raw < 0) | (raw > 1)))
+        # NaN is clamped too: the writers store it as 0.
+        out["clamped"] = int(np.count_nonzero((raw < 0) | (raw > 1) | np.isnan(raw)))
+    elif group == "opacity":
+        out["clamped"] = int(np.count_nonzero(np.isnan(raw)))  # sigmoid(NaN): stored as alpha 0
     return out
 
 

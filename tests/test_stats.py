@@ -107,12 +107,13 @@ def expected_attributes(cols: dict, compat: bool) -> dict:
             "overflow": int(np.sum(np.isfinite(a) & (np.abs(a) > HALF_MAX))) if half else 0,
             "underflow": int(np.sum(np.isfinite(a) & (a != 0) & (b == 0))) if group != "position" else 0,
             "subnormal": int(np.sum((b != 0) & (np.abs(b) < 2.0**-14))) if half else 0,
-            "clamped": int(np.sum((raw < 0) | (raw > 1))) if group == "color" else 0,
+            "clamped": (int(np.sum((raw < 0) | (raw > 1) | np.isnan(raw))) if group == "color"
+                        else int(np.sum(np.isnan(raw))) if group == "opacity" else 0),
         }
     return out
 
 
-def hostile_columns(n: int = 16) -> dict:
+def hostile_columns(n: int = 18) -> dict:
     """Benign values from simple formulas, then one hostile value per row."""
     i = np.arange(n, dtype=np.float64)
     cols = {"x": i, "y": 2 * i, "z": -i, "trbf_center": 0.1 + 0.05 * i, "trbf_scale": np.log(0.2 + 0.01 * i),
@@ -142,6 +143,8 @@ def hostile_columns(n: int = 16) -> dict:
     cols["scale_0"][13] = 100.0             # exp(100) overflows float32: infinity in both
     cols["rot_3"][14] = 3e-8                # 2^-24 (default, rounds up); zero (splaTV truncates)
     cols["scale_1"][15] = math.log(2.0**-14)  # 2^-14 in float32: the smallest normal half, not subnormal
+    cols["f_dc_1"][16] = np.nan             # colour byte 0: clamped
+    cols["opacity"][17] = np.nan            # alpha byte 0: clamped
     return lite_columns_with_normals(cols)
 
 
@@ -150,7 +153,7 @@ HAND_COUNTS = {
     ("rotation", "subnormal"): (2, 1), ("rotation", "underflow"): (0, 1),
     ("scale", "overflow"): (2, 2), ("scale", "nonfinite"): (1, 3), ("scale", "underflow"): (1, 0),
     ("scale", "subnormal"): (0, 1),
-    ("color", "clamped"): (2, 2), ("opacity", "underflow"): (1, 1),
+    ("color", "clamped"): (3, 3), ("opacity", "underflow"): (1, 1), ("opacity", "clamped"): (1, 1),
     ("motion", "nonfinite"): (1, 1), ("motion", "underflow"): (2, 1), ("motion", "subnormal"): (0, 1),
     ("omega", "overflow"): (1, 1), ("omega", "nonfinite"): (0, 1),
     ("trbf", "subnormal"): (1, 1),
