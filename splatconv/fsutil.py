@@ -10,7 +10,15 @@ import tempfile
 
 import numpy as np
 
-from .errors import OutputError
+from .errors import FormatError, OutputError
+
+
+def open_input(path: str):
+    """Open ``path`` for reading, binary; a file that cannot be opened is a :class:`FormatError`."""
+    try:
+        return open(path, "rb")
+    except OSError as e:
+        raise FormatError(f"cannot open: {e.strerror}", path) from None
 
 
 def check_output(output: str | os.PathLike, inputs=(), force: bool = False) -> None:

@@ -19,7 +19,7 @@ import plyfile
 from .. import model
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError
-from ..fsutil import populate
+from ..fsutil import open_input, populate
 from ..model import COLUMNS, Scene, constant_column
 
 NAME = "ply"
@@ -104,11 +104,7 @@ def _minimum_body(f, path: str, file_size: int) -> None:
 
 
 def _open(path: str) -> plyfile.PlyData:
-    try:
-        f = open(path, "rb")
-    except OSError as e:
-        raise FormatError(f"cannot open: {e.strerror}", path) from None
-    with f:
+    with open_input(path) as f:
         size = os.fstat(f.fileno()).st_size
         if size == 0:
             raise FormatError("file is empty", path)

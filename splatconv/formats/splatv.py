@@ -18,6 +18,7 @@ import numpy as np
 from .. import packing
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError
+from ..fsutil import open_input
 from ..model import Scene, lite_rows
 
 NAME = "splatv"
@@ -489,11 +490,7 @@ def read_records(path: str | os.PathLike):
     """
     path = os.fspath(path)
     notes = []
-    try:
-        f = open(path, "rb")
-    except OSError as e:
-        raise FormatError(f"cannot open: {e.strerror}", path) from None
-    with f:
+    with open_input(path) as f:
         file_size = os.fstat(f.fileno()).st_size
         chunks, offset = read_header(f, path, file_size)
         splat = None
