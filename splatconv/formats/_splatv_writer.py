@@ -54,9 +54,9 @@ KEY_BLOCK = 1 << 16
 #: Rows of a block converted to halves at a time: the conversion's temporaries
 #: (two uint32 per value) stay in a core's cache.
 HALF_ROWS = 1 << 11
-#: Packing threads (the calling thread writes meanwhile). Beyond the cores,
-#: more only add GIL hand-overs.
-WORKERS = max(1, min(os.cpu_count() or 2, 3))
+#: Packing threads (the calling thread writes meanwhile). More only add GIL
+#: hand-overs: two beat three even on two cores (medians of interleaved runs).
+WORKERS = max(1, min(os.cpu_count() or 2, 2))
 
 # --------------------------------------------------------------------------
 # The working layouts, derived from the record layout.
