@@ -57,6 +57,13 @@ INVALID_CASES = [
                  b"property float z\nend_header\n1 2 3\n",
      "not a splat file: missing properties f_dc_0, f_dc_1, f_dc_2, opacity, scale_0, scale_1, scale_2, "
      "rot_0, rot_1, rot_2, rot_3 (needed for plain 3DGS)"),
+    ("camjson.ply", _HDR.replace(b"element vertex", b"comment splatconv-cameras [{\nelement vertex", 1) + _ARR.tobytes(),
+     "cameras comment: Expecting property name enclosed in double quotes (line 1, column 3)"),
+    ("camnan.ply", _HDR.replace(b"element vertex", b"comment splatconv-cameras [NaN]\nelement vertex", 1)
+     + _ARR.tobytes(), "cameras comment: NaN is not allowed in strict JSON"),
+    ("camkeys.ply", _HDR.replace(b"element vertex", b"comment splatconv-cameras [{}]\nelement vertex", 1)
+     + _ARR.tobytes(), "cameras comment: camera 0: missing id, img_name, width, height, position, rotation, "
+     "fy, fx"),
     ("zero.ply", _HDR.replace(b"vertex 20", b"vertex 0"),
      "holds no splats; the viewer cannot show an empty texture"),
     ("short.splatv", b"\x4b\x67", "2 bytes is too short for a .splatv file (8-byte preamble)"),
@@ -67,7 +74,7 @@ INVALID_CASES = [
     ("badjson.splatv", _raw(b"[{"),
      "header JSON: Expecting property name enclosed in double quotes (line 1, column 3)"),
     ("nanjson.splatv", _raw(b'[{"type":"splat","size":NaN}]'), "header JSON: NaN is not allowed in strict JSON"),
-    ("utf8.splatv", _raw(b"\xff\xfe["), "header JSON is not UTF-8 (byte 0)"),
+    ("utf8.splatv", _raw(b"\xff\xfe["), "header JSON: not UTF-8 (byte 0)"),
     ("notarray.splatv", _sv({"type": "splat"}), "header JSON must be an array of chunks"),
     ("nosize.splatv", _sv([{"type": "splat"}]), "chunk 0: 'size' must be a non-negative integer, got None"),
     ("nosplat.splatv", _sv([{"type": "audio", "size": 0}]), "header has no 'splat' chunk"),

@@ -20,6 +20,7 @@ from .. import model
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input, populate
+from ..jsonutil import loads_strict
 from ..model import COLUMNS, Scene, constant_column
 
 NAME = "ply"
@@ -232,14 +233,11 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
 def _cameras_from_comments(comments, path: str):
     for comment in comments:
         if comment.startswith(CAMERA_COMMENT):
-            try:
-                cameras = json.loads(comment[len(CAMERA_COMMENT):])
-            except json.JSONDecodeError as e:
-                raise FormatError(f"cameras comment: {e.msg} (column {e.colno})", path) from None
+            cameras = loads_strict(comment[len(CAMERA_COMMENT):], path, "cameras comment")
             try:
                 return validate_cameras(cameras, path)
-            except Exception as e:
-                raise FormatError(f"cameras comment: {e.message}", path, e.where) from None
+            except FormatError as e:
+                raise FormatError(e.message, path, ("cameras comment", *e.where)) from None
     return None
 
 

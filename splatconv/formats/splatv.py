@@ -19,6 +19,7 @@ from .. import packing
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input
+from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
 
 NAME = "splatv"
@@ -404,10 +405,6 @@ def _write_notes(report: WriteReport, compat: bool) -> list:
 # Reading
 
 
-def _reject_constant(name):
-    raise ValueError(f"{name} is not allowed in strict JSON")
-
-
 def _is_count(v) -> bool:
     return isinstance(v, int) and not isinstance(v, bool) and v >= 0
 
@@ -431,17 +428,7 @@ def read_header(f, path: str, file_size: int) -> tuple[list, int]:
     if PREAMBLE.size + json_len > file_size:
         raise FormatError(f"header declares {json_len} bytes of JSON but the file ends after "
                           f"{file_size - PREAMBLE.size}", path)
-    raw = f.read(json_len)
-    try:
-        text = raw.decode("utf-8")
-    except UnicodeDecodeError as e:
-        raise FormatError(f"header JSON is not UTF-8 (byte {e.start})", path) from None
-    try:
-        chunks = json.loads(text, parse_constant=_reject_constant)
-    except json.JSONDecodeError as e:
-        raise FormatError(f"header JSON: {e.msg} (line {e.lineno}, column {e.colno})", path) from None
-    except ValueError as e:
-        raise FormatError(f"header JSON: {e}", path) from None
+    chunks = loads_strict(f.read(json_len), path, "header JSON")
     if not isinstance(chunks, list):
         raise FormatError("header JSON must be an array of chunks", path)
     for i, chunk in enumerate(chunks):
