@@ -395,6 +395,7 @@ def test_threaded_block_writer_matches_reference(tmp_path, monkeypatch, compat, 
     from splatconv.formats import _splatv_writer as engine
 
     monkeypatch.setattr(engine, "BLOCK", 256)
+    monkeypatch.setattr(engine, "KEY_BLOCK", 700)
     monkeypatch.setattr(engine, "HALF_ROWS", 100)
     monkeypatch.setattr(engine, "WORKERS", 3)
     cols = fast_path_columns(5000 + 37, 21)
