@@ -122,8 +122,8 @@ def float_to_half_into(x: np.ndarray, out: np.ndarray, *, splatvjs: bool = False
     by one float addition that rounds at the half's subnormal step. The
     splaTV-compatible path is exact for zero and wherever floatToHalf is a plain
     truncation (float32 exponents 113 to 141). Every other value -- huge,
-    infinite, NaN, and for splaTV's converter tiny -- is listed for the exact
-    converters, which callers run on that (usually empty) subset. Reductions
+    infinite, NaN, nonzero values that become zero (to be counted), and for
+    splaTV's converter tiny ones -- is listed for the exact converters, which callers run on that (usually empty) subset. Reductions
     find out whether there are any, so the common case writes no mask.
 
     Parameters

@@ -52,7 +52,7 @@ BLOCK = 1 << 14
 #: Rows of the input-order (importance key) pass at a time.
 KEY_BLOCK = 1 << 16
 #: Rows of a block converted to halves at a time: the conversion's temporaries
-#: (two uint32 per value) stay in a core's cache.
+#: (three uint32 per value) stay in a core's cache.
 HALF_ROWS = 1 << 11
 #: Packing threads (the calling thread writes meanwhile). More only add GIL
 #: hand-overs: two beat three even on two cores (medians of interleaved runs).
@@ -370,29 +370,6 @@ def _colour(rgba: np.ndarray, exp_neg_opacity: np.ndarray, out: np.ndarray, comp
 
 
 # --------------------------------------------------------------------------
-# The importance key
-
-
-def key_block(source: _Source, rows: slice, key: np.ndarray, scratch: _Scratch) -> None:
-    """:func:`splatconv.formats.splatv.importance` of some rows, into ``key``, ``(M,) float64``.
-
-    The same operations in the same order, on contiguous values, so the same bits.
-    """
-    m = len(key)
-    parts = scratch.get("key", (len(_KEY), m), np.float64)
-    with np.errstate(all="ignore"):
-        for i, name in enumerate(_KEY):
-            np.copyto(parts[i], source.column(name, rows))
-        np.negative(parts[0], out=parts[0])
-        np.exp(parts, out=parts)
-        np.multiply(parts[1], parts[2], out=key)
-        key *= parts[3]
-        parts[0] += 1.0
-        np.divide(1.0, parts[0], out=parts[0])
-        key *= parts[0]
-
-
-# --------------------------------------------------------------------------
 # The whole texture
 
 
@@ -428,7 +405,7 @@ class Plan:
         """:func:`importance` of input rows ``start:stop`` into ``key[start:stop]``."""
         for first in range(start, stop, KEY_BLOCK):
             rows = slice(first, min(first + KEY_BLOCK, stop))
-            key_block(self.source, rows, key[rows], self.scratch())
+            key[rows] = self._key_of(rows)
 
     def sort(self, key: np.ndarray, report: WriteReport | None) -> None:
         """Set the output order from the key, ``(N,) float64``, whose memory it takes.
@@ -447,8 +424,8 @@ class Plan:
                     "engine-defined, splatconv puts them last")
         self.order = _importance_order(sort_key, key.view(np.uint64), self._key_of)
 
-    def _key_of(self, rows: np.ndarray) -> np.ndarray:
-        """:func:`importance` of some rows, computed again from the scene (the same bits)."""
+    def _key_of(self, rows) -> np.ndarray:
+        """:func:`importance` of some rows (a slice or an index array), from the scene."""
         return importance({name: self.source.column(name, rows) for name in _KEY})
 
     def block(self, start: int, out: np.ndarray) -> WriteReport:
