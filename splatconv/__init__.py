@@ -40,7 +40,7 @@ def read(path: str | os.PathLike, *, color: str = "auto") -> Scene:
     if color not in COLOR_MODES:
         raise UsageError(f"unknown colour mode {color!r} (expected one of {', '.join(COLOR_MODES)})")
     module = format_for(path)
-    with plain_input(path) as plain:
+    with plain_input(path, declared_size=getattr(module, "declared_size", None)) as plain:
         scene = module.read(plain, color=color)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)
@@ -86,7 +86,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         raise UsageError(f"unknown sort {sort!r} (expected one of {', '.join(SORT_MODES)})")
     check_output(path, inputs, force)
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
-    with atomic_writer(path) as stream, output_stream(stream, path, level) as out:
+    with atomic_writer(path, replace=force) as stream, output_stream(stream, path, level) as out:
         return module.write(scene, out, compat=compat, sort=sort)
 
 

@@ -13,6 +13,7 @@ import click
 
 import splatconv
 from splatconv.errors import SplatconvError, UsageError
+from splatconv.transport import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
 
 
 class _Failure(click.ClickException):
@@ -76,10 +77,23 @@ def _notes(notes) -> None:
         click.echo(f"note: {note}", err=True)
 
 
+def _max_decompressed(ctx, param, value):
+    try:
+        set_max_decompressed(None if value is None else parse_byte_size(value))
+    except ValueError as e:
+        raise click.BadParameter(str(e), ctx, param) from None
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(splatconv.__version__, prog_name="splatconv")
+@click.option("--max-decompressed", metavar="SIZE", callback=_max_decompressed, expose_value=False,
+              help=f"Largest size a .zst input may decompress to, e.g. 8G (or set {MAX_DECOMPRESSED_ENV}) "
+                   f"[default: {DEFAULT_MAX_DECOMPRESSED >> 30}G].")
 def main():
     """Convert 4D Gaussian-splatting scenes between PLY (Spacetime Gaussians, 3DGS) and splaTV's .splatv."""
+    from splatconv.fsutil import exit_on_signals
+
+    exit_on_signals()  # SIGTERM, SIGHUP: clean up part and temporary files as Ctrl-C does
 
 
 @main.command()
