@@ -257,5 +257,29 @@ def output_stream(stream, path, level: int = DEFAULT_LEVEL):
     if not is_compressed(path):
         yield stream
         return
-    with compressor(level).stream_writer(stream, closefd=False) as z:
-        yield z
+    z = compressor(level).stream_writer(stream, closefd=False)
+    # Not ``with``: on an error or a signal the frame is abandoned, not finished
+    # (finishing compresses everything still buffered, seconds at high levels,
+    # for a file that is about to be removed).
+    yield _Pieces(z)
+    z.close()
+
+
+class _Pieces:
+    """Hands writes on in pieces of at most :data:`_WRITE_STEP` bytes.
+
+    A signal handler (SIGTERM, Ctrl-C) runs only between two calls into C; one
+    multi-megabyte write at zstd's highest levels takes seconds, a piece a fraction of one.
+    """
+
+    def __init__(self, out):
+        self.out = out
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        for start in range(0, len(view), _WRITE_STEP):
+            self.out.write(view[start:start + _WRITE_STEP])
+        return len(view)
+
+
+_WRITE_STEP = 1 << 18
