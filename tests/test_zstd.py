@@ -99,6 +99,9 @@ class _SpyWriter:
     def __exit__(self, *exc):
         return self.inner.__exit__(*exc)
 
+    def close(self):
+        return self.inner.close()
+
 
 @pytest.fixture
 def compressor_writes(monkeypatch):
