@@ -215,11 +215,17 @@ def atomic_writer(output: str | os.PathLike, replace: bool = True):
     output = os.fspath(output)
     parent = os.path.dirname(os.path.abspath(output))
     remove_stale_parts(output)
-    fd, tmp = _locked_part(output, parent)
-    # A second descriptor holds the lock until the part has its final name, after
-    # the writing one is closed: an unlocked part is a dead run's.
-    lock = os.dup(fd)
+    held = hold_signals()  # a signal between creating the part and the try would leave it behind
     try:
+        fd, tmp = _locked_part(output, parent)
+        # A second descriptor holds the lock until the part has its final name, after
+        # the writing one is closed: an unlocked part is a dead run's.
+        lock = os.dup(fd)
+    except BaseException:
+        release_signals(held)
+        raise
+    try:
+        release_signals(held)  # a signal that came meanwhile is handled here, inside the try
         with os.fdopen(fd, "wb") as f:
             yield f
         umask = os.umask(0)
@@ -243,6 +249,23 @@ def atomic_writer(output: str | os.PathLike, replace: bool = True):
 #: ``finally`` (part files, decompressed temporaries). SIGKILL cannot be caught;
 #: its part files are removed by the next run for the same output.
 CLEANUP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name))
+
+
+def hold_signals():
+    """Hold back SIGINT, SIGTERM and SIGHUP until :func:`release_signals` (returns what to give it).
+
+    For the instant between creating a temporary file and entering the ``try``
+    that removes it: a signal handled there would leave the file behind.
+    """
+    if not hasattr(signal, "pthread_sigmask"):
+        return None
+    return signal.pthread_sigmask(signal.SIG_BLOCK, (signal.SIGINT,) + CLEANUP_SIGNALS)
+
+
+def release_signals(held) -> None:
+    """Undo :func:`hold_signals`; a signal that came meanwhile is handled now."""
+    if held is not None:
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)
 
 
 def _exit_for_signal(signum, _frame):

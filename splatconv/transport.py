@@ -10,6 +10,9 @@ import contextlib
 import os
 import tempfile
 
+from .errors import FormatError, SplatconvError, UsageError
+from .fsutil import hold_signals, open_input, release_signals
+
 #: Default zstd level for reports and ``.zst`` output: 19, zstd's highest level
 #: before the "ultra" ones, worth it for files served many times.
 DEFAULT_LEVEL = 19
@@ -141,8 +144,6 @@ def max_decompressed() -> int:
     UsageError
         When the environment variable is not a byte count.
     """
-    from .errors import UsageError
-
     if _max_decompressed is not None:
         return _max_decompressed
     env = os.environ.get(MAX_DECOMPRESSED_ENV)
@@ -180,8 +181,6 @@ def plain_input(path, declared_size=None):
         declares, from the first :data:`HEAD_BYTES` decompressed bytes (None:
         the header does not say, or is longer).
     """
-    from .errors import FormatError, SplatconvError
-    from .fsutil import open_input
 
     path = os.fspath(path)
     if not is_compressed(path):
@@ -200,8 +199,14 @@ def plain_input(path, declared_size=None):
                 raise FormatError(f"its zstd frame declares {content:,} decompressed bytes, more than the "
                                   f"{_gib(ceiling)} allowed (raise it with --max-decompressed or "
                                   f"{MAX_DECOMPRESSED_ENV})", path)
-        fd, tmp = tempfile.mkstemp(prefix="splatconv-", suffix=suffix)
+        held = hold_signals()  # a signal between creating the file and the try would leave it behind
         try:
+            fd, tmp = tempfile.mkstemp(prefix="splatconv-", suffix=suffix)
+        except BaseException:
+            release_signals(held)
+            raise
+        try:
+            release_signals(held)
             with os.fdopen(fd, "wb") as out:
                 try:
                     _decompress(zstandard, f, out, path, ceiling, declared_size)
@@ -221,8 +226,6 @@ def plain_input(path, declared_size=None):
 
 def _decompress(zstandard, f, out, path: str, ceiling: int, declared_size) -> None:
     """Copy the decompressed bytes of ``f`` to ``out``, never more than the limits allow."""
-    from .errors import FormatError
-
     limit = ceiling
     declared = None
     head = b"" if declared_size is not None else None
