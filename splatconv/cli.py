@@ -130,7 +130,7 @@ def info(path, as_json, color):
 
     module = format_for(path)
     scene = splatconv.read(path, color=color)
-    data = describe(scene, path, module.NAME)
+    data = describe(scene, path, module)
     click.echo(to_json(data) if as_json else info_text(data))
 
 

@@ -12,7 +12,9 @@ def to_json(data) -> str:
 
 
 def _fmt_range(r) -> str:
-    return "none finite" if r is None else f"{r[0]:.6g} .. {r[1]:.6g}"
+    if r is None:
+        return "none finite"
+    return " .. ".join("always" if v is None else f"{v:.6g}" for v in r)
 
 
 def info_text(info: dict) -> str:
@@ -33,7 +35,8 @@ def info_text(info: dict) -> str:
     names = ", ".join(str(c["img_name"]) for c in cams[:4]) + (", ..." if len(cams) > 4 else "")
     lines.append(f"cameras:   {len(cams)}" + (f" ({names})" if cams else ""))
     lines.append(f"time:      centres {_fmt_range(info['time_range'])}, "
-                 f"visible {_fmt_range(info['visible_time_range'])}")
+                 f"visible {_fmt_range(info['visible_time_range'])}"
+                 + (f" ({info['visible_always']:,} splats visible always)" if info.get("visible_always") else ""))
     b = info["bounds"]
     if b is None:
         lines.append("bounds:    no finite positions")

@@ -22,9 +22,21 @@ from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, Scene, constant_column
+from ..viewer import importance, importance_order
+from .base import WriteReport
 
 NAME = "ply"
 SUFFIXES = (".ply",)
+CAN_READ = True
+CAN_WRITE = True
+COMPAT_MODES = ()
+#: Input order: a PLY is a training format, its row order is the user's.
+DEFAULT_SORT = "none"
+#: A PLY may hold zero rows.
+HOLDS_EMPTY = True
+DYNAMIC = True
+#: A PLY holds attributes, not the viewer's texture.
+STORES_TEXTURE = False
 
 #: Property order of the lite layout as SpacetimeGaussians writes it.
 LITE_LAYOUT = model.LITE_ROW
@@ -275,8 +287,6 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options):
     -------
     WriteReport
     """
-    from .splatv import WriteReport, importance, importance_order  # the importance key is splatv's notion
-
     n = scene.count
     report = WriteReport(count=n)
     order = None
@@ -321,3 +331,14 @@ def _lite_rows_of(scene: Scene):
     if normals.view(np.uint32).any():
         return None  # the writer writes zero normals (+0.0)
     return matrix.view(np.uint8)
+
+
+def info_fields(scene: Scene) -> dict:
+    """What ``info`` shows of a scene read from a PLY: encoding, colour reading, what was ignored."""
+    meta = scene.meta
+    return {
+        "ply_format": meta.get("format"),
+        "color": meta.get("color"),
+        "ignored_properties": meta.get("ignored_properties", []),
+        "extra_elements": meta.get("extra_elements", []),
+    }

@@ -16,14 +16,14 @@ from importlib import resources
 
 import numpy as np
 
-from ..formats import splatv
+from ..formats.splatv_layout import SPLATS_PER_ROW, TEXWIDTH
 from . import camera as cam
 from .gl import create_context
 from .sort import viewer_order
 
 #: Float reference texture: 8 RGBA32F texels per splat, 512 splats per row.
 FLOAT_TEXELS = 8
-FLOAT_SPLATS_PER_ROW = splatv.TEXWIDTH // FLOAT_TEXELS
+FLOAT_SPLATS_PER_ROW = TEXWIDTH // FLOAT_TEXELS
 _QUAD = np.array([-2, -2, 2, -2, 2, 2, -2, 2], dtype="f4")
 
 
@@ -124,8 +124,8 @@ class Renderer:
         """
         t0 = _time.perf_counter()
         records = np.ascontiguousarray(records, dtype="<u4")
-        rows = len(records) // splatv.SPLATS_PER_ROW
-        self._set_texture((splatv.TEXWIDTH, rows), records, "u4")
+        rows = len(records) // SPLATS_PER_ROW
+        self._set_texture((TEXWIDTH, rows), records, "u4")
         self._positions = records[:, 0:3].view(np.float32)
         self._count = len(records)
         self._path = "splatv"
@@ -138,7 +138,7 @@ class Renderer:
         rows = max(1, -(-n // FLOAT_SPLATS_PER_ROW))
         padded = np.zeros((rows * FLOAT_SPLATS_PER_ROW, 32), dtype="f4")
         padded[:n] = texels
-        self._set_texture((splatv.TEXWIDTH, rows), padded, "f4")
+        self._set_texture((TEXWIDTH, rows), padded, "f4")
         self._positions = padded[:n, 0:3]
         self._count = n
         self._path = "float"

@@ -14,11 +14,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import read as read_scene
 from ..cameras import framing_camera
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
-from ..formats import format_for, splatv
+from ..formats.splatv_layout import SPLATS_PER_ROW, texture_height
+from ..io import read as read_scene
+from ..io import read_texture
 from ..fsutil import atomic_writer, check_output
 from . import camera as cam
 from . import diff as imgdiff
@@ -142,10 +143,9 @@ class Outcome:
 
 def _read(path: str, color: str):
     """A scene, plus its texture when it is a .splatv (drawn as stored); one read."""
-    if format_for(path) is splatv:
-        from .frames import splatv_texture
-
-        padded, scene = splatv_texture(path)
+    stored = read_texture(path)
+    if stored is not None:
+        padded, scene = stored
         return scene, padded
     return read_scene(path, color=color), None
 
@@ -182,7 +182,7 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
         check_report_dir(report_dir, [(i, float(t)) for i, _ in views for t in times],
                          (source_path, converted_path), force)
         keep_images = True
-    n_records = len(records) if records is not None else splatv.texture_height(source.count) * 1024
+    n_records = len(records) if records is not None else texture_height(source.count) * SPLATS_PER_ROW
     src_rows = _float_texels_padded(source, order, n_records)
     conv_rows = None if records is not None else _float_texels_padded(converted, None, n_records)
     for index, view in views:
