@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import json
+import sys
 import os
 import struct
 
@@ -260,7 +261,7 @@ def test_help_for_every_command():
 def test_help_documents_each_commands_defaults():
     diff_help = " ".join(run("diff", "--help").stdout.split())
     assert "[default: 0.5]" in diff_help and "[default: 0]" in diff_help
-    assert "drawn at time 0.5 from camera 0" in diff_help
+    assert "drawn at one time from one camera" in diff_help
     verify_help = " ".join(run("verify", "--help").stdout.split())
     assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: all]" in verify_help
     for cmd in ("verify", "diff"):
@@ -331,3 +332,37 @@ def test_conversion_does_not_import_moderngl(tmp_path, lite_ply):
     code = ("import sys, splatconv; splatconv.convert(sys.argv[1], sys.argv[2]); "
             "assert 'moderngl' not in sys.modules")
     subprocess.run([sys.executable, "-c", code, str(lite_ply), str(tmp_path / "m.splatv")], check=True)
+
+
+def test_every_command_help_shows_an_example():
+    for name in main.commands:
+        text = run(name, "--help").stdout
+        assert "Example:" in text and "  splatconv " in text, name
+
+
+def test_shared_options_are_listed_in_declaration_order():
+    text = run("verify", "--help").stdout
+    at = [text.index(f"\n  {opt} ") for opt in ("--times", "--cameras", "--size", "--min-psnr", "--json", "--color")]
+    assert at == sorted(at)
+
+
+def test_python_dash_m_runs_the_command(sample_splatv):
+    import subprocess
+
+    from pathlib import Path
+
+    r = subprocess.run([sys.executable, "-m", "splatconv", "info", str(sample_splatv)], capture_output=True,
+                       text=True, cwd=Path(__file__).resolve().parent.parent)
+    assert r.returncode == 0, r.stderr
+    assert "count:     5,000 splats" in r.stdout
+
+
+def test_info_takes_several_files(tmp_path, sample_splatv, lite_ply):
+    r = run("info", sample_splatv, lite_ply)
+    assert r.exit_code == 0, r.output
+    assert r.stdout.count("file:      ") == 2
+    data = json.loads(run("info", "--json", sample_splatv, lite_ply).stdout)
+    assert [d["format"] for d in data] == ["splatv", "ply"]
+    common = {"path", "format", "variant", "count", "texture", "cameras", "time_range", "visible_time_range",
+              "visible_always", "bounds", "nonfinite", "notes"}
+    assert common <= set(data[0]) and common <= set(data[1])

@@ -150,7 +150,7 @@ def _read(path: str, color: str):
     return read_scene(path, color=color), None
 
 
-def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", size=None,
+def verify(source_path, converted_path, *, times=None, cameras=None, size=None,
            min_psnr=DEFAULT_MIN_PSNR, tolerance=imgdiff.TOLERANCE, color="auto", keep_images=False,
            report_dir=None, force=False) -> Outcome:
     """Check CONVERTED against SOURCE by attributes and by rendered frames.
@@ -168,6 +168,9 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
         drifted past what quantization explains.
     """
     min_psnr = check_min_psnr(min_psnr)
+    times = DEFAULT_TIMES if times is None else parse_times(times) if isinstance(times, str) else times
+    cameras = "all" if cameras is None else cameras
+    size = cam.parse_size(size) if isinstance(size, str) else size
     source_path, converted_path = os.fspath(source_path), os.fspath(converted_path)
     source, _ = _read(source_path, color)
     converted, records = _read(converted_path, color)
