@@ -237,10 +237,10 @@ def test_lossy_steps_are_reported(tmp_path):
     cols["f_dc_1"][1] = 1.5
     p = write_ply(tmp_path / "l.ply", cols)
     r = run("convert", p, tmp_path / "l.splatv")
-    assert "note: scale_0: 1 values past the half-float range saturated to +-65504" in r.stderr
-    assert "note: color: 1 values outside [0, 1] clamped" in r.stderr
+    assert "note: scale_0: 1 value past the half-float range saturated to +-65504" in r.stderr
+    assert "note: color: 1 value outside [0, 1] clamped" in r.stderr
     r = run("convert", p, tmp_path / "j.splatv", "--compat", "splatv-js")
-    assert "note: scale_0: 1 values past the half-float range became infinity (splaTV's converter)" in r.stderr
+    assert "note: scale_0: 1 value past the half-float range became infinity (splaTV's converter)" in r.stderr
 
 
 def test_help_for_every_command():
