@@ -96,13 +96,13 @@ INVALID_CASES = [
 
 
 @pytest.mark.parametrize("name,data,message", INVALID_CASES, ids=[c[0] for c in INVALID_CASES])
-def test_invalid_input_gives_one_error_line(tmp_path, name, data, message):
+def test_invalid_input_gives_one_error_line(monkeypatch, tmp_path, name, data, message):
     src = tmp_path / name
     src.write_bytes(data)
     out = tmp_path / ("out.ply" if name.endswith(".splatv") else "out.splatv")
     if name == "empty.splatv":
         out = tmp_path / "out.splatv"
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     result = CliRunner().invoke(main, ["convert", name, out.name])
     assert result.exit_code == 1, result.output
     assert result.stderr == f"Error: {name}: {message}\n"
