@@ -18,6 +18,7 @@ from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input
 from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
+from ..progress import SILENT
 from . import splatv_engine as engine
 from .base import WriteReport
 from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, LOG_OF_HALF, LOGIT_OF_BYTE, _sigmoid255,
@@ -50,7 +51,8 @@ __all__ = ["NAME", "SUFFIXES", "read", "write", "encode", "info_fields", "read_r
 # Writing
 
 
-def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None) -> WriteReport:
+def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
+          **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatv``.
 
     Parameters
@@ -76,8 +78,10 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     try:
         cameras = engine.prepare(plan, not scene.cameras, report, pool)
         stream.write(header_bytes(n, cameras or scene.cameras))
-        for block in engine.blocks(plan, report, pool):
-            stream.write(memoryview(block))
+        with progress.stage("writing", n, "splat") as advance:
+            for block in engine.blocks(plan, report, pool):
+                stream.write(memoryview(block))
+                advance(len(block))
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
