@@ -10,11 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import packing, viewer
 from .errors import UnsupportedError
-from .formats import splatv
 from .model import GROUPS, Scene
 
-HALF_MAX = 65504.0
+HALF_MAX = packing.HALF_MAX
 #: One half-float ulp relative to the value (10 mantissa bits), the largest error
 #: of either writer (rounding gives half of it, splaTV's truncation all of it).
 HALF_REL = 2.0**-10
@@ -22,26 +22,6 @@ HALF_REL = 2.0**-10
 HALF_ABS = 2.0**-24
 #: One 8-bit step.
 BYTE = 1.0 / 255.0
-
-
-def viewer_values(cols: dict, group: str) -> np.ndarray:
-    """A group's columns as the viewer uses them: ``(N, k) float64``.
-
-    Scales and the temporal scale linear (exp), colour clamped to [0, 1], opacity
-    through the sigmoid; everything else as stored.
-    """
-    names = GROUPS[group]
-    with np.errstate(over="ignore", invalid="ignore"):
-        v = np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
-        if group == "scale":
-            v = np.exp(v)
-        elif group == "trbf":
-            v[:, 1] = np.exp(v[:, 1])
-        elif group == "color":
-            v = np.clip(v, 0.0, 1.0)
-        elif group == "opacity":
-            v = 1.0 / (1.0 + np.exp(-v))
-    return v
 
 
 def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
@@ -57,9 +37,9 @@ def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
 def _position_key(cols: dict) -> np.ndarray:
     """Position bits with every NaN made alike (a browser may quiet them)."""
     bits = np.stack([np.asarray(cols[c], dtype=np.float32).view(np.uint32) for c in ("x", "y", "z")], axis=1)
-    nan = (bits & 0x7F800000) == 0x7F800000
-    nan &= (bits & 0x007FFFFF) != 0
-    return np.where(nan, np.uint32(0x7FC00000), bits)
+    nan = (bits & packing.F32_EXP_MASK) == packing.F32_EXP_MASK
+    nan &= (bits & packing.F32_MANT_MASK) != 0
+    return np.where(nan, np.uint32(packing.F32_QUIET_NAN), bits)
 
 
 def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED"):
@@ -82,10 +62,9 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     if n != m:
         raise UnsupportedError(f"{source_name} has {n:,} splats but {converted_name} has {m:,}")
     a, b = _position_key(source.columns), _position_key(converted.columns)
-    key = splatv.importance(source.columns)
+    key = viewer.importance(source.columns)
     with np.errstate(invalid="ignore", over="ignore"):
-        candidates = (np.arange(n), np.argsort(-key, kind="stable"),
-                      np.argsort(-key.astype(np.float32), kind="stable"))
+        candidates = (np.arange(n), viewer.importance_order(key), viewer.importance_order(key.astype(np.float32)))
     for order in candidates:
         if np.array_equal(a[order], b):
             return order
@@ -111,8 +90,8 @@ class GroupError:
 
 def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupError:
     """Error statistics of one group over finite pairs; NaN must stay NaN."""
-    a = viewer_values(source_cols, group)
-    b = viewer_values(converted_cols, group)
+    a = viewer.group_values(source_cols, group)
+    b = viewer.group_values(converted_cols, group)
     both = np.isfinite(a) & np.isfinite(b)
     err = np.abs(np.where(both, a - b, 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):

@@ -12,7 +12,9 @@ def to_json(data) -> str:
 
 
 def _fmt_range(r) -> str:
-    return "none finite" if r is None else f"{r[0]:.6g} .. {r[1]:.6g}"
+    if r is None:
+        return "none finite"
+    return " .. ".join("always" if v is None else f"{v:.6g}" for v in r)
 
 
 def info_text(info: dict) -> str:
@@ -33,7 +35,8 @@ def info_text(info: dict) -> str:
     names = ", ".join(str(c["img_name"]) for c in cams[:4]) + (", ..." if len(cams) > 4 else "")
     lines.append(f"cameras:   {len(cams)}" + (f" ({names})" if cams else ""))
     lines.append(f"time:      centres {_fmt_range(info['time_range'])}, "
-                 f"visible {_fmt_range(info['visible_time_range'])}")
+                 f"visible {_fmt_range(info['visible_time_range'])}"
+                 + (f" ({info['visible_always']:,} splats visible always)" if info.get("visible_always") else ""))
     b = info["bounds"]
     if b is None:
         lines.append("bounds:    no finite positions")
@@ -229,3 +232,26 @@ def stats_markdown(data: dict) -> str:
         out.append("")
     out.extend(f"- {line}" for line in _summary_lines(data))
     return "\n".join(out)
+
+
+def images_text(data: dict) -> str:
+    """The table of an image-vs-image ``diff`` (from ``Outcome.as_dict``): names, no time or camera;
+    the shape matches :func:`frames_text`."""
+    rows = [(f["a"], f["b"], f) for f in data["frames"]]
+    wa = max([1] + [len(a) for a, _, _ in rows])
+    wb = max([1] + [len(b) for _, b, _ in rows])
+    lines = [f"{'A':<{wa}}  {'B':<{wb}}  {'PSNR dB':>8}  {'max err':>7}  {'mean err':>8}  {'pixels off':>10}"]
+    for a, b, f in rows:
+        lines.append(f"{a:<{wa}}  {b:<{wb}}  {_psnr(f['psnr']):>8}  {f['max_abs_error']:>7}  "
+                     f"{f['mean_abs_error']:>8.3f}  {100 * f['share_off']:>9.3f}%")
+    if rows:
+        lines.append(f"(errors out of 255; pixels off: a channel off by more than {rows[0][2]['tolerance']})")
+    return "\n".join(lines)
+
+
+def images_verdict_text(data: dict) -> str:
+    """The closing PASS / FAIL line of an image-vs-image ``diff``."""
+    bad = [f for f in data["frames"] if f["psnr"] is not None and f["psnr"] < data["min_psnr"]]
+    word, relation = ("FAIL", "below") if bad else ("PASS", "at or above")
+    w = data["worst"]
+    return f"{word}: {w['a']} vs {w['b']}: {_psnr(w['psnr'])} dB, {relation} {data['min_psnr']:g} dB"

@@ -10,6 +10,8 @@ import contextlib
 import os
 import tempfile
 
+import zstandard
+
 from .errors import FormatError, SplatconvError, UsageError
 from .fsutil import hold_signals, open_input, release_signals
 
@@ -45,7 +47,6 @@ class _Tee:
 
 def compressor(level: int = DEFAULT_LEVEL):
     """The ``zstandard.ZstdCompressor`` every ``.zst`` output and size goes through."""
-    import zstandard
 
     # threads=-1: one worker per core; the frame is the same format either way.
     return zstandard.ZstdCompressor(level=level, threads=-1, write_content_size=True)
@@ -186,7 +187,6 @@ def plain_input(path, declared_size=None):
     if not is_compressed(path):
         yield path
         return
-    import zstandard
 
     ceiling = max_decompressed()
     suffix = os.path.splitext(inner_name(path))[1]
@@ -209,7 +209,7 @@ def plain_input(path, declared_size=None):
             release_signals(held)
             with os.fdopen(fd, "wb") as out:
                 try:
-                    _decompress(zstandard, f, out, path, ceiling, declared_size)
+                    _decompress(f, out, path, ceiling, declared_size)
                 except zstandard.ZstdError as e:
                     # "zstd decompress error: Unknown frame descriptor": the library's prefix says nothing
                     raise FormatError(f"not a valid zstd stream ({str(e).split('error: ', 1)[-1]})", path) from None
@@ -224,7 +224,7 @@ def plain_input(path, declared_size=None):
                 os.unlink(tmp)
 
 
-def _decompress(zstandard, f, out, path: str, ceiling: int, declared_size) -> None:
+def _decompress(f, out, path: str, ceiling: int, declared_size) -> None:
     """Copy the decompressed bytes of ``f`` to ``out``, never more than the limits allow."""
     limit = ceiling
     declared = None

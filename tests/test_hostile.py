@@ -121,7 +121,7 @@ def test_texture_without_bytes_or_height_reads_as_no_splats(tmp_path):
         assert splatconv.read(path).count == 0
         r = run("convert", path, tmp_path / "out.splatv")
         assert (r.exit_code, r.stderr.splitlines()[-1]) == (
-            1, f"Error: {path}: holds no splats; the viewer cannot show an empty texture")
+            1, f"Error: {path}: holds no splats; a splatv file cannot hold an empty scene")
         assert run("convert", path, tmp_path / f"{name}.ply").exit_code == 0
 
 
@@ -333,7 +333,7 @@ def test_devices_fifos_and_directories_are_refused(tmp_path, lite_ply):
               f"{fifo}: cannot read cameras: is a FIFO (named pipe), not a regular file")]
     for args, message in cases:
         # In a subprocess: if a FIFO were opened for reading, it would block forever.
-        p = subprocess.run([sys.executable, "-m", "splatconv.cli", *map(str, args)], capture_output=True, text=True,
+        p = subprocess.run([sys.executable, "-m", "splatconv", *map(str, args)], capture_output=True, text=True,
                            timeout=60)
         assert (p.returncode, p.stderr) == (1, f"Error: {message}\n")
     with pytest.raises(FormatError, match="is a directory, not a regular file"):
@@ -386,7 +386,7 @@ def test_racing_converts_to_one_new_output_give_one_winner(tmp_path, lite_ply, m
 
 def test_concurrent_processes_one_wins(tmp_path, lite_ply):
     out = tmp_path / "o.splatv"
-    procs = [subprocess.Popen([sys.executable, "-m", "splatconv.cli", "convert", str(lite_ply), str(out)],
+    procs = [subprocess.Popen([sys.executable, "-m", "splatconv", "convert", str(lite_ply), str(out)],
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(4)]
     codes = [p.wait(timeout=120) for p in procs]
     assert codes.count(0) == 1 and codes.count(1) == 3
@@ -446,7 +446,7 @@ def test_killed_convert_cleans_up(tmp_path, big_inputs, signum, phase):
     tmp.mkdir()
     out = work / "big.splatv.zst"
     env = dict(os.environ, TMPDIR=str(tmp))
-    p = subprocess.Popen([sys.executable, "-m", "splatconv.cli", "convert", str(packed), str(out), "--zstd-level",
+    p = subprocess.Popen([sys.executable, "-m", "splatconv", "convert", str(packed), str(out), "--zstd-level",
                           "22"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         started = (lambda: os.listdir(tmp) or os.listdir(work)) if phase == "read" else (lambda: os.listdir(work))

@@ -18,6 +18,8 @@ from splatconv.model import COLUMNS
 from splatconv.render import camera as cam
 from splatconv.render.gl import create_context
 from splatconv.render.preview import Renderer, View
+from tests import reference
+from splatconv.formats.base import WriteReport
 
 W, H = 64, 48
 FOCAL = 60.0
@@ -55,7 +57,7 @@ def splat(**kw) -> dict:
 
 def records_of(splats) -> np.ndarray:
     cols = {name: np.array([s[name] for s in splats], np.float32) for name in COLUMNS}
-    block = splatv.pack_block(cols, False, splatv.WriteReport())
+    block = reference.pack_block(cols, False, WriteReport())
     recs = np.zeros((1024, 16), "<u4")
     recs[:len(block)] = block
     return recs

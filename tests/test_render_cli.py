@@ -19,17 +19,6 @@ def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args])
 
 
-@pytest.fixture(scope="module")
-def sample_splatv(tmp_path_factory):
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parent.parent
-    out = tmp_path_factory.mktemp("r") / "dancers.splatv"
-    r = run("convert", root / SAMPLE, out, "--cameras", root / "sample_data/cameras.json")
-    assert r.exit_code == 0, r.output
-    return out
-
-
 def test_single_frame_png(tmp_path, sample_splatv):
     out = tmp_path / "f.png"
     r = run("render", sample_splatv, out, "--time", "0.5", "--size", "160x90", "--fx", "125", "--fy", "125")

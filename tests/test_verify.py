@@ -13,6 +13,7 @@ from PIL import Image
 
 from splatconv import packing
 from splatconv.cli import main
+from tests import reference
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data" / "dancers.ply"
@@ -47,10 +48,10 @@ def damaged(src: Path, dst: Path, how: str) -> Path:
     elif how == "scales halved":
         for w in (5, 6):
             lo, hi = halves(w)
-            r[:, w] = packing.pack_half2(packing.float_to_half(lo * 0.5), packing.float_to_half(hi * 0.5))
+            r[:, w] = reference.pack_half2(packing.float_to_half(lo * 0.5), packing.float_to_half(hi * 0.5))
     elif how == "time centres shifted":
         lo, hi = halves(15)
-        r[:, 15] = packing.pack_half2(packing.float_to_half(lo + 0.15), packing.float_to_half(hi))
+        r[:, 15] = reference.pack_half2(packing.float_to_half(lo + 0.15), packing.float_to_half(hi))
     elif how == "quaternion reordered":
         r[:, 3], r[:, 4] = r[:, 4].copy(), r[:, 3].copy()
     recs[live] = r

@@ -25,9 +25,22 @@ from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, Scene, constant_column
+from ..progress import SILENT
+from ..viewer import importance, importance_order
+from .base import WriteReport
 
 NAME = "ply"
 SUFFIXES = (".ply",)
+CAN_READ = True
+CAN_WRITE = True
+COMPAT_MODES = ()
+#: Input order: a PLY is a training format, its row order is the user's.
+DEFAULT_SORT = "none"
+#: A PLY may hold zero rows.
+HOLDS_EMPTY = True
+DYNAMIC = True
+#: A PLY holds attributes, not the viewer's texture.
+STORES_TEXTURE = False
 
 #: Property order of the lite layout as SpacetimeGaussians writes it.
 LITE_LAYOUT = model.LITE_ROW
@@ -525,7 +538,7 @@ def header_bytes(count: int, cameras) -> bytes:
 BLOCK = 1 << 16
 
 
-def write(scene: Scene, stream, *, sort: str | None = None, **_options):
+def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_options):
     """Write ``scene`` in the Spacetime Gaussians lite layout (float32 LE, normals 0).
 
     Parameters
@@ -540,8 +553,6 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options):
     -------
     WriteReport
     """
-    from .splatv import WriteReport, importance, importance_order  # the importance key is splatv's notion
-
     n = scene.count
     report = WriteReport(count=n)
     order = None
@@ -549,20 +560,24 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options):
         order = importance_order(importance(scene.columns))
     stream.write(header_bytes(n, scene.cameras))
     rows = _lite_rows_of(scene)
-    if rows is not None:
-        # The columns are fields of rows already in the written layout: write them whole.
+    with progress.stage("writing", n, "splat") as advance:
+        if rows is not None:
+            # The columns are fields of rows already in the written layout: write them whole.
+            for start in range(0, n, BLOCK):
+                block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK],
+                                                                               axis=0)
+                stream.write(memoryview(block))
+                advance(len(block))
+            return report
+        block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
         for start in range(0, n, BLOCK):
-            block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK], axis=0)
-            stream.write(memoryview(block))
-        return report
-    block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
-    for start in range(0, n, BLOCK):
-        stop = min(start + BLOCK, n)
-        rows = slice(start, stop) if order is None else order[start:stop]
-        out = block[: stop - start]
-        for name in COLUMNS:
-            out[name] = np.asarray(scene.columns[name])[rows]
-        stream.write(memoryview(out).cast("B"))
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            out = block[: stop - start]
+            for name in COLUMNS:
+                out[name] = np.asarray(scene.columns[name])[rows]
+            stream.write(memoryview(out).cast("B"))
+            advance(stop - start)
     return report
 
 
@@ -586,3 +601,14 @@ def _lite_rows_of(scene: Scene):
     if normals.view(np.uint32).any():
         return None  # the writer writes zero normals (+0.0)
     return matrix.view(np.uint8)
+
+
+def info_fields(scene: Scene) -> dict:
+    """What ``info`` shows of a scene read from a PLY: encoding, colour reading, what was ignored."""
+    meta = scene.meta
+    return {
+        "ply_format": meta.get("format"),
+        "color": meta.get("color"),
+        "ignored_properties": meta.get("ignored_properties", []),
+        "extra_elements": meta.get("extra_elements", []),
+    }

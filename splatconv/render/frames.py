@@ -7,10 +7,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import read as read_scene
+from .. import viewer
 from ..cameras import framing_camera
 from ..errors import UsageError
-from ..formats import format_for, splatv
+from ..formats import splatv
+from ..io import read as read_scene
+from ..io import read_texture
 from . import camera as cam
 from .preview import FrameTimes, Renderer, View, float_attributes
 
@@ -39,43 +41,16 @@ def load(path: str | os.PathLike, *, color: str = "auto", keep_scene: bool = Fal
     way ``convert`` would write it (default writer, importance order).
     """
     path = os.fspath(path)
-    module = format_for(path)
-    if module is splatv:
-        padded, scene = splatv_texture(path)
+    stored = read_texture(path)
+    if stored is not None:
+        padded, scene = stored
         return Source(path, padded, list(scene.cameras), scene if keep_scene else None, None)
     scene = read_scene(path, color=color)
     if scene.count == 0:
         raise UsageError("holds no splats to draw", path)
-    order = np.argsort(-splatv.importance(scene.columns), kind="stable")
+    order = viewer.importance_order(viewer.importance(scene.columns))
     records, _report = splatv.encode(scene)
     return Source(path, records, list(scene.cameras or []), scene if keep_scene else None, order)
-
-
-def splatv_texture(path: str):
-    """A .splatv file's texture as the viewer holds it, and its decoded scene.
-
-    Returns
-    -------
-    padded : (rows * 1024, 16) uint32 ndarray
-        The records with zero padding, as drawn (the viewer sorts the padding too).
-    scene : Scene
-        The records decoded to model columns (one read of the file serves both).
-    """
-    from ..model import Scene
-    from ..transport import plain_input
-
-    with plain_input(path) as plain:
-        records, chunk, meta, notes = splatv.read_records(plain)
-    count = len(records)
-    rows = splatv.texture_height(count)
-    if meta["texheight"] * splatv.SPLATS_PER_ROW > rows * splatv.SPLATS_PER_ROW == count:
-        rows += 1  # keep one zero record at the origin, which the viewer's sort also sees
-    padded = np.zeros((max(rows, 1) * splatv.SPLATS_PER_ROW, splatv.WORDS_PER_SPLAT), dtype="<u4")
-    padded[:count] = records
-    columns, decode_notes = splatv.decode_records(records)
-    scene = Scene(columns=columns, cameras=list(chunk.get("cameras", [])), variant="splatv", meta=meta,
-                  notes=notes + decode_notes)
-    return padded, scene
 
 
 def resolve_view(source: Source, *, camera: int | None = None, view: list | None = None,

@@ -16,14 +16,14 @@ from importlib import resources
 
 import numpy as np
 
-from ..formats import splatv
+from ..formats.splatv_layout import SPLATS_PER_ROW, TEXWIDTH
 from . import camera as cam
 from .gl import create_context
 from .sort import viewer_order
 
 #: Float reference texture: 8 RGBA32F texels per splat, 512 splats per row.
 FLOAT_TEXELS = 8
-FLOAT_SPLATS_PER_ROW = splatv.TEXWIDTH // FLOAT_TEXELS
+FLOAT_SPLATS_PER_ROW = TEXWIDTH // FLOAT_TEXELS
 _QUAD = np.array([-2, -2, 2, -2, 2, 2, -2, 2], dtype="f4")
 
 
@@ -33,8 +33,8 @@ def shader_source(name: str) -> str:
 
 
 def vertex_source(path: str) -> str:
-    """The vertex shader for ``path`` ``"splatv"`` (quantized texture) or ``"float"``."""
-    fetch = {"splatv": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
+    """The vertex shader for ``path`` ``"texture"`` (the stored, quantized texture) or ``"float"``."""
+    fetch = {"texture": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
     return "\n".join(shader_source(n) for n in ("splat_head.glsl", fetch, "splat_main.glsl"))
 
 
@@ -108,7 +108,7 @@ class Renderer:
         self.width, self.height = width, height
         frag = shader_source("splat.frag")
         self._programs = {p: self.ctx.program(vertex_shader=vertex_source(p), fragment_shader=frag)
-                          for p in ("splatv", "float")}
+                          for p in ("texture", "float")}
         self._quad = self.ctx.buffer(_QUAD.tobytes())
         self._index = None
         self._texture = None
@@ -124,11 +124,11 @@ class Renderer:
         """
         t0 = _time.perf_counter()
         records = np.ascontiguousarray(records, dtype="<u4")
-        rows = len(records) // splatv.SPLATS_PER_ROW
-        self._set_texture((splatv.TEXWIDTH, rows), records, "u4")
+        rows = len(records) // SPLATS_PER_ROW
+        self._set_texture((TEXWIDTH, rows), records, "u4")
         self._positions = records[:, 0:3].view(np.float32)
         self._count = len(records)
-        self._path = "splatv"
+        self._path = "texture"
         return _time.perf_counter() - t0
 
     def load_float(self, texels: np.ndarray) -> float:
@@ -138,7 +138,7 @@ class Renderer:
         rows = max(1, -(-n // FLOAT_SPLATS_PER_ROW))
         padded = np.zeros((rows * FLOAT_SPLATS_PER_ROW, 32), dtype="f4")
         padded[:n] = texels
-        self._set_texture((splatv.TEXWIDTH, rows), padded, "f4")
+        self._set_texture((TEXWIDTH, rows), padded, "f4")
         self._positions = padded[:n, 0:3]
         self._count = n
         self._path = "float"
@@ -189,7 +189,7 @@ class Renderer:
         prog["viewport"].value = (view.width, view.height)
         prog["time"].value = time
         self._texture.use(0)
-        sampler = "u_texture" if self._path == "splatv" else "u_ftexture"
+        sampler = "u_texture" if self._path == "texture" else "u_ftexture"
         prog[sampler].value = 0
         self.ctx.finish()
         t2 = _time.perf_counter()

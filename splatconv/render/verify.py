@@ -14,14 +14,16 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import read as read_scene
 from ..cameras import framing_camera
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
-from ..formats import format_for, splatv
+from ..formats.splatv_layout import SPLATS_PER_ROW, texture_height
+from ..io import read as read_scene
+from ..io import read_texture
 from ..fsutil import atomic_writer, check_output
 from . import camera as cam
 from . import diff as imgdiff
+from .frames import load
 from .preview import FLOAT_SPLATS_PER_ROW, Renderer, View, float_attributes
 
 DEFAULT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -142,15 +144,14 @@ class Outcome:
 
 def _read(path: str, color: str):
     """A scene, plus its texture when it is a .splatv (drawn as stored); one read."""
-    if format_for(path) is splatv:
-        from .frames import splatv_texture
-
-        padded, scene = splatv_texture(path)
+    stored = read_texture(path)
+    if stored is not None:
+        padded, scene = stored
         return scene, padded
     return read_scene(path, color=color), None
 
 
-def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", size=None,
+def verify(source_path, converted_path, *, times=None, cameras=None, size=None,
            min_psnr=DEFAULT_MIN_PSNR, tolerance=imgdiff.TOLERANCE, color="auto", keep_images=False,
            report_dir=None, force=False) -> Outcome:
     """Check CONVERTED against SOURCE by attributes and by rendered frames.
@@ -168,6 +169,9 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
         drifted past what quantization explains.
     """
     min_psnr = check_min_psnr(min_psnr)
+    times = DEFAULT_TIMES if times is None else parse_times(times) if isinstance(times, str) else times
+    cameras = "all" if cameras is None else cameras
+    size = cam.parse_size(size) if isinstance(size, str) else size
     source_path, converted_path = os.fspath(source_path), os.fspath(converted_path)
     source, _ = _read(source_path, color)
     converted, records = _read(converted_path, color)
@@ -182,7 +186,7 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
         check_report_dir(report_dir, [(i, float(t)) for i, _ in views for t in times],
                          (source_path, converted_path), force)
         keep_images = True
-    n_records = len(records) if records is not None else splatv.texture_height(source.count) * 1024
+    n_records = len(records) if records is not None else texture_height(source.count) * SPLATS_PER_ROW
     src_rows = _float_texels_padded(source, order, n_records)
     conv_rows = None if records is not None else _float_texels_padded(converted, None, n_records)
     for index, view in views:
@@ -206,7 +210,6 @@ def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", s
 def diff_scenes(path_a, path_b, *, times=(0.5,), cameras="0", size=None, min_psnr=DEFAULT_MIN_PSNR,
                 tolerance=imgdiff.TOLERANCE, color="auto", reference=False) -> Outcome:
     """Draw two scene files the same way and compare the frames (no structure check)."""
-    from .frames import load
 
     min_psnr = check_min_psnr(min_psnr)
 
