@@ -526,3 +526,17 @@ def test_list_properties_are_skipped_in_bulk(tmp_path, lengths, before, bo):
     assert scene.count == 300 and scene.notes == []
     for name in scene.columns:
         np.testing.assert_array_equal(scene.columns[name], want[name])
+
+
+def test_doubles_past_float32_are_noted_not_warned(tmp_path):
+    rng = np.random.default_rng(1)
+    cols = {name: rng.normal(0, 1, 10) for name in ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                                                     "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2",
+                                                     "rot_3")}
+    cols["x"][:2] = [1e300, -1e300]
+    cols["opacity"][1] = np.inf  # already infinite: not counted
+    path = write_ply(tmp_path / "d.ply", cols, dtype="f8")
+    scene = splatconv.read(path)  # RuntimeWarnings are errors under pytest
+    assert list(scene.columns["x"][:2]) == [np.inf, -np.inf]
+    assert "x: 2 finite double values past the float32 range became infinite" in scene.notes
+    assert not any(n.startswith("opacity") for n in scene.notes)

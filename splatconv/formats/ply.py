@@ -402,7 +402,8 @@ def _read_ascii(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFile
 def _read_ascii_plyfile(f, path: str) -> _PlyFile:
     f.seek(0)
     with _plyfile_errors(path):
-        ply = plyfile.PlyData.read(f)
+        # From memory: plyfile wraps a file in a text reader it never closes (a ResourceWarning).
+        ply = plyfile.PlyData.read(io.BytesIO(f.read()))
     return _PlyFile(ply, ply["vertex"].data, [])
 
 
@@ -430,11 +431,18 @@ def detect_variant(names) -> str:
     return model.VARIANT_LITE if temporal else model.VARIANT_3DGS
 
 
-def _column(data: np.ndarray, name: str) -> np.ndarray:
+def _column(data: np.ndarray, name: str, notes: list) -> np.ndarray:
     col = data[name]
     if col.dtype == np.dtype("<f4") or (col.dtype == np.float32 and col.dtype.isnative):
         return col  # a view into the mapped file: no copy
-    return col.astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):  # reported below
+        out = col.astype(np.float32)
+    if col.dtype.kind == "f" and col.dtype.itemsize > 4:
+        overflowed = int(np.count_nonzero(np.isinf(out) & np.isfinite(col)))
+        if overflowed:
+            notes.append(f"{name}: {overflowed:,} finite double value{'s' if overflowed != 1 else ''} past the "
+                         "float32 range became infinite")
+    return out
 
 
 def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
@@ -479,10 +487,10 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
     columns = {}
     if variant == model.VARIANT_LITE:
         for name in COLUMNS:
-            columns[name] = _column(data, name)
+            columns[name] = _column(data, name, notes)
     else:
         for name in GS_REQUIRED:
-            columns[name] = _column(data, name)
+            columns[name] = _column(data, name, notes)
         columns["trbf_center"] = constant_column(model.STATIC_TRBF_CENTER, n)
         columns["trbf_scale"] = constant_column(model.STATIC_TRBF_SCALE, n)
         for name in model.MOTION + model.OMEGA:
