@@ -293,29 +293,55 @@ def _walk_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: st
         else:
             steps.append((None, np.dtype(prop.dtype(byte_order)).itemsize))
     list_index = [i for i, (st, _size) in enumerate(steps) if st is not None]
-    starts = np.empty(count, np.int64)
-    lengths = np.empty((count, len(list_index)), np.int64)
+    # The walk steps over runs of fixed-size properties at once: per list, the
+    # bytes before its length field, the length's struct and the value size.
+    segments, fixed = [], 0
+    for st, size in steps:
+        if st is None:
+            fixed += size
+        else:
+            segments.append((fixed, st.unpack_from, st.size, size))
+            fixed = 0
+    tail = fixed
+    starts, found = [], []  # Python lists: appending beats numpy item assignment in this loop
     raw = memoryview(buf)
     end = len(buf)
     pos = offset
-    for row in range(count):
-        starts[row] = pos
-        k = 0
-        for st, size in steps:
-            if st is None:
-                pos += size
-                continue
-            if pos + st.size > end:
-                raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
-            n = st.unpack_from(raw, pos)[0]
-            if n < 0:
-                raise FormatError(f"row {row}: negative list length {n}", path,
-                                  (f"element '{element.name}'", f"property '{props[list_index[k]].name}'"))
-            lengths[row, k] = n
-            k += 1
-            pos += st.size + n * size
-        if pos > end:
-            raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
+    row = 0
+    try:
+        if len(segments) == 1:  # the usual case, in the tightest loop Python has
+            before, unpack, len_size, size = segments[0]
+            step = before + len_size + tail
+            add_start, add_length = starts.append, found.append
+            for row in range(count):
+                add_start(pos)
+                n = unpack(raw, pos + before)[0]
+                add_length(n)
+                pos += step + n * size
+            if found and min(found) < 0:
+                row = next(i for i, n in enumerate(found) if n < 0)
+                raise FormatError(f"row {row}: negative list length {found[row]}", path,
+                                  (f"element '{element.name}'", f"property '{props[list_index[0]].name}'"))
+            if pos > end:
+                row = count - 1
+                raise struct.error("past the end")
+        for row in range(count if len(segments) > 1 else 0):
+            starts.append(pos)
+            for k, (before, unpack, len_size, size) in enumerate(segments):
+                pos += before
+                n = unpack(raw, pos)[0]  # struct.error past the end
+                if n < 0:
+                    raise FormatError(f"row {row}: negative list length {n}", path,
+                                      (f"element '{element.name}'", f"property '{props[list_index[k]].name}'"))
+                found.append(n)
+                pos += len_size + n * size
+            pos += tail
+            if pos > end:
+                raise struct.error("past the end")
+    except struct.error:
+        raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",)) from None
+    starts = np.array(starts, np.int64)
+    lengths = np.array(found, np.int64).reshape(count, len(list_index))
     if not need_rows:
         return None, pos - offset
     fields = [(p.name, p.dtype(byte_order)) for p in props if not isinstance(p, plyfile.PlyListProperty)]
