@@ -100,6 +100,12 @@ HOSTILE_CASES = [
     ("varlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
      b"property list uchar float l\nend_header\n" + struct.pack("<fB2f", 1, 2, 0, 0) + struct.pack("<fB", 1, 9),
      "element 'vertex': row 1: unexpected end of file"),
+    ("floatlen.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+     b"property list double float l\nend_header\n" + struct.pack("<fd", 1, 1.5) + b"\0" * 8,
+     "element 'vertex': property 'l': list length type 'double' is not an integer type"),
+    ("floatlenascii.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+     b"property list float float l\nend_header\n1 1.5 2\n",
+     "element 'vertex': property 'l': list length type 'float' is not an integer type"),
 ]
 
 

@@ -211,6 +211,7 @@ def _open(path: str) -> _PlyFile:
         with _plyfile_errors(path):
             header = plyfile.PlyData.read(io.BytesIO(zeroed))
         counts = {e[0]: e[1] for e in layout.elements}
+        _check_list_types(header, path)
         if len(header.elements) != len(layout.elements):  # pragma: no cover - both parse the same lines
             raise FormatError("bad header: element lines not understood", path)
         if "vertex" not in header:
@@ -218,6 +219,18 @@ def _open(path: str) -> _PlyFile:
         if header.text:
             return _read_ascii(f, path, header, layout, counts)
         return _read_binary(f, path, header, layout, counts)
+
+
+def _check_list_types(header, path: str) -> None:
+    """A list's length must be an integer type (plyfile takes ``property list float int x``)."""
+    for element in header.elements:
+        for prop in element.properties:
+            if isinstance(prop, plyfile.PlyListProperty):
+                len_t = np.dtype(prop.list_dtype("<")[0])
+                if len_t.kind not in "iu":
+                    name = {4: "float", 8: "double"}.get(len_t.itemsize, len_t.name)
+                    raise FormatError(f"list length type '{name}' is not an integer type", path,
+                                      (f"element '{element.name}'", f"property '{prop.name}'"))
 
 
 def _element_dtype(element, byte_order: str, list_lengths=None) -> np.dtype:
