@@ -12,8 +12,8 @@ import numpy as np
 
 from .. import viewer
 from ..errors import UsageError
-from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
-from ._table import derive, gather, keep_rows
+from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
+from ._table import blocks, blockwise, derive, gather, keep_rows
 from .report import OpReport
 
 #: Groups whose every value must be finite for a splat to be kept by
@@ -26,11 +26,6 @@ FINITE_GROUPS = {"position": POSITION, "rotation": ROTATION, "scale": SCALE, "mo
 #: -inf/+inf is sigmoid 0/1; a colour of -inf/+inf is clamped to 0/1.
 NAN_GROUPS = {"trbf scale": ("trbf_scale",), "opacity": ("opacity",), "color": COLOR}
 
-#: Rows a pass of the masks works on at a time: a few columns of this many rows
-#: stay in cache between the column passes.
-_CHUNK = 1 << 14
-
-
 # --------------------------------------------------------------------------
 # drop-nonfinite
 
@@ -42,29 +37,55 @@ def nonfinite_mask(columns: dict) -> np.ndarray:
     centre value is NaN or infinite, when its trbf scale is NaN or -inf, or when
     its opacity or a colour value is NaN.
     """
-    n = len(columns["x"])
-    keep = np.empty(n, dtype=bool)
-    finite = [c for names in FINITE_GROUPS.values() for c in names]
-    nan_only = [c for names in NAN_GROUPS.values() for c in names]
+    out = np.empty(len(columns["x"]), dtype=bool)
+    test = nonfinite_tester(columns)
+    for part, block in blocks(columns, _CHECKED):
+        out[part] = test(part, block)
+    return out
+
+
+_FINITE = [c for names in FINITE_GROUPS.values() for c in names]
+_NAN_ONLY = [c for names in NAN_GROUPS.values() for c in names]
+_CHECKED = tuple(_FINITE + _NAN_ONLY)
+
+
+def nonfinite_tester(columns: dict):
+    """``test(part, block)``: :func:`nonfinite_mask` of the rows ``part`` of ``columns`` (``block`` their views)."""
+    found = row_fields([columns[name] for name in _CHECKED])
+    if found is None:
+        return lambda part, block: _nonfinite_block(block)
+    # Fields of one row table: test a block's rows whole, a few calls instead of ~90.
+    matrix, fields = found
+    finite, nan_only = fields[:len(_FINITE)], fields[len(_FINITE):]
+
+    def test(part, block):
+        rows = matrix[part]
+        bad = ~np.isfinite(rows)[:, finite].all(axis=1)
+        bad |= np.isnan(rows[:, nan_only]).any(axis=1)
+        bad |= block["trbf_scale"] == -np.inf
+        return ~bad
+
+    return test
+
+
+def _nonfinite_block(block: dict) -> np.ndarray:
+    """:func:`nonfinite_mask` of one block of separate columns."""
+    acc = np.zeros(len(block["x"]), dtype=np.float32)
+    part = np.empty_like(acc)
     with np.errstate(invalid="ignore"):
-        for start in range(0, n, _CHUNK):
-            stop = min(n, start + _CHUNK)
-            # v * 0 is 0 for finite v and NaN for NaN or +-inf: one sum of those is
-            # NaN exactly when some value is non-finite.
-            acc = np.zeros(stop - start, dtype=np.float32)
-            part = np.empty_like(acc)
-            for name in finite:
-                np.multiply(columns[name][start:stop], np.float32(0), out=part)
-                acc += part
-            for name in nan_only:
-                np.multiply(columns[name][start:stop], np.float32(0), out=part)
-                # +-inf * 0 is NaN too: count only the NaN inputs.
-                np.copyto(part, 0, where=~np.isnan(columns[name][start:stop]))
-                acc += part
-            # trbf_scale = -inf: a zero-width temporal basis, never drawn (0/0 at its centre).
-            acc[np.asarray(columns["trbf_scale"][start:stop]) == -np.inf] = np.nan
-            np.equal(acc, acc, out=keep[start:stop])
-    return keep
+        # v * 0 is 0 for finite v and NaN for NaN or +-inf: their sum is NaN exactly
+        # when some value is non-finite.
+        for name in _FINITE:
+            np.multiply(block[name], np.float32(0), out=part)
+            acc += part
+        for name in _NAN_ONLY:
+            np.multiply(block[name], np.float32(0), out=part)
+            # +-inf * 0 is NaN too: count only the NaN inputs.
+            np.copyto(part, 0, where=~np.isnan(block[name]))
+            acc += part
+    # trbf_scale = -inf: a zero-width temporal basis, never drawn (0/0 at its centre).
+    acc[block["trbf_scale"] == -np.inf] = np.nan
+    return acc == acc
 
 
 def _nonfinite_counts(columns: dict, rows: np.ndarray) -> dict:
@@ -137,7 +158,8 @@ def opacity_mask(columns: dict, minimum: float) -> np.ndarray:
 
     A NaN opacity is below every minimum (the writer stores it as alpha 0).
     """
-    return viewer.opacity(columns) >= float(minimum)
+    minimum = float(minimum)
+    return blockwise(lambda block: viewer.opacity(block) >= minimum, columns, ("opacity",))
 
 
 def _check_minimum(minimum: float) -> float:
@@ -198,13 +220,31 @@ def peak_time(columns: dict, window=viewer.TIME_RANGE) -> np.ndarray:
 def crop_mask(columns: dict, lo, hi, window=viewer.TIME_RANGE) -> np.ndarray:
     """Rows :func:`crop` keeps: centre at the time of peak opacity inside the box ``lo``..``hi``; ``(N,) bool``.
 
-    Bounds are inclusive; a NaN centre is never inside.
+    Bounds are inclusive; a NaN centre is never inside. Where the time of peak
+    opacity is the trbf centre itself (dt = 0) the centre is the rest position
+    xyz: the motion terms are m dt^k = 0 there (a NaN motion value is not looked
+    at; ``drop_nonfinite`` is for those).
     """
-    t = peak_time(columns, window)
-    centre = viewer.position_at(columns, t)
-    lo = np.asarray(lo, dtype=np.float64)
-    hi = np.asarray(hi, dtype=np.float64)
-    return ((centre >= lo) & (centre <= hi)).all(axis=1)
+    lo = [np.float64(v) for v in lo]  # compared in float64 with the float32 values
+    hi = [np.float64(v) for v in hi]
+
+    def inside(block):
+        ok = (block["x"] >= lo[0]) & (block["x"] <= hi[0])
+        for i, name in enumerate(POSITION[1:], 1):
+            ok &= block[name] >= lo[i]
+            ok &= block[name] <= hi[i]
+        # Motion terms vanish where the peak is the trbf centre itself (dt = 0, the usual
+        # case): the motion is evaluated only for the splats whose centre lies outside
+        # the window (or is NaN).
+        t = peak_time(block, window)
+        moving = np.flatnonzero(~(t == block["trbf_center"]))
+        if len(moving):
+            part = {name: block[name][moving] for name in POSITION + MOTION + ("trbf_center",)}
+            centre = viewer.position_at(part, t[moving])
+            ok[moving] = ((centre >= lo) & (centre <= hi)).all(axis=1)
+        return ok
+
+    return blockwise(inside, columns, POSITION + MOTION + ("trbf_center",))
 
 
 def check_box(lo, hi) -> tuple:
@@ -258,18 +298,23 @@ def crop(scene: Scene, lo, hi) -> tuple[Scene, OpReport]:
 # max-splats
 
 
-def most_important(columns: dict, count: int, rows: np.ndarray | None = None) -> np.ndarray:
+def importance_key(columns: dict) -> np.ndarray:
+    """The writer's importance key of every row, ``(N,) float64`` (:func:`splatconv.viewer.importance`)."""
+    return blockwise(viewer.importance, columns, ("opacity",) + SCALE, dtype=np.float64)
+
+
+def most_important(columns: dict, count: int, rows: np.ndarray | None = None, key: np.ndarray | None = None):
     """The ``count`` most important of ``rows`` (all when None), in ascending row order: ``(M,) intp``.
 
     Importance as the writer sorts by it (:func:`splatconv.viewer.importance`,
     ties in row order, NaN last; :func:`splatconv.viewer.importance_order`).
+    ``key`` is :func:`importance_key` of ``columns`` when already computed.
     """
+    key = importance_key(columns) if key is None else key
     if rows is None:
-        key = viewer.importance(columns)
         rows = np.arange(len(key))
     else:
-        key = viewer.importance({name: np.asarray(columns[name])[rows] for name in
-                                 ("opacity",) + SCALE})
+        key = key[rows]
     if count >= len(rows):
         return rows
     chosen = viewer.importance_order(key)[:count]
@@ -314,4 +359,5 @@ def max_splats(scene: Scene, count: int) -> tuple[Scene, OpReport]:
 
 
 __all__ = ["FINITE_GROUPS", "NAN_GROUPS", "nonfinite_mask", "drop_nonfinite", "opacity_mask", "min_opacity",
-           "peak_time", "crop_mask", "check_box", "crop", "most_important", "max_splats"]
+           "peak_time", "crop_mask", "check_box", "crop", "importance_key", "most_important",
+           "max_splats"]

@@ -21,8 +21,8 @@ import numpy as np
 
 from .. import viewer
 from ..errors import UsageError
-from ..model import MOTION, OMEGA, Scene
-from ._table import derive, gather
+from ..model import MOTION, OMEGA, TRBF, Scene
+from ._table import blockwise, blocks, derive, gather
 from .report import OpReport
 
 
@@ -32,16 +32,6 @@ def _check_map(origin: float, duration: float) -> tuple:
         raise UsageError(f"a time map needs a finite origin and a finite, non-zero duration "
                          f"(got {origin:g}, {duration:g})")
     return origin, duration
-
-
-def _cast_into(out: np.ndarray, values: np.ndarray) -> int:
-    """Store float64 ``values`` into float32 column ``out``; return how many finite values became infinite."""
-    with np.errstate(over="ignore", invalid="ignore"):
-        out[:] = values
-    grown = np.isinf(out)
-    if not grown.any():
-        return 0
-    return int((grown & np.isfinite(values)).sum())
 
 
 def remap_columns(columns: dict, origin: float, duration: float) -> int:
@@ -60,21 +50,43 @@ def remap_columns(columns: dict, origin: float, duration: float) -> int:
         Values that were finite and no longer fit float32 (now infinite).
     """
     origin, duration = _check_map(origin, duration)
-    overflow = 0
-    centre = np.asarray(columns["trbf_center"], dtype=np.float64)
-    overflow += _cast_into(columns["trbf_center"], (centre - origin) / duration)
-    # Wider or narrower in time by |duration|: subtract its log (+inf stays +inf: visible always).
-    overflow += _cast_into(columns["trbf_scale"],
-                           np.asarray(columns["trbf_scale"], dtype=np.float64) - math.log(abs(duration)))
+    return sum(_remap_block(block, origin, duration) for _part, block in blocks(columns, _TIMED))
+
+
+_TIMED = TRBF + MOTION + OMEGA
+
+
+def _remap_block(block: dict, origin: float, duration: float) -> int:
+    """:func:`remap_columns` on one block of rows; returns the values that outgrew float32."""
+    log_duration = math.log(abs(duration))
+    jobs = [("trbf_center", lambda v: (v - origin) / duration)]
+    if log_duration != 0.0:
+        # Wider or narrower in time by |duration|: subtract its log (+inf stays +inf: visible always).
+        jobs.append(("trbf_scale", lambda v: v - log_duration))
     for k in range(3):
         factor = duration ** (k + 1)
         if factor != 1.0:
-            for name in MOTION[3 * k:3 * k + 3]:
-                overflow += _cast_into(columns[name], np.asarray(columns[name], dtype=np.float64) * factor)
+            jobs += [(name, lambda v, f=factor: v * f) for name in MOTION[3 * k:3 * k + 3]]
     if duration != 1.0:
-        for name in OMEGA:
-            overflow += _cast_into(columns[name], np.asarray(columns[name], dtype=np.float64) * duration)
-    return overflow
+        jobs += [(name, lambda v: v * duration) for name in OMEGA]
+    return sum(_rewrite(block[name], fn) for name, fn in jobs)
+
+
+def _rewrite(column: np.ndarray, fn) -> int:
+    """Replace float32 ``column`` by ``fn(column in float64)``; count finite values that became infinite.
+
+    NaN and inf go through as they are. Overflow (in the arithmetic or in the
+    cast back to float32) raises, and only then is the column redone and counted.
+    """
+    values = column.astype(np.float64)
+    try:
+        with np.errstate(invalid="ignore", over="raise"):
+            column[...] = fn(values)
+        return 0
+    except FloatingPointError:
+        with np.errstate(invalid="ignore", over="ignore"):
+            column[...] = fn(values)
+        return int((np.isinf(column) & np.isfinite(values)).sum())
 
 
 def _overflow_note(op: str, overflow: int) -> list:
@@ -112,8 +124,13 @@ def remap_time(scene: Scene, origin: float, duration: float) -> tuple[Scene, OpR
     u0 = i/n, u1 = (i + 1)/n) with :func:`place_in`.
     """
     origin, duration = _check_map(origin, duration)
-    columns = gather(scene.columns)
-    overflow = remap_columns(columns, origin, duration)
+    overflow = [0]
+
+    def remap(block):
+        overflow[0] += _remap_block(block, origin, duration)
+
+    columns = gather(scene.columns, each=remap)
+    overflow = overflow[0]
     report = OpReport("time-map", scene.count, scene.count)
     report.notes.append(f"time-map: t' = (t - {origin:g}) / {duration:g} applied to {scene.count:,} splats")
     report.notes += _overflow_note("time-map", overflow)
@@ -148,8 +165,11 @@ def visible_in_mask(columns: dict, t0: float, t1: float) -> np.ndarray:
 
     A NaN trbf centre or scale is visible nowhere (the splat has no time).
     """
-    first, last = viewer.visible_interval(columns)
-    return (last >= t0) & (first <= t1)
+    def visible(block):
+        first, last = viewer.visible_interval(block)
+        return (last >= t0) & (first <= t1)
+
+    return blockwise(visible, columns, TRBF)
 
 
 def trim_report(count_in: int, kept: int, nan_time: int, t0: float, t1: float, overflow: int) -> OpReport:
@@ -193,8 +213,13 @@ def trim(scene: Scene, t0: float, t1: float) -> tuple[Scene, OpReport]:
     t0, t1 = check_interval(t0, t1)
     keep = visible_in_mask(scene.columns, t0, t1)
     dropped = np.flatnonzero(~keep)
-    columns = gather(scene.columns, np.flatnonzero(keep))
-    overflow = remap_columns(columns, t0, t1 - t0)
+    overflow = [0]
+
+    def remap(block):
+        overflow[0] += _remap_block(block, t0, t1 - t0)
+
+    columns = gather(scene.columns, np.flatnonzero(keep), each=remap)
+    overflow = overflow[0]
     report = trim_report(scene.count, scene.count - len(dropped), _nan_time(scene.columns, dropped), t0, t1,
                          overflow)
     return derive(scene, columns, report.notes), report

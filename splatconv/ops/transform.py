@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
-from ._table import derive, gather
+from ._table import blocks, derive, gather
 from .report import OpReport
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -257,25 +257,46 @@ def make_transform(translate=None, rotate: str | None = None, scale: float | Non
                      matrix=m, label=(rotate or "").replace(" ", ""))
 
 
-def _store(out_columns, names, values: np.ndarray) -> int:
-    """Write ``(N, k) float64`` into float32 columns; count finite values that became infinite."""
+def _combine(terms, add: float, acc: np.ndarray, tmp: np.ndarray) -> np.ndarray:
+    """sum of value * coefficient over ``terms`` (+ ``add``) into ``acc``, float64."""
+    np.multiply(terms[0][0], terms[0][1], out=acc)
+    for value, c in terms[1:]:
+        np.multiply(value, c, out=tmp)
+        acc += tmp
+    if add:
+        acc += add
+    return acc
+
+
+def _affine_block(block: dict, names, matrix: np.ndarray, offset=None) -> int:
+    """Replace the vectors in columns ``names`` by ``matrix @ v + offset``, computed in float64.
+
+    Written out term by term: numpy's matmul on (k, 3) @ (3, 3) goes through BLAS,
+    whose thread start-up costs more than the arithmetic at this size. Zero
+    coefficients are left out (x:90 keeps x exactly, whatever y and z hold).
+    Runs under ``np.errstate(over="raise")`` (see :func:`_block_transformer`): a
+    value that outgrows float32 (or float64) raises, and only then is the column
+    redone and the values that became infinite counted.
+
+    Returns
+    -------
+    int
+        Finite values that became infinite.
+    """
+    v = [block[name].astype(np.float64) for name in names]
+    acc, tmp = np.empty_like(v[0]), np.empty_like(v[0])
     grown = 0
     for i, name in enumerate(names):
-        out = out_columns[name]
-        with np.errstate(over="ignore", invalid="ignore"):
-            out[:] = values[:, i]
-        inf = np.isinf(out)
-        if inf.any():
-            grown += int((inf & np.isfinite(values[:, i])).sum())
+        terms = [(v[j], c) for j, c in enumerate(matrix[i]) if c != 0.0]
+        add = 0.0 if offset is None else float(offset[i])
+        try:
+            block[name][...] = _combine(terms, add, acc, tmp)
+        except FloatingPointError:
+            with np.errstate(over="ignore"):
+                block[name][...] = _combine(terms, add, acc, tmp)
+            finite = np.logical_and.reduce([np.isfinite(value) for value, _c in terms])
+            grown += int((np.isinf(block[name]) & finite).sum())
     return grown
-
-
-def _stack(columns, names) -> np.ndarray:
-    return np.stack([np.asarray(columns[n], dtype=np.float64) for n in names], axis=1)
-
-
-#: Rows transformed at a time: the float64 temporaries stay small.
-_CHUNK = 1 << 16
 
 
 def transform_columns(columns: dict, transform: Transform) -> int:
@@ -292,29 +313,39 @@ def transform_columns(columns: dict, transform: Transform) -> int:
     int
         Values that were finite and no longer fit float32 (now infinite).
     """
-    n = len(columns["x"])
+    apply = _block_transformer(transform)
+    return sum(apply(block) for _part, block in blocks(columns))
+
+
+def _block_transformer(transform: Transform):
+    """A function that transforms one block of rows in place and returns its overflow count."""
     linear = transform.linear()
     rotates = not np.array_equal(np.asarray(transform.matrix), np.eye(3))
-    moves = transform.translation != (0.0, 0.0, 0.0)
-    left = left_product_matrix(transform.rotation).T
+    scales = transform.scale != 1.0
+    offset = np.asarray(transform.translation)
+    left = left_product_matrix(transform.rotation)
     log_scale = math.log(transform.scale)
-    grown = 0
-    for start in range(0, n, _CHUNK):
-        part = {name: columns[name][start:start + _CHUNK] for name in columns}
-        with np.errstate(over="ignore", invalid="ignore"):
-            if rotates or transform.scale != 1.0 or moves:
-                p = _stack(part, POSITION) @ linear.T + np.asarray(transform.translation)
-                grown += _store(part, POSITION, p)
-            if rotates or transform.scale != 1.0:
+
+    identity = np.eye(len(SCALE))
+
+    def apply(block: dict) -> int:
+        grown = 0
+        # NaN and inf go through as they are; an overflow raises and is counted where it happens.
+        with np.errstate(over="raise", invalid="ignore"):
+            if rotates or scales:
+                grown += _affine_block(block, POSITION, linear, offset)
                 for k in range(3):
-                    names = MOTION[3 * k:3 * k + 3]
-                    grown += _store(part, names, _stack(part, names) @ linear.T)
+                    grown += _affine_block(block, MOTION[3 * k:3 * k + 3], linear)
+            elif offset.any():
+                grown += _affine_block(block, POSITION, identity, offset)
             if rotates:
-                grown += _store(part, ROTATION, _stack(part, ROTATION) @ left)
-                grown += _store(part, OMEGA, _stack(part, OMEGA) @ left)
-            if log_scale != 0.0:
-                grown += _store(part, SCALE, _stack(part, SCALE) + log_scale)
-    return grown
+                grown += _affine_block(block, ROTATION, left)
+                grown += _affine_block(block, OMEGA, left)
+            if scales:
+                grown += _affine_block(block, SCALE, identity, np.full(len(SCALE), log_scale))
+        return grown
+
+    return apply
 
 
 def transform_cameras(cameras, transform: Transform):
@@ -353,8 +384,14 @@ def apply_transform(scene: Scene, transform: Transform) -> tuple[Scene, OpReport
     (Scene, OpReport)
         A new scene (no splat removed).
     """
-    columns = gather(scene.columns)
-    grown = transform_columns(columns, transform)
+    apply = _block_transformer(transform)
+    grown = [0]
+
+    def each(block):
+        grown[0] += apply(block)
+
+    columns = gather(scene.columns, each=each)
+    grown = grown[0]
     cameras = transform_cameras(scene.cameras, transform)
     report = transform_report(scene.count, len(cameras or []), transform, grown)
     return derive(scene, columns, report.notes, cameras=cameras), report
