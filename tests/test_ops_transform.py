@@ -47,6 +47,12 @@ def test_axis_steps_are_right_handed_and_apply_left_to_right(text, point, expect
     assert np.allclose(quaternion_matrix(q), m, atol=1e-15)
 
 
+def test_axis_rotation_quaternion_is_the_half_angle_form():
+    q, m = axis_rotation("y", 60)
+    assert np.allclose(q, [math.cos(math.radians(30)), 0, math.sin(math.radians(30)), 0])
+    assert np.allclose(m, [[0.5, 0, math.sqrt(3) / 2], [0, 1, 0], [-math.sqrt(3) / 2, 0, 0.5]])
+
+
 def test_quaternion_form_and_steps_agree():
     q_steps, m_steps = parse_rotation("x:30, y:-70,z:12.5")
     q = ",".join(repr(float(v)) for v in q_steps)

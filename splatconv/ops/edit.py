@@ -172,14 +172,14 @@ def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
         reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
     elif transform is not None or removed:
         index = np.flatnonzero(alive) if removed else None
-        each, grown = None, [0]
-        if transform is not None:
-            apply = _block_transformer(transform)
+        grown = [0]
+        apply = _block_transformer(transform) if transform is not None else None
 
-            def each(block):
-                grown[0] += apply(block)
+        def each(block):
+            grown[0] += apply(block)
 
-        columns = (compact if owned and removed else gather)(columns, index, each=each)
+        copy = compact if owned and removed else gather
+        columns = copy(columns, index, each=each if apply is not None else None)
         if transform is not None:
             cameras = transform_cameras(cameras, transform)
             reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown[0]))
