@@ -12,7 +12,7 @@ from click.testing import CliRunner
 from splatconv.cli import main
 
 ROOT = Path(__file__).resolve().parent.parent
-SECTION = (ROOT / "README.md").read_text().split("### Editing while converting", 1)[1].split("\n## ", 1)[0]
+SECTION = re.split(r"\n##+ ", (ROOT / "README.md").read_text().split("### Editing while converting", 1)[1])[0]
 
 
 def examples() -> list:

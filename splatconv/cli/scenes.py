@@ -54,7 +54,8 @@ def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, f
       splatconv convert scene.splatv scene.ply
     """
     scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                               force=force, zstd_level=zstd_level, edit=scene_editor(edits))
+                               force=force, zstd_level=zstd_level, progress=progress(quiet),
+                               edit=scene_editor(edits))
     notes(scene.notes)
     notes(report.notes)
     size = os.path.getsize(output_path)
