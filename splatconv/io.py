@@ -127,18 +127,22 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
-            zstd_level: int | None = None, progress=SILENT):
+            zstd_level: int | None = None, progress=SILENT, edit=None):
     """Read ``source`` and write it to ``output``; formats by suffix.
 
     Parameters
     ----------
     cameras : path or list of dict, optional
         A ``cameras.json`` file (or its decoded list) replacing the source's cameras.
+    edit : callable, optional
+        ``edit(scene) -> scene``, applied after reading (and after ``cameras``)
+        and before writing, e.g. :func:`splatconv.ops.apply_edits` with a plan.
 
     Returns
     -------
     (Scene, WriteReport)
-        The scene read (its ``notes`` say what reading dropped) and the write report.
+        The scene written (its ``notes`` say what reading dropped, and what
+        ``edit`` did when it says so) and the write report.
     """
     format_for(source, purpose="read")
     module = check_write_options(output, compat=compat, sort=sort)
@@ -150,6 +154,8 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         raise UnsupportedError(f"holds no splats; a {module.NAME} file cannot hold an empty scene", source)
     if camera_list is not None:
         scene.cameras = camera_list
+    if edit is not None:
+        scene = edit(scene)
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
                    progress=progress)
     return scene, report

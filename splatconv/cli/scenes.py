@@ -13,6 +13,7 @@ from ..stats import describe, stats_report
 from ..transport import DEFAULT_LEVEL
 from ._base import (Failure, color_option, force_option, library_errors, main, notes, options, progress,
                     quiet_option)
+from ._edit import edit_options, scene_editor
 
 
 def _zstd_option(what: str):
@@ -38,8 +39,9 @@ def _zstd_option(what: str):
     force_option(),
     quiet_option(),
 )
+@edit_options()
 @library_errors
-def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, force, quiet):
+def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, force, quiet, **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, either + .zst).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
@@ -52,7 +54,8 @@ def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, f
       splatconv convert scene.splatv scene.ply
     """
     scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                               force=force, zstd_level=zstd_level, progress=progress(quiet))
+                               force=force, zstd_level=zstd_level, progress=progress(quiet),
+                               edit=scene_editor(edits))
     notes(scene.notes)
     notes(report.notes)
     size = os.path.getsize(output_path)
