@@ -10,7 +10,7 @@ from __future__ import annotations
 import os
 
 from .cameras import load_cameras
-from .errors import UnsupportedError, UsageError
+from .errors import SplatconvError, UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
 from .fsutil import atomic_writer, check_output
 from .model import Scene
@@ -22,6 +22,8 @@ SORT_MODES = ("importance", "none")
 COLOR_MODES = ("auto", "rgb", "sh")
 #: Byte-identical modes some writer offers.
 COMPAT_MODES = compat_modes()
+#: Record layouts some writer offers (``.ply``: lite, 3dgs).
+LAYOUTS = tuple(dict.fromkeys(name for module in REGISTRY.values() for name in getattr(module, "LAYOUTS", ())))
 
 
 def _choice(value, allowed, what: str):
@@ -66,7 +68,7 @@ def read_texture(path: str | os.PathLike):
     return padded, scene
 
 
-def check_write_options(path, *, compat: str | None = None, sort: str | None = None):
+def check_write_options(path, *, compat: str | None = None, sort: str | None = None, layout: str | None = None):
     """Refuse options the output's format does not take; the format module.
 
     Raises
@@ -79,6 +81,11 @@ def check_write_options(path, *, compat: str | None = None, sort: str | None = N
         suffixes = ", ".join(_suffixes_taking(compat))
         raise UsageError(f"--compat {compat} applies to {suffixes} output only", path)
     _choice(sort, SORT_MODES, "sort")
+    if layout is not None and layout not in getattr(module, "LAYOUTS", ()):
+        takes = [suffix for suffix, m in REGISTRY.items() if layout in getattr(m, "LAYOUTS", ())]
+        if not takes:
+            raise UsageError(f"unknown layout {layout!r}")
+        raise UsageError(f"layout {layout} applies to {', '.join(takes)} output only", path)
     return module
 
 
@@ -88,7 +95,7 @@ def _suffixes_taking(compat: str) -> list:
 
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
-          force: bool = False, inputs=(), zstd_level: int | None = None):
+          force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -107,30 +114,41 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     zstd_level : int, optional
         Level for a ``.zst`` output (default :data:`splatconv.transport.DEFAULT_LEVEL`);
         the data is compressed as it is written, never held twice.
+    layout : str, optional
+        A record layout the output's format offers (``LAYOUTS``; ``.ply``:
+        ``lite`` or ``3dgs``); None: the format's choice for the scene.
 
     Returns
     -------
     WriteReport
         Counts and ``notes`` describing every lossy step.
     """
-    module = check_write_options(path, compat=compat, sort=sort)
+    module = check_write_options(path, compat=compat, sort=sort, layout=layout)
     if scene.count == 0 and not module.HOLDS_EMPTY:
         raise UnsupportedError(f"no splats to write; a {module.NAME} file cannot hold an empty scene", path)
     check_output(path, inputs, force)
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
-    with atomic_writer(path) as stream, output_stream(stream, path, level) as out:
-        return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT)
+    extra = {"layout": layout} if layout is not None else {}
+    try:
+        with atomic_writer(path) as stream, output_stream(stream, path, level) as out:
+            return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, **extra)
+    except SplatconvError as e:
+        if e.path is not None:
+            raise
+        raise type(e)(e.message, path, e.where) from None  # a writer does not know its file's name
 
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
-            zstd_level: int | None = None):
+            zstd_level: int | None = None, layout: str | None = None):
     """Read ``source`` and write it to ``output``; formats by suffix.
 
     Parameters
     ----------
     cameras : path or list of dict, optional
         A ``cameras.json`` file (or its decoded list) replacing the source's cameras.
+    layout : str, optional
+        As for :func:`write`.
 
     Returns
     -------
@@ -138,7 +156,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         The scene read (its ``notes`` say what reading dropped) and the write report.
     """
     format_for(source, purpose="read")
-    module = check_write_options(output, compat=compat, sort=sort)
+    module = check_write_options(output, compat=compat, sort=sort, layout=layout)
     # Check the output before the (possibly long) read: fail fast, touch nothing.
     check_output(output, [source], force)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
@@ -147,5 +165,6 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         raise UnsupportedError(f"holds no splats; a {module.NAME} file cannot hold an empty scene", source)
     if camera_list is not None:
         scene.cameras = camera_list
-    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level)
+    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
+                   layout=layout)
     return scene, report
