@@ -89,6 +89,62 @@ def atomic_writer(output: str | os.PathLike):
         raise
 
 
+class AtomicGroup:
+    """Several outputs written all or nothing; see :func:`atomic_group`."""
+
+    def __init__(self):
+        self._staged = []  # (temporary path, output path)
+
+    @contextlib.contextmanager
+    def open(self, output: str | os.PathLike):
+        """A binary file to write ``output``'s content to: a temporary file beside it until the group ends."""
+        output = os.fspath(output)
+        parent = os.path.dirname(os.path.abspath(output))
+        try:
+            fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + os.path.basename(output) + ".", suffix=".part")
+        except OSError as e:
+            e.filename, e.filename2 = output, None
+            raise
+        self._staged.append((tmp, output))
+        try:
+            with os.fdopen(fd, "wb") as f:
+                yield f
+        except OSError as e:
+            if e.filename in (None, tmp):
+                e.filename, e.filename2 = output, None
+            raise
+
+
+@contextlib.contextmanager
+def atomic_group():
+    """Write several files all or nothing (e.g. a numbered frame sequence).
+
+    Each file is written to a temporary file beside it (:meth:`AtomicGroup.open`);
+    when the block ends without an exception, every temporary file is renamed
+    over its output, else all are removed and no output is touched. (The renames
+    at the end are one system call each: only a failure between them, such as a
+    power cut, could leave some outputs new and some old.)
+
+    Yields
+    ------
+    AtomicGroup
+    """
+    group = AtomicGroup()
+    try:
+        yield group
+        umask = os.umask(0)
+        os.umask(umask)
+        for tmp, output in group._staged:
+            os.chmod(tmp, 0o666 & ~umask)
+        for tmp, output in group._staged:
+            os.replace(tmp, output)
+    except BaseException:
+        for tmp, _output in group._staged:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        raise
+
+
 #: madvise(2) MADV_POPULATE_READ (Linux 5.14+): map every page of a file mapping now.
 _MADV_POPULATE_READ = getattr(mmap, "MADV_POPULATE_READ", 22 if sys.platform.startswith("linux") else None)
 

@@ -12,7 +12,7 @@ import os
 from .cameras import load_cameras
 from .errors import SplatconvError, UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
-from .fsutil import atomic_writer, check_output
+from .fsutil import atomic_group, atomic_writer, check_output
 from .model import Scene
 from .transport import DEFAULT_LEVEL, is_compressed, output_stream, plain_input
 
@@ -136,6 +136,49 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         if e.path is not None:
             raise
         raise type(e)(e.message, path, e.where) from None  # a writer does not know its file's name
+
+
+def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = None, force: bool = False,
+               inputs=(), zstd_level: int | None = None) -> list:
+    """Write several scene files all or nothing: ``scenes[i]`` to ``paths[i]``.
+
+    Every output is checked before the first scene is asked for; the scenes may
+    come from a generator, made one at a time (a frame sequence need not be in
+    memory at once). On any error no output is created or changed.
+
+    Parameters
+    ----------
+    scenes : iterable of Scene
+        As many as ``paths``.
+    paths : sequence of path
+    sort, layout, force, inputs, zstd_level
+        As for :func:`write`.
+
+    Returns
+    -------
+    list of WriteReport
+    """
+    paths = [os.fspath(p) for p in paths]
+    modules = [check_write_options(p, sort=sort, layout=layout) for p in paths]
+    for path in paths:
+        check_output(path, inputs, force)
+    level = DEFAULT_LEVEL if zstd_level is None else zstd_level
+    extra = {"layout": layout} if layout is not None else {}
+    reports = []
+    with atomic_group() as group:
+        for module, path, scene in zip(modules, paths, scenes):
+            if scene.count == 0 and not module.HOLDS_EMPTY:
+                raise UnsupportedError(f"no splats to write; a {module.NAME} file cannot hold an empty scene", path)
+            try:
+                with group.open(path) as stream, output_stream(stream, path, level) as out:
+                    reports.append(module.write(scene, out, sort=sort or module.DEFAULT_SORT, **extra))
+            except SplatconvError as e:
+                if e.path is not None:
+                    raise
+                raise type(e)(e.message, path, e.where) from None
+        if len(reports) != len(paths):
+            raise ValueError(f"{len(reports)} scenes for {len(paths)} paths")
+    return reports
 
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
