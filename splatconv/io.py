@@ -14,6 +14,7 @@ from .errors import SplatconvError, UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
 from .fsutil import atomic_group, atomic_writer, check_output
 from .model import Scene
+from .progress import SILENT
 from .transport import DEFAULT_LEVEL, is_compressed, output_stream, plain_input
 
 #: Record orders a writer takes.
@@ -95,7 +96,8 @@ def _suffixes_taking(compat: str) -> list:
 
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
-          force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None):
+          force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None,
+          progress=SILENT):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -117,6 +119,8 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     layout : str, optional
         A record layout the output's format offers (``LAYOUTS``; ``.ply``:
         ``lite`` or ``3dgs``); None: the format's choice for the scene.
+    progress : splatconv.progress.Progress
+        Told the splats written as they are written.
 
     Returns
     -------
@@ -131,7 +135,8 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     extra = {"layout": layout} if layout is not None else {}
     try:
         with atomic_writer(path) as stream, output_stream(stream, path, level) as out:
-            return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, **extra)
+            return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, progress=progress,
+                                **extra)
     except SplatconvError as e:
         if e.path is not None:
             raise
@@ -139,7 +144,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
 
 
 def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = None, force: bool = False,
-               inputs=(), zstd_level: int | None = None) -> list:
+               inputs=(), zstd_level: int | None = None, progress=SILENT) -> list:
     """Write several scene files all or nothing: ``scenes[i]`` to ``paths[i]``.
 
     Every output is checked before the first scene is asked for; the scenes may
@@ -153,6 +158,8 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     paths : sequence of path
     sort, layout, force, inputs, zstd_level
         As for :func:`write`.
+    progress : splatconv.progress.Progress
+        Told each file written.
 
     Returns
     -------
@@ -165,7 +172,7 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     extra = {"layout": layout} if layout is not None else {}
     reports = []
-    with atomic_group() as group:
+    with atomic_group() as group, progress.stage("files", len(paths), "file") as advance:
         for module, path, scene in zip(modules, paths, scenes):
             if scene.count == 0 and not module.HOLDS_EMPTY:
                 raise UnsupportedError(f"no splats to write; a {module.NAME} file cannot hold an empty scene", path)
@@ -176,6 +183,7 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
                 if e.path is not None:
                     raise
                 raise type(e)(e.message, path, e.where) from None
+            advance()
         if len(reports) != len(paths):
             raise ValueError(f"{len(reports)} scenes for {len(paths)} paths")
     return reports
@@ -183,7 +191,7 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
-            zstd_level: int | None = None, layout: str | None = None):
+            zstd_level: int | None = None, layout: str | None = None, progress=SILENT):
     """Read ``source`` and write it to ``output``; formats by suffix.
 
     Parameters
@@ -209,5 +217,5 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     if camera_list is not None:
         scene.cameras = camera_list
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
-                   layout=layout)
+                   layout=layout, progress=progress)
     return scene, report

@@ -23,6 +23,7 @@ from ..errors import FormatError, UnsupportedError, UsageError
 from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, Scene, constant_column
+from ..progress import SILENT
 from ..viewer import importance, importance_order
 from .base import WriteReport, refuse_time_varying
 
@@ -285,7 +286,8 @@ def default_layout(scene: Scene) -> str:
     return "3dgs" if scene.variant == model.VARIANT_3DGS else "lite"
 
 
-def write(scene: Scene, stream, *, sort: str | None = None, layout: str | None = None, **_options):
+def write(scene: Scene, stream, *, sort: str | None = None, layout: str | None = None,
+          progress=SILENT, **_options):
     """Write ``scene`` as a binary little-endian float32 PLY.
 
     Parameters
@@ -311,26 +313,30 @@ def write(scene: Scene, stream, *, sort: str | None = None, layout: str | None =
     if layout not in LAYOUTS:
         raise UsageError(f"unknown PLY layout {layout!r} (expected one of {', '.join(LAYOUTS)})")
     if layout == "3dgs":
-        return _write_3dgs(scene, stream, sort)
+        return _write_3dgs(scene, stream, sort, progress)
     n = scene.count
     report = WriteReport(count=n)
     order = _order(scene, sort)
     stream.write(header_bytes(n, scene.cameras))
     rows = _lite_rows_of(scene)
-    if rows is not None:
-        # The columns are fields of rows already in the written layout: write them whole.
+    with progress.stage("writing", n, "splat") as advance:
+        if rows is not None:
+            # The columns are fields of rows already in the written layout: write them whole.
+            for start in range(0, n, BLOCK):
+                block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK],
+                                                                               axis=0)
+                stream.write(memoryview(block))
+                advance(len(block))
+            return report
+        block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
         for start in range(0, n, BLOCK):
-            block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK], axis=0)
-            stream.write(memoryview(block))
-        return report
-    block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
-    for start in range(0, n, BLOCK):
-        stop = min(start + BLOCK, n)
-        rows = slice(start, stop) if order is None else order[start:stop]
-        out = block[: stop - start]
-        for name in COLUMNS:
-            out[name] = np.asarray(scene.columns[name])[rows]
-        stream.write(memoryview(out).cast("B"))
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            out = block[: stop - start]
+            for name in COLUMNS:
+                out[name] = np.asarray(scene.columns[name])[rows]
+            stream.write(memoryview(out).cast("B"))
+            advance(stop - start)
     return report
 
 
@@ -339,7 +345,7 @@ def _order(scene: Scene, sort: str | None):
     return importance_order(importance(scene.columns)) if sort == "importance" else None
 
 
-def _write_3dgs(scene: Scene, stream, sort: str | None) -> WriteReport:
+def _write_3dgs(scene: Scene, stream, sort: str | None, progress) -> WriteReport:
     """The plain 3DGS layout; see :func:`write`."""
     cols = scene.columns
     refuse_time_varying(cols, "a 3DGS PLY")
@@ -353,17 +359,19 @@ def _write_3dgs(scene: Scene, stream, sort: str | None) -> WriteReport:
     order = _order(scene, sort)
     stream.write(header_bytes(n, scene.cameras, "3dgs"))
     block = np.zeros(min(BLOCK, max(n, 1)), dtype=GS_DTYPE)  # normals stay 0
-    for start in range(0, n, BLOCK):
-        stop = min(start + BLOCK, n)
-        rows = slice(start, stop) if order is None else order[start:stop]
-        out = block[: stop - start]
-        for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION:
-            out[name] = np.asarray(cols[name])[rows]
-        for name in model.COLOR:
-            rgb = np.asarray(cols[name])[rows].astype(np.float64)
-            with np.errstate(over="ignore", invalid="ignore"):
-                out[name] = (rgb - 0.5) / SH_C0
-        stream.write(memoryview(out).cast("B"))
+    with progress.stage("writing", n, "splat") as advance:
+        for start in range(0, n, BLOCK):
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            out = block[: stop - start]
+            for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION:
+                out[name] = np.asarray(cols[name])[rows]
+            for name in model.COLOR:
+                rgb = np.asarray(cols[name])[rows].astype(np.float64)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    out[name] = (rgb - 0.5) / SH_C0
+            stream.write(memoryview(out).cast("B"))
+            advance(stop - start)
     return report
 
 

@@ -30,7 +30,8 @@ import numpy as np
 from .. import model
 from ..errors import FormatError
 from ..fsutil import open_input
-from ..model import Scene, constant_column
+from ..model import Scene
+from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales
 from .base import WriteReport, refuse_time_varying
 from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
@@ -114,7 +115,7 @@ def read(path: str | os.PathLike, **_options) -> Scene:
 # Writing
 
 
-def write(scene: Scene, stream, *, sort: str | None = None, **_options) -> WriteReport:
+def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_options) -> WriteReport:
     """Write ``scene`` as ``.splat`` records.
 
     Parameters
@@ -125,6 +126,8 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options) -> Write
     stream : binary file object
     sort : {None, "importance", "none"}
         Record order; None keeps the input order.
+    progress : splatconv.progress.Progress
+        Told the splats written as they are written.
 
     Returns
     -------
@@ -145,13 +148,15 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options) -> Write
     changed = {"color": 0, "opacity": 0, "rotation": 0, "degenerate": 0, "scale": 0}
     order = importance_order(importance(cols)) if sort == "importance" else None
     out = np.zeros(min(BLOCK, n), dtype=RECORD)
-    for start in range(0, n, BLOCK):
-        stop = min(start + BLOCK, n)
-        rows = np.arange(start, stop) if order is None else order[start:stop]
-        block = {name: np.asarray(cols[name])[rows] for name in model.COLUMNS}
-        rec = out[: stop - start]
-        _encode(block, rec, report, changed)
-        stream.write(memoryview(rec).cast("B"))
+    with progress.stage("writing", n, "splat") as advance:
+        for start in range(0, n, BLOCK):
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            block = {name: np.asarray(cols[name])[rows] for name in model.COLUMNS}
+            rec = out[: stop - start]
+            _encode(block, rec, report, changed)
+            stream.write(memoryview(rec).cast("B"))
+            advance(stop - start)
     report.notes.extend(_notes(report, changed, n))
     return report
 

@@ -6,12 +6,15 @@ import math
 import os
 
 import numpy as np
+from PIL import Image
 
 from ..errors import UsageError
 from ..fsutil import atomic_writer, check_output
 from . import camera as cam
+from . import diff as imgdiff
 from . import images
 from .frames import load, render_frames, resolve_view
+from .verify import DEFAULT_MIN_PSNR, Frame, Outcome, check_min_psnr, diff_scenes, parse_times
 
 
 #: ``diff``'s frames for two scene files: one quick frame (``verify`` draws more).
@@ -63,8 +66,6 @@ def diff_files(a, b, *, size=None, cameras=None, times=None, min_psnr=40.0, colo
     -------
     verify.Outcome
     """
-    from . import diff as imgdiff
-    from .verify import DEFAULT_MIN_PSNR, Frame, Outcome, check_min_psnr, diff_scenes, parse_times
 
     a, b = os.fspath(a), os.fspath(b)
     min_psnr = check_min_psnr(DEFAULT_MIN_PSNR if min_psnr is None else min_psnr)
@@ -88,7 +89,6 @@ def diff_files(a, b, *, size=None, cameras=None, times=None, min_psnr=40.0, colo
     if out is not None:
         worst = min(outcome.frames, key=lambda f: f.diff.psnr)
         with atomic_writer(out) as stream:
-            from PIL import Image
 
             Image.fromarray(imgdiff.heatmap(*worst.images), "RGB").save(stream, format="PNG")
     return outcome

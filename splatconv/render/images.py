@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from PIL import Image, ImageDraw
 
 #: Output kinds by suffix, for a sweep of several frames.
 ANIMATED = (".gif", ".webp")
@@ -12,14 +13,12 @@ STILL = (".png",)
 
 
 def _image(frame: np.ndarray):
-    from PIL import Image
 
     return Image.fromarray(np.ascontiguousarray(frame[:, :, :3]), "RGB")
 
 
 def contact_sheet(frames, times, columns: int | None = None):
     """Frames in a grid, each labelled with its time; returns a PIL image."""
-    from PIL import Image, ImageDraw
 
     n = len(frames)
     cols = columns or math.ceil(math.sqrt(n))

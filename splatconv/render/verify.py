@@ -23,6 +23,7 @@ from ..io import read_texture
 from ..fsutil import atomic_writer, check_output
 from . import camera as cam
 from . import diff as imgdiff
+from .frames import load
 from .preview import FLOAT_SPLATS_PER_ROW, Renderer, View, float_attributes
 
 DEFAULT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
@@ -209,7 +210,6 @@ def verify(source_path, converted_path, *, times=None, cameras=None, size=None,
 def diff_scenes(path_a, path_b, *, times=(0.5,), cameras="0", size=None, min_psnr=DEFAULT_MIN_PSNR,
                 tolerance=imgdiff.TOLERANCE, color="auto", reference=False) -> Outcome:
     """Draw two scene files the same way and compare the frames (no structure check)."""
-    from .frames import load
 
     min_psnr = check_min_psnr(min_psnr)
 
