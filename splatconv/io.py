@@ -7,10 +7,11 @@ what it supports (see :mod:`splatconv.formats`).
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 from .cameras import load_cameras
-from .errors import SplatconvError, UnsupportedError, UsageError
+from .errors import OutputError, SplatconvError, UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
 from .fsutil import atomic_group, atomic_writer, check_output
 from .model import Scene
@@ -187,6 +188,39 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
         if len(reports) != len(paths):
             raise ValueError(f"{len(reports)} scenes for {len(paths)} paths")
     return reports
+
+
+def write_sequence(scenes, folder: str | os.PathLike, names, **options) -> list:
+    """Write numbered files into ``folder`` all or nothing (see :func:`write_each`).
+
+    ``folder`` is made when it does not exist (its parent must), and removed
+    again when the writing fails.
+
+    Parameters
+    ----------
+    scenes : iterable of Scene
+    folder : path
+    names : sequence of str
+        File names inside ``folder``, one a scene.
+    **options
+        As for :func:`write_each`.
+    """
+    folder = os.fspath(folder)
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise OutputError("is not a folder", folder)
+    made = not os.path.exists(folder)
+    if made:
+        parent = os.path.dirname(os.path.abspath(folder))
+        if not os.path.isdir(parent):
+            raise OutputError(f"folder {parent} does not exist", folder)
+        os.mkdir(folder)
+    try:
+        return write_each(scenes, [os.path.join(folder, name) for name in names], **options)
+    except BaseException:
+        if made:
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)
+        raise
 
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,

@@ -159,3 +159,28 @@ def bake(scene: Scene, time: float) -> tuple[Scene, BakeReport]:
                      "any time) removed")
     baked = Scene(columns=out, cameras=scene.cameras, variant=model.VARIANT_3DGS, meta={"baked_time": t})
     return baked, BakeReport("bake", t, n, m, counts, notes)
+
+
+def bake_frames(scene: Scene, count: int):
+    """Bake ``count`` moments, frame k at time k / (count - 1) (:func:`frame_times`).
+
+    Returns a generator, so that a caller writing the frames holds one at a time.
+
+    Returns
+    -------
+    iterator of (float, Scene, BakeReport)
+        The time, the baked scene and its report, frame by frame.
+
+    Raises
+    ------
+    UsageError
+        For fewer than two frames (at once, not on the first frame).
+    """
+    times = frame_times(count)
+    return ((float(t), *bake(scene, float(t))) for t in times)
+
+
+def frame_names(count: int, suffix: str) -> list:
+    """``frame_0000`` + ``suffix`` ... one name a frame, numbered from 0 with at least 4 digits."""
+    width = max(4, len(str(count - 1)))
+    return [f"frame_{k:0{width}d}{suffix}" for k in range(count)]
