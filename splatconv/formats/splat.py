@@ -14,9 +14,10 @@ zero motion).
 
 Writing rounds colour, opacity and rotation to the nearest byte (antimatter15's
 converter truncates; rounding halves the error) and normalises each quaternion
-first, as viewers expect unit quaternions. Bytes read from a ``.splat`` come
-back as the same bytes: colours and opacities are read to values that round to
-their byte, and a quaternion already on the byte grid is written unchanged.
+first, as antimatter15's viewer uses them without normalising. Bytes read from
+a ``.splat`` come back as the same bytes: colours and opacities are read to
+values that round to their byte, and a quaternion already on the byte grid
+(and of unit length to within its rounding) is written unchanged.
 Records are written in importance order by default (largest, most opaque
 first), as antimatter15's converter does, so a viewer can draw while loading.
 """
@@ -192,24 +193,28 @@ def _bytes(values: np.ndarray, report: WriteReport, key: str) -> np.ndarray:
 
 
 def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
-    """Quaternions ``(M, 4) float32`` -> ``(M, 4) uint8``, the splats changed, the degenerate ones.
+    """Quaternions ``(M, 4) float32`` -> ``(M, 4) uint8``, the splats changed, the non-finite ones.
 
-    A quaternion whose components are already bytes' values ((b - 128) / 128,
-    as read from a ``.splat``) is written as those bytes. Others are normalised
-    and rounded. A zero, infinite or NaN quaternion has no direction: written
-    as 128s (zero), which viewers draw unrotated.
+    A quaternion that bytes already hold exactly ((b - 128) / 128 each) and that
+    is a unit quaternion rounded or truncated to bytes (its length within 2/128
+    of 1: four components each off by at most one step), or zero, is written as those
+    bytes: a quaternion read from a ``.splat`` comes back as it was. Others are
+    normalised and rounded. A NaN or infinite quaternion has no direction:
+    written as 128s (zero), which viewers draw unrotated.
     """
     q = q.astype(np.float64)
     with np.errstate(over="ignore", invalid="ignore"):
         steps = q * ROT_STEPS + ROT_STEPS
         on_grid = np.all((steps == np.rint(steps)) & (steps >= 0) & (steps <= 255), axis=1)
-        unit = q / np.sqrt((q * q).sum(axis=1, keepdims=True))
-    degenerate = ~np.all(np.isfinite(unit), axis=1) & ~on_grid
-    unit[degenerate] = 0.0
+        length = np.sqrt((q * q).sum(axis=1, keepdims=True))
+        kept = on_grid & ((np.abs(length[:, 0] - 1.0) <= 2.0 / ROT_STEPS) | (length[:, 0] == 0.0))
+        unit = q / length
+    nonfinite = ~np.all(np.isfinite(unit), axis=1) & ~kept
+    unit[nonfinite] = 0.0
     with np.errstate(invalid="ignore"):
-        scaled = np.where(on_grid[:, None], steps, unit * ROT_STEPS + ROT_STEPS)
+        scaled = np.where(kept[:, None], steps, unit * ROT_STEPS + ROT_STEPS)
     out = np.rint(np.clip(scaled, 0.0, 255.0)).astype(np.uint8)
-    return out, int(np.count_nonzero(~on_grid)), int(np.count_nonzero(degenerate))
+    return out, int(np.count_nonzero(~kept & ~nonfinite)), int(np.count_nonzero(nonfinite))
 
 
 def _notes(report: WriteReport, changed: dict, n: int) -> list:
@@ -222,7 +227,7 @@ def _notes(report: WriteReport, changed: dict, n: int) -> list:
         notes.append(f"rotation: {changed['rotation']:,} of {n:,} splats normalised and rounded to 8 bits a "
                      "component")
     if changed["degenerate"]:
-        notes.append(f"rotation: {changed['degenerate']:,} zero or non-finite quaternions written as zero "
+        notes.append(f"rotation: {changed['degenerate']:,} non-finite quaternions written as zero "
                      "(drawn unrotated)")
     if changed["scale"]:
         notes.append(f"scale: {changed['scale']:,} values past the float32 range written as infinity")
