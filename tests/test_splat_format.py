@@ -258,3 +258,19 @@ def test_3dgs_static_file_from_another_tool_reads_as_written(tmp_path):
     for name in ("x", "opacity", "scale_2", "rot_3"):
         assert np.array_equal(data[name], cols[name])
     assert np.allclose(data["f_dc_2"], cols["f_dc_2"], atol=1e-6)
+
+
+def test_spec_table_matches_the_record():
+    """specs/splat.md's record table is the code's RECORD."""
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parent.parent / "specs" / "splat.md").read_text()
+    rows = [[c.strip() for c in line.strip("|").split("|")] for line in text.splitlines()
+            if line.startswith("| ") and "–" in line.split("|")[1]]
+    assert [r[2] for r in rows] == list(splat.RECORD.names)
+    for span, kind, name, _meaning in rows:
+        start, stop = (int(v) for v in span.split("–"))
+        dtype, count = splat.RECORD.fields[name][0], splat.RECORD.fields[name][0].shape[0]
+        assert splat.RECORD.fields[name][1] == start and stop - start + 1 == dtype.itemsize
+        assert kind == f"{dtype.base.name} ×{count}"
+    assert splat.RECORD.itemsize == 32
