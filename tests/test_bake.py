@@ -257,3 +257,30 @@ def test_bake_bad_input_one_error_line(tmp_path):
     assert r.stderr == (f"Error: {bad}: size 33 bytes is not a whole number of 32-byte records: 1 bytes after "
                         "record 1; file truncated?\n")
     assert not (tmp_path / "m.ply").exists()
+
+
+def test_frames_output_must_be_a_folder(tmp_path, sample_splatv):
+    out = tmp_path / "file.ply"
+    out.write_bytes(b"x")
+    r = run("bake", sample_splatv, out, "--frames", "2")
+    assert r.exit_code == 1 and r.stderr == f"Error: {out}: is not a folder\n"
+    assert out.read_bytes() == b"x"
+
+
+def test_write_sequence_leaves_nothing_when_a_scene_fails(tmp_path, sample):
+    """An error while making the third of four frames: no frame is left, the folder made for them is gone."""
+    def frames():
+        for k in range(4):
+            if k == 2:
+                raise RuntimeError("boom")
+            yield bake(sample, k / 3)[0]
+
+    with pytest.raises(RuntimeError, match="boom"):
+        io.write_sequence(frames(), tmp_path / "out", [f"f{k}.ply" for k in range(4)])
+    assert list(tmp_path.iterdir()) == []
+    # Into an existing folder with other files: those stay, no frame is added.
+    (tmp_path / "keep").mkdir()
+    (tmp_path / "keep" / "other.txt").write_text("x")
+    with pytest.raises(RuntimeError, match="boom"):
+        io.write_sequence(frames(), tmp_path / "keep", [f"f{k}.ply" for k in range(4)])
+    assert [p.name for p in (tmp_path / "keep").iterdir()] == ["other.txt"]
