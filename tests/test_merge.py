@@ -12,7 +12,7 @@ from splatconv.model import Scene
 from splatconv.ops.bake import bake
 from splatconv.ops.merge import overlay
 
-from .test_bake import SAMPLE, draw, psnr, renderer, sample_view  # noqa: F401  (renderer is a fixture)
+from .test_bake import SAMPLE, draw, psnr, renderer  # noqa: F401  (renderer is a fixture)
 
 TIMES = (0.0, 0.5, 1.0)
 
