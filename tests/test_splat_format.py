@@ -195,6 +195,12 @@ def test_splat_zst_and_determinism(tmp_path):
     assert (tmp_path / "b.splat.zst").read_bytes() == (tmp_path / "c.splat.zst").read_bytes()
     assert io.read(tmp_path / "b.splat.zst").count == 100
     assert format_for("x.SPLAT").NAME == "splat" and format_for("x.splatv").NAME == "splatv"
+    # A .splat is a static 3DGS scene: to .ply it goes as a 3DGS PLY, and back to the same bytes.
+    assert run("convert", src, tmp_path / "d.ply").exit_code == 0
+    assert io.read(tmp_path / "d.ply").variant == model.VARIANT_3DGS
+    assert run("convert", tmp_path / "d.ply", tmp_path / "e.splat", "--sort", "none").exit_code == 0
+    back, want = (np.frombuffer(p.read_bytes(), splat.RECORD) for p in (tmp_path / "e.splat", src))
+    assert all(np.array_equal(back[f], want[f]) for f in ("position", "rgba", "rot"))
 
 
 # --------------------------------------------------------------------------
