@@ -159,6 +159,8 @@ def test_importance_order_by_default(tmp_path):
     (b"", "file is empty"),
     (b"\0" * 31, "size 31 bytes is not a whole number of 32-byte records: 31 bytes after record 0; file truncated?"),
     (b"\0" * 70, "size 70 bytes is not a whole number of 32-byte records: 6 bytes after record 2; file truncated?"),
+    (b"ply\nformat binary_little_endian 1.0\n" + b"\0" * 29, "this is a PLY file, not a .splat (name it .ply)"),
+    (struct.pack("<II", 0x674B, 10) + b"\0" * 56, "this is a .splatv file, not a .splat (name it .splatv)"),
 ])
 def test_bad_files_give_one_error_line(tmp_path, data, message):
     path = tmp_path / "bad.splat"

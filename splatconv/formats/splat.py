@@ -36,6 +36,7 @@ from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales
 from .base import WriteReport, refuse_time_varying
 from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
+from .splatv_layout import MAGIC as SPLATV_MAGIC
 
 NAME = "splat"
 SUFFIXES = (".splat",)
@@ -81,6 +82,8 @@ def read(path: str | os.PathLike, **_options) -> Scene:
         size = os.fstat(f.fileno()).st_size
         if size == 0:
             raise FormatError("file is empty", path)
+        _refuse_other_formats(f.read(8), path)
+        f.seek(0)
         if size % RECORD_BYTES:
             raise FormatError(f"size {size:,} bytes is not a whole number of {RECORD_BYTES}-byte records: "
                               f"{size % RECORD_BYTES} bytes after record {size // RECORD_BYTES:,}; file truncated?",
@@ -110,6 +113,19 @@ def read(path: str | os.PathLike, **_options) -> Scene:
         cols[name][:] = 0.0
     meta = {"file_bytes": size, "records": n}
     return Scene(columns=cols, cameras=None, variant=model.VARIANT_3DGS, meta=meta, notes=notes)
+
+
+def _refuse_other_formats(head: bytes, path: str) -> None:
+    """A ``.splat`` has no header to check; name the files most often misnamed ``.splat``.
+
+    A PLY's first bytes are ``ply`` and a line end, a ``.splatv``'s its magic
+    number; as a first position they would be ~1e-19 and ~4e-41, which no
+    scene holds.
+    """
+    if head.startswith((b"ply\n", b"ply\r\n")):
+        raise FormatError("this is a PLY file, not a .splat (name it .ply)", path)
+    if len(head) >= 4 and int.from_bytes(head[:4], "little") == SPLATV_MAGIC:
+        raise FormatError("this is a .splatv file, not a .splat (name it .splatv)", path)
 
 
 # --------------------------------------------------------------------------
