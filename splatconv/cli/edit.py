@@ -27,10 +27,10 @@ class Moment(click.ParamType):
         return number
 
 
-def _layout_option():
+def _layout_option(default: str):
     return click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
-                        help="PLY output: 3dgs (plain 3DGS, SH degree 0) or lite (Spacetime Gaussians). "
-                             "Default: 3dgs when the result is static, else lite.")
+                        help=f"PLY output: 3dgs (plain 3DGS, SH degree 0) or lite (Spacetime Gaussians). "
+                             f"Default: {default}.")
 
 
 def _sort_option():
@@ -54,7 +54,7 @@ def _wrote(path, report) -> None:
                       "OUTPUT is a folder (made if missing); all frames are written or none."),
     click.option("--frame-suffix", type=click.Choice(sorted(REGISTRY)), default=".ply", show_default=True,
                  help="File type of the --frames files."),
-    _layout_option(),
+    _layout_option("3dgs"),
     _sort_option(),
     color_option(),
     force_option("OUTPUT (or existing frame files)"),
@@ -116,7 +116,7 @@ def _report_each(frames, names):
 @options(
     click.option("--mode", type=click.Choice(merge_ops.MODES), default="overlay", show_default=True,
                  help="overlay: all inputs together on the same timeline."),
-    _layout_option(),
+    _layout_option("3dgs when every input is plain 3DGS (a 3DGS PLY, a .splat, a baked moment), else lite"),
     _sort_option(),
     color_option(),
     force_option(),
