@@ -42,11 +42,22 @@ def _position_key(cols: dict) -> np.ndarray:
     return np.where(nan, np.uint32(packing.F32_QUIET_NAN), bits)
 
 
+def _byte_key(cols: dict) -> np.ndarray:
+    """Opacity and colour as the bytes a writer stores, ``(N, 4) uint8`` (NaN as 0)."""
+    v = np.concatenate([viewer.opacity(cols)[:, None], viewer.colors(cols)], axis=1)
+    return np.nan_to_num(np.round(v * 255.0), nan=0.0).astype(np.uint8)
+
+
 def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED"):
     """Row order of ``source`` matching ``converted`` row by row.
 
-    Tries the orders a writer produces (importance, double or float32 key; input
-    order), then falls back to matching positions, which conversion keeps exact.
+    Tries the orders a writer produces (input order; importance, double or
+    float32 key). Conversion keeps positions exact, so an order whose positions
+    match is the writer's, unless splats share positions (or all are NaN): then
+    several orders match, and the one whose other attributes agree wins (fewest
+    values off by more than quantization explains; the first listed on a tie).
+    When none matches, rows are matched by sorting both sides by position, ties
+    broken by opacity and colour bytes.
 
     Returns
     -------
@@ -65,11 +76,17 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     key = viewer.importance(source.columns)
     with np.errstate(invalid="ignore", over="ignore"):
         candidates = (np.arange(n), viewer.importance_order(key), viewer.importance_order(key.astype(np.float32)))
+    matching = []
     for order in candidates:
-        if np.array_equal(a[order], b):
-            return order
-    sa = np.lexsort(a.T[::-1])
-    sb = np.lexsort(b.T[::-1])
+        if np.array_equal(a[order], b) and not any(np.array_equal(order, other) for other in matching):
+            matching.append(order)
+    if len(matching) == 1:
+        return matching[0]
+    if matching:
+        return min(matching, key=lambda order: sum(
+            g.unexplained for g in compare_scenes(source, converted, order).values()))
+    sa = np.lexsort(np.concatenate([a, _byte_key(source.columns)], axis=1).T[::-1])
+    sb = np.lexsort(np.concatenate([b, _byte_key(converted.columns)], axis=1).T[::-1])
     order = np.empty(n, dtype=np.int64)
     order[sb] = sa
     return order
@@ -80,16 +97,23 @@ class GroupError:
     """Errors of one attribute group, converted against source, in viewer units."""
 
     group: str
-    max_abs_error: float
+    max_abs_error: float  # over pairs finite on both sides
     max_rel_error: float
     rmse: float
     unexplained: int  # values whose error exceeds what quantization explains
     worst_bound: float  # the bound at the worst unexplained value (or 0)
-    compared: int
+    compared: int  # pairs finite on both sides
+    values: int = 0  # values in the group: splats x components
+    became_infinite: int = 0  # finite source values stored as infinity (part of unexplained)
+    nan_stored: int = 0  # NaN source values stored as numbers by a byte that cannot hold NaN (explained)
 
 
 def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupError:
-    """Error statistics of one group over finite pairs; NaN must stay NaN."""
+    """Error statistics of one group over finite pairs; NaN must stay NaN.
+
+    Colour and opacity are stored as bytes, which cannot hold NaN: a NaN there
+    stored as a number is explained (and counted in ``nan_stored``).
+    """
     a = viewer.group_values(source_cols, group)
     b = viewer.group_values(converted_cols, group)
     both = np.isfinite(a) & np.isfinite(b)
@@ -101,11 +125,14 @@ def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupEr
     # converter); NaN stays NaN. Both are lossy but expected, counted elsewhere.
     over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) if group != "position" else False
     same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
-    bad = ~(both & (err <= bound)) & ~over & ~same_special
+    nan_stored = np.isnan(a) & np.isfinite(b) if group in ("color", "opacity") else np.zeros(a.shape, bool)
+    bad = ~(both & (err <= bound)) & ~over & ~same_special & ~nan_stored
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
     return GroupError(group, float(err.max()) if err.size else 0.0, float(rel.max()) if rel.size else 0.0,
-                      float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n)
+                      float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n,
+                      values=int(a.size), became_infinite=int((bad & np.isfinite(a) & np.isinf(b)).sum()),
+                      nan_stored=int(nan_stored.sum()))
 
 
 def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None) -> dict:

@@ -76,7 +76,7 @@ def test_time_sweeps(tmp_path, sample_splatv, name, frames, check):
 @pytest.mark.parametrize("args,code,message", [
     (["o.jpg"], 2, "Error: o.jpg: cannot write .jpg: use .png (or --frames N with .gif, .webp)\n"),
     (["o.gif"], 2, "Error: o.gif: cannot write .gif: use .png (or --frames N with .gif, .webp)\n"),
-    (["o.png", "--camera", "7"], 2, "Error: {src}: --camera 7: the file has 3 camera(s), 0..2\n"),
+    (["o.png", "--camera", "7"], 2, "Error: {src}: --camera 7: the file has 3 cameras, 0..2\n"),
     (["o.png", "--camera", "0", "--view", "[]"], 2, "Error: --camera and --view cannot be used together\n"),
     (["o.png", "--view", "[1, 2]"], 2,
      "Error: --view: expected a JSON list of 16 finite numbers (a column-major view matrix)\n"),
@@ -143,7 +143,7 @@ def test_explicit_size_keeps_the_cameras_focal_length_as_the_viewer_does(tmp_pat
 ])
 def test_fit_scales_focal_lengths_with_the_size(size, expected):
     from splatconv.render import camera as cam
-    from splatconv.render.verify import frame_views
+    from splatconv.render.frames import frame_views
 
     c = {"width": 1280, "height": 720, "fx": 1000.0, "fy": 1000.0, "position": [0, 0, 0],
          "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}

@@ -87,7 +87,7 @@ def test_real_damage_fails(tmp_path, faithful, how, attribute, failing_times):
     assert verdict[1].startswith(f"FAIL: {len(failing_times)} of 2 frames below 40 dB; worst: ")
     data = json.loads(run("verify", SAMPLE, bad, *QUICK, "--json").stdout)
     assert not data["passed"]
-    drifted = [k for k, v in data["structure"].items() if not v["ok"]]
+    drifted = [k for k, v in data["attributes"].items() if not v["ok"]]
     assert drifted == [attribute]
     assert [f["time"] for f in data["frames"] if f["psnr"] < 40] == failing_times
 
@@ -100,7 +100,7 @@ def test_reordered_quaternions_are_caught_by_the_attribute_check_alone(tmp_path,
     data = json.loads(r.stdout)
     assert r.exit_code == 1
     assert all(f["psnr"] >= 40 for f in data["frames"]) and len(data["frames"]) == 3
-    assert [k for k, v in data["structure"].items() if not v["ok"]] == ["rotation"]
+    assert [k for k, v in data["attributes"].items() if not v["ok"]] == ["rotation"]
     text = run("verify", SAMPLE, bad, "--times", "0.5", "--size", "240x135").stdout
     assert text.rstrip().split("\n\n")[-1].startswith("FAIL: rotation drifted: ")
     assert "frames below" not in text
@@ -112,7 +112,7 @@ def test_splatv_to_ply_conversion_verifies(tmp_path, faithful):
     r = run("verify", faithful, ply, *QUICK, "--json")
     data = json.loads(r.stdout)
     assert r.exit_code == 0 and data["passed"]
-    assert all(v["unexplained"] == 0 for v in data["structure"].values())
+    assert all(v["unexplained"] == 0 for v in data["attributes"].values())
 
 
 def test_compat_conversion_of_the_sample_verifies(tmp_path):
@@ -123,16 +123,18 @@ def test_compat_conversion_of_the_sample_verifies(tmp_path):
 
 def test_json_shape(faithful):
     data = json.loads(run("verify", SAMPLE, faithful, *QUICK, "--json").stdout)
-    assert set(data) == {"paths", "count", "min_psnr", "passed", "structure", "frames", "worst"}
+    assert list(data) == ["schema", "paths", "count", "min_psnr", "passed", "attributes", "frames", "worst", "notes"]
+    assert data["schema"] == "splatconv.verify/1" and data["notes"] == []
     assert data["count"] == 5000 and data["min_psnr"] == 40.0
-    assert set(data["structure"]) == {"position", "rotation", "scale", "color", "opacity", "motion", "omega",
+    assert set(data["attributes"]) == {"position", "rotation", "scale", "color", "opacity", "motion", "omega",
                                       "trbf"}
-    assert set(data["structure"]["scale"]) == {"max_abs_error", "max_rel_error", "rmse", "unexplained",
-                                               "compared", "ok"}
+    assert set(data["attributes"]["scale"]) == {"max_abs_error", "max_rel_error", "rmse", "unexplained",
+                                                "became_infinite", "nan_stored", "compared", "values", "ok"}
+    assert data["attributes"]["scale"]["values"] == 3 * 5000
     assert [(f["time"], f["camera"]) for f in data["frames"]] == [(0.25, 0), (0.6, 0)]
-    assert set(data["frames"][0]) == {"time", "camera", "psnr", "max_abs_error", "mean_abs_error", "share_off",
-                                      "tolerance"}
-    assert data["structure"]["position"]["max_abs_error"] == 0
+    assert list(data["frames"][0]) == ["time", "camera", "psnr", "identical", "max_abs_error", "mean_abs_error",
+                                       "share_off", "tolerance"]
+    assert data["attributes"]["position"]["max_abs_error"] == 0
 
 
 def test_report_dir(tmp_path, faithful):
@@ -263,7 +265,7 @@ def test_image_diff_rows_name_the_images_not_a_time_or_camera(tmp_path, monkeypa
     b[5, 5] = [30, 0, 0]
     write_png(tmp_path / "a.png", a), write_png(tmp_path / "b.png", b)
     data = json.loads(run("diff", "a.png", "b.png", "--json").stdout)
-    row = {"a": "a.png", "b": "b.png", "psnr": 51.141, "max_abs_error": 30, "mean_abs_error": 0.0167,
+    row = {"a": "a.png", "b": "b.png", "psnr": 51.141, "identical": False, "max_abs_error": 30, "mean_abs_error": 0.0167,
            "share_off": 0.001667, "tolerance": 8}
     assert data["frames"] == [row] and data["worst"] == row
     r = run("diff", "a.png", "b.png")
