@@ -209,8 +209,12 @@ def test_render_scene_is_what_render_draws(tmp_path):
     from splatconv.model import Scene
     from splatconv.render.frames import render_scene
 
-    cams = json.load(open("sample_data/cameras.json"))
-    scene = io.read(SAMPLE)
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    cams = json.loads((root / "sample_data/cameras.json").read_text())
+    sample = root / SAMPLE
+    scene = io.read(sample)
     frames = render_scene(scene, cams[1], [0.3, 0.7], size=(96, 54))
     assert frames.shape == (2, 54, 96, 4) and frames.dtype == np.uint8
     from splatconv.render import camera as cam
@@ -221,7 +225,7 @@ def test_render_scene_is_what_render_draws(tmp_path):
         for reference, drawn in ((True, frames[i]), (False, render_scene(scene, cams[1], t, reference=False,
                                                                              size=(96, 54))[0])):
             out = tmp_path / f"{t}{reference}.png"
-            r = run("render", SAMPLE, out, *args, t, *(["--reference"] if reference else []))
+            r = run("render", sample, out, *args, t, *(["--reference"] if reference else []))
             assert r.exit_code == 0, r.output
             assert np.array_equal(np.asarray(Image.open(out)), drawn[..., :3])
     assert frames[0, ..., 3].any() and not np.array_equal(frames[0], frames[1])
