@@ -135,7 +135,36 @@ def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupEr
                       nan_stored=int(nan_stored.sum()))
 
 
+#: Rows compared per step: bounds the float64 temporaries of group_errors (a few MB a column).
+_ROWS = 1 << 17
+
+
 def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None) -> dict:
-    """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``."""
-    src = source.columns if order is None else source.take(order)
-    return {g: group_errors(src, converted.columns, g) for g in GROUPS}
+    """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``.
+
+    Computed :data:`_ROWS` rows at a time and merged, so that memory stays
+    bounded whatever the scene's size.
+    """
+    n = converted.count
+    parts = {g: [] for g in GROUPS}
+    for start in range(0, max(n, 1), _ROWS):
+        rows = slice(start, min(start + _ROWS, n))
+        pick = rows if order is None else order[rows]
+        src = {k: v[pick] for k, v in source.columns.items()}
+        conv = {k: v[rows] for k, v in converted.columns.items()}
+        for g in GROUPS:
+            parts[g].append(group_errors(src, conv, g))
+    return {g: _merge(parts[g]) for g in GROUPS}
+
+
+def _merge(parts: list) -> GroupError:
+    """One GroupError from those of consecutive row ranges."""
+    if len(parts) == 1:
+        return parts[0]
+    compared = sum(p.compared for p in parts)
+    square_sum = sum(p.rmse ** 2 * p.compared for p in parts)
+    return GroupError(parts[0].group, max(p.max_abs_error for p in parts), max(p.max_rel_error for p in parts),
+                      float(np.sqrt(square_sum / compared)) if compared else 0.0,
+                      sum(p.unexplained for p in parts), max(p.worst_bound for p in parts), compared,
+                      values=sum(p.values for p in parts), became_infinite=sum(p.became_infinite for p in parts),
+                      nan_stored=sum(p.nan_stored for p in parts))

@@ -496,3 +496,20 @@ def test_report_dir_saves_each_frame_as_it_is_drawn(tmp_path, faithful, monkeypa
             "--report-dir", tmp_path / "rep")
     assert r.exit_code == 0, r.output
     assert saved_after == [2] * 4 + [4] * 4 + [6] * 4
+
+
+def test_attribute_check_in_row_blocks_gives_the_whole_scenes_figures(faithful, monkeypatch):
+    # compare_scenes works a block of rows at a time (bounded memory on 1M splats);
+    # the merged figures are those of one pass over every row.
+    from splatconv import compare, io
+
+    source, converted = io.read(SAMPLE), io.read(faithful)
+    order = compare.align(source, converted)
+    whole = compare.compare_scenes(source, converted, order)
+    monkeypatch.setattr(compare, "_ROWS", 1000)
+    blocks = compare.compare_scenes(source, converted, order)
+    for g, e in whole.items():
+        b = blocks[g]
+        assert (b.max_abs_error, b.max_rel_error, b.unexplained, b.compared, b.values) == (
+            e.max_abs_error, e.max_rel_error, e.unexplained, e.compared, e.values)
+        assert b.rmse == pytest.approx(e.rmse, rel=1e-9)

@@ -271,10 +271,14 @@ def compare_frames(a, b, views: list, times, *, tolerance: int = imgdiff.TOLERAN
     try:
         ra.load(a())
         rb.load(b())
+        # The depth order depends only on the positions and the view: with the same
+        # position bits (a faithful conversion) one sort serves both frames.
+        shared = np.array_equal(ra.positions.view(np.uint32), rb.positions.view(np.uint32))
         with progress.stage("drawing", len(views) * len(times), "frame") as advance:
             for index, view in views:
                 for t in times:
-                    ia, ib = ra.draw(view, float(t)), rb.draw(view, float(t))
+                    ia = ra.draw(view, float(t))
+                    ib = rb.draw(view, float(t), order=ra.last_order if shared else None)
                     frame = Frame(float(t), index, imgdiff.compare(ia, ib, tolerance))
                     frames.append(frame)
                     if on_frame is not None:

@@ -86,6 +86,8 @@ class Renderer:
         self._path = None
         self._positions = None
         self._count = 0
+        #: The draw order of the last frame (splat indices, front to back).
+        self.last_order = None
         self.fbo = None
         self._resize(width, height)
 
@@ -152,7 +154,13 @@ class Renderer:
         self._texture.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
         self._texture.repeat_x = self._texture.repeat_y = False
 
-    def draw(self, view: View, time: float, times: FrameTimes | None = None) -> np.ndarray:
+    @property
+    def positions(self) -> np.ndarray:
+        """Positions of the loaded records, ``(R, 3) float32``: what the depth sort reads."""
+        return self._positions
+
+    def draw(self, view: View, time: float, times: FrameTimes | None = None,
+             order: np.ndarray | None = None) -> np.ndarray:
         """Render one frame.
 
         Parameters
@@ -164,6 +172,9 @@ class Renderer:
             Scene time (the viewer plays [0, 1]).
         times : FrameTimes, optional
             Filled with sort, upload and draw seconds.
+        order : (R,) int32 ndarray, optional
+            The draw order, when already known: ``viewer_order`` of the same
+            positions and view (another renderer's :attr:`last_order`).
 
         Returns
         -------
@@ -177,7 +188,8 @@ class Renderer:
         if (view.width, view.height) != (self.width, self.height):
             self._resize(view.width, view.height)
         t0 = _time.perf_counter()
-        order = viewer_order(self._positions, view.view_proj())
+        order = viewer_order(self._positions, view.view_proj()) if order is None else order
+        self.last_order = order
         t1 = _time.perf_counter()
         if self._index is None or self._index.size != order.nbytes:
             if self._index is not None:

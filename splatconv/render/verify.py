@@ -197,13 +197,22 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
 
     records = converted.records
 
-    def converted_data():
-        if converted.stored is not None:
-            return converted.stored
-        return float_attributes(converted.scene, None, records)
+    # Each callable drops its scene once the rows are built: nothing but the GL
+    # textures is needed while drawing, so the scenes' memory goes back first.
+    def source_data():
+        nonlocal source
+        rows = float_attributes(source.scene, order, records)
+        source = None
+        return rows
 
-    outcome.frames = compare_frames(lambda: float_attributes(source.scene, order, records), converted_data,
-                                    views, times, tolerance=tolerance, progress=progress, on_frame=on_frame)
+    def converted_data():
+        nonlocal converted
+        data = converted.stored if converted.stored is not None else float_attributes(converted.scene, None, records)
+        converted = None
+        return data
+
+    outcome.frames = compare_frames(source_data, converted_data, views, times, tolerance=tolerance,
+                                    progress=progress, on_frame=on_frame)
     return outcome
 
 
