@@ -14,6 +14,7 @@ from .errors import UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
 from .fsutil import atomic_writer, check_output
 from .model import Scene
+from .progress import SILENT
 from .transport import DEFAULT_LEVEL, is_compressed, output_stream, plain_input
 
 #: Record orders a writer takes.
@@ -88,7 +89,7 @@ def _suffixes_taking(compat: str) -> list:
 
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
-          force: bool = False, inputs=(), zstd_level: int | None = None):
+          force: bool = False, inputs=(), zstd_level: int | None = None, progress=SILENT):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -107,6 +108,8 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     zstd_level : int, optional
         Level for a ``.zst`` output (default :data:`splatconv.transport.DEFAULT_LEVEL`);
         the data is compressed as it is written, never held twice.
+    progress : splatconv.progress.Progress
+        Told the splats written as they are written.
 
     Returns
     -------
@@ -119,12 +122,12 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     check_output(path, inputs, force)
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     with atomic_writer(path) as stream, output_stream(stream, path, level) as out:
-        return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT)
+        return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, progress=progress)
 
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
-            zstd_level: int | None = None):
+            zstd_level: int | None = None, progress=SILENT):
     """Read ``source`` and write it to ``output``; formats by suffix.
 
     Parameters
@@ -147,5 +150,6 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         raise UnsupportedError(f"holds no splats; a {module.NAME} file cannot hold an empty scene", source)
     if camera_list is not None:
         scene.cameras = camera_list
-    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level)
+    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
+                   progress=progress)
     return scene, report

@@ -4,13 +4,16 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
 from . import viewer
 from .compare import HALF_MAX, align, group_errors
 from .io import read
-from .transport import DEFAULT_LEVEL
+from .cameras import framing_camera
+from .packing import float_to_half, float_to_half_splatvjs
+from .transport import DEFAULT_LEVEL, compressed_size, plain_input, written_sizes
 from .formats import format_for, splatv
 from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
 from .model import COLOR, COLUMNS, GROUPS, Scene
@@ -185,7 +188,6 @@ def splatvjs_damage(cols: dict) -> dict:
         magnitudes in [2^-136, 2^-126), [2^-120, 2^-109), [2^-88, 2^-77) and
         [2^-56, 2^-45).
     """
-    from .packing import float_to_half, float_to_half_splatvjs
 
     out = {}
     for group in HALF_GROUPS:
@@ -231,9 +233,7 @@ def _texture_columns(cols: dict) -> dict:
 
 def _sizes(path: str, level: int) -> tuple:
     """(bytes, zstd bytes at ``level``) of a file's content: a ``.zst`` file's decompressed."""
-    import os
 
-    from .transport import compressed_size, plain_input
 
     with plain_input(path) as plain:
         return os.path.getsize(plain), compressed_size(plain, level)
@@ -261,8 +261,6 @@ def _simulated_conversion(source: Scene, level: int) -> tuple:
     then encoded again in memory to decode: two uncompressed copies of it never
     exist at once.
     """
-    from .cameras import framing_camera
-    from .transport import written_sizes
 
     size, zstd_bytes = written_sizes(lambda out: splatv.write(source, out), level)
     records, _ = splatv.encode(source)

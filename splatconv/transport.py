@@ -10,6 +10,10 @@ import contextlib
 import os
 import tempfile
 
+import zstandard
+
+from .errors import FormatError, SplatconvError
+
 #: Default zstd level for reports and ``.zst`` output: 19, zstd's highest level
 #: before the "ultra" ones, worth it for files served many times.
 DEFAULT_LEVEL = 19
@@ -42,7 +46,6 @@ class _Tee:
 
 def compressor(level: int = DEFAULT_LEVEL):
     """The ``zstandard.ZstdCompressor`` every ``.zst`` output and size goes through."""
-    import zstandard
 
     # threads=-1: one worker per core; the frame is the same format either way.
     return zstandard.ZstdCompressor(level=level, threads=-1, write_content_size=True)
@@ -97,13 +100,11 @@ def plain_input(path):
     memory maps of it stay valid on POSIX), so a large scene never sits in memory
     twice. Errors raised inside name ``path``, not the temporary file.
     """
-    from .errors import FormatError, SplatconvError
 
     path = os.fspath(path)
     if not is_compressed(path):
         yield path
         return
-    import zstandard
 
     suffix = os.path.splitext(inner_name(path))[1]
     fd, tmp = tempfile.mkstemp(prefix="splatconv-", suffix=suffix)

@@ -96,13 +96,13 @@ INVALID_CASES = [
 
 
 @pytest.mark.parametrize("name,data,message", INVALID_CASES, ids=[c[0] for c in INVALID_CASES])
-def test_invalid_input_gives_one_error_line(tmp_path, name, data, message):
+def test_invalid_input_gives_one_error_line(monkeypatch, tmp_path, name, data, message):
     src = tmp_path / name
     src.write_bytes(data)
     out = tmp_path / ("out.ply" if name.endswith(".splatv") else "out.splatv")
     if name == "empty.splatv":
         out = tmp_path / "out.splatv"
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     result = CliRunner().invoke(main, ["convert", name, out.name])
     assert result.exit_code == 1, result.output
     assert result.stderr == f"Error: {name}: {message}\n"
@@ -237,10 +237,10 @@ def test_lossy_steps_are_reported(tmp_path):
     cols["f_dc_1"][1] = 1.5
     p = write_ply(tmp_path / "l.ply", cols)
     r = run("convert", p, tmp_path / "l.splatv")
-    assert "note: scale_0: 1 values past the half-float range saturated to +-65504" in r.stderr
-    assert "note: color: 1 values outside [0, 1] clamped" in r.stderr
+    assert "note: scale_0: 1 value past the half-float range saturated to +-65504" in r.stderr
+    assert "note: color: 1 value outside [0, 1] clamped" in r.stderr
     r = run("convert", p, tmp_path / "j.splatv", "--compat", "splatv-js")
-    assert "note: scale_0: 1 values past the half-float range became infinity (splaTV's converter)" in r.stderr
+    assert "note: scale_0: 1 value past the half-float range became infinity (splaTV's converter)" in r.stderr
 
 
 def test_help_for_every_command():
@@ -366,3 +366,39 @@ def test_info_takes_several_files(tmp_path, sample_splatv, lite_ply):
     common = {"path", "format", "variant", "count", "texture", "cameras", "time_range", "visible_time_range",
               "visible_always", "bounds", "nonfinite", "notes"}
     assert common <= set(data[0]) and common <= set(data[1])
+
+
+def _stderr_on_a_terminal(args, cwd):
+    """Run ``python -m splatconv ARGS`` with stderr on a pseudo-terminal; what it wrote there."""
+    import pty
+    import subprocess
+
+    master, slave = pty.openpty()
+    proc = subprocess.run([sys.executable, "-m", "splatconv", *args], stderr=slave, stdout=subprocess.PIPE,
+                          cwd=cwd)
+    os.close(slave)
+    out = b""
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:
+            break
+        if not chunk:
+            break
+        out += chunk
+    os.close(master)
+    assert proc.returncode == 0, out
+    return out.decode()
+
+
+def test_progress_shows_on_a_terminal_and_not_with_quiet_or_in_a_pipe(tmp_path, lite_ply):
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    shown = _stderr_on_a_terminal(["convert", str(lite_ply), str(tmp_path / "a.splatv")], root)
+    assert "writing:" in shown and "splats" in shown
+    assert shown.count("\r\x1b[K") >= 1  # the bar is cleared when its stage ends
+    quiet = _stderr_on_a_terminal(["convert", "--quiet", str(lite_ply), str(tmp_path / "b.splatv")], root)
+    assert "writing:" not in quiet
+    piped = run("convert", lite_ply, tmp_path / "c.splatv")
+    assert piped.exit_code == 0 and "writing:" not in piped.stderr

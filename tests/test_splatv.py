@@ -501,3 +501,20 @@ def test_ply_writer_writes_row_tables_whole_with_the_same_bytes(tmp_path, sort):
     body = np.frombuffer(out.getvalue()[-500 * 128:], ply.LITE_DTYPE)
     assert not body["ny"].any() and np.array_equal(body["x"] if sort is None else np.sort(body["x"]),
                                                    full["x"] if sort is None else np.sort(full["x"]))
+
+
+def test_a_logarithm_that_reads_back_as_itself_is_not_reported_lossy(tmp_path):
+    """exp(log 65504) rounds past the half range, yet the record reads back the same: no note."""
+    import io as _io
+
+    from splatconv.model import COLUMNS, Scene
+
+    n = 4
+    cols = {c: np.zeros(n, np.float32) for c in COLUMNS}
+    cols["rot_0"][:] = 1
+    cols["scale_0"][:] = splatv.LOG_OF_HALF[0x7BFF]  # what a .splatv holding 65504 reads as
+    cols["trbf_scale"][:] = splatv.LOG_OF_HALF[0x7BFF]
+    cols["scale_1"][0] = np.float32(20.0)  # exp(20) is truly past the range
+    report = splatv.write(Scene(columns=cols, cameras=[]), _io.BytesIO())
+    lossy = [note for note in report.notes if "half-float range" in note]
+    assert lossy == ["scale_1: 1 value past the half-float range saturated to +-65504"]

@@ -52,7 +52,7 @@ def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, f
       splatconv convert scene.splatv scene.ply
     """
     scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                               force=force, zstd_level=zstd_level)
+                               force=force, zstd_level=zstd_level, progress=progress(quiet))
     notes(scene.notes)
     notes(report.notes)
     size = os.path.getsize(output_path)

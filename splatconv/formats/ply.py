@@ -22,6 +22,7 @@ from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, Scene, constant_column
+from ..progress import SILENT
 from ..viewer import importance, importance_order
 from .base import WriteReport
 
@@ -272,7 +273,7 @@ def header_bytes(count: int, cameras) -> bytes:
 BLOCK = 1 << 16
 
 
-def write(scene: Scene, stream, *, sort: str | None = None, **_options):
+def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_options):
     """Write ``scene`` in the Spacetime Gaussians lite layout (float32 LE, normals 0).
 
     Parameters
@@ -294,20 +295,24 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options):
         order = importance_order(importance(scene.columns))
     stream.write(header_bytes(n, scene.cameras))
     rows = _lite_rows_of(scene)
-    if rows is not None:
-        # The columns are fields of rows already in the written layout: write them whole.
+    with progress.stage("writing", n, "splat") as advance:
+        if rows is not None:
+            # The columns are fields of rows already in the written layout: write them whole.
+            for start in range(0, n, BLOCK):
+                block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK],
+                                                                               axis=0)
+                stream.write(memoryview(block))
+                advance(len(block))
+            return report
+        block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
         for start in range(0, n, BLOCK):
-            block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK], axis=0)
-            stream.write(memoryview(block))
-        return report
-    block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
-    for start in range(0, n, BLOCK):
-        stop = min(start + BLOCK, n)
-        rows = slice(start, stop) if order is None else order[start:stop]
-        out = block[: stop - start]
-        for name in COLUMNS:
-            out[name] = np.asarray(scene.columns[name])[rows]
-        stream.write(memoryview(out).cast("B"))
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            out = block[: stop - start]
+            for name in COLUMNS:
+                out[name] = np.asarray(scene.columns[name])[rows]
+            stream.write(memoryview(out).cast("B"))
+            advance(stop - start)
     return report
 
 

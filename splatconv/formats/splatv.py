@@ -18,9 +18,11 @@ from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input
 from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
+from ..progress import SILENT
 from . import splatv_engine as engine
 from .base import WriteReport
-from .splatv_layout import (COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
+from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, LOG_OF_HALF, LOGIT_OF_BYTE, _sigmoid255,
+                            COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
                             MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXWIDTH,
                             WORDS_PER_SPLAT, header_bytes, texture_bytes, texture_height)
 
@@ -40,90 +42,17 @@ DYNAMIC = True
 STORES_TEXTURE = True
 
 __all__ = ["NAME", "SUFFIXES", "read", "write", "encode", "info_fields", "read_records", "decode_records",
-           "read_texture", "header_bytes", "texture_height", "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW", "WORDS_PER_SPLAT",
-           "RECORD_BYTES", "HALF_WORDS", "POSITION_WORDS", "COLOR_WORD", "EXP_ATTRIBUTES", "MAGIC", "PREAMBLE"]
-
-#: Logit written for alpha bytes 0 and 255 (kept finite): sigmoid(-40)*255 is
-#: below 1e-15 and sigmoid(40)*255 is exactly 255.0 in double precision, so both
-#: writers (rounding and truncating) give the byte back.
-ALPHA_LOGIT_LIMIT = np.float32(40.0)
-
-# --------------------------------------------------------------------------
-# Inverse tables: texture value -> model value, chosen so that both writers
-# give the same texture value back.
-
-
-def _nudge_up(start: np.ndarray, ok) -> np.ndarray:
-    """Smallest float32 at or above ``start`` (element-wise) where ``ok`` holds.
-
-    A handful of ulp steps always suffices for the tables below; the loop runs
-    over steps, not values.
-    """
-    value = start.astype(np.float32)
-    for _ in range(64):
-        bad = ~ok(value)
-        if not bad.any():
-            return value
-        value[bad] = np.nextafter(value[bad], np.float32(np.inf))
-    raise AssertionError("inverse table did not converge")  # pragma: no cover
-
-
-def _log_table() -> np.ndarray:
-    """Model value (a logarithm) for each half stored in an exp() slot."""
-    v = packing.HALF_TO_FLOAT
-    bits = np.arange(1 << 16, dtype=np.uint32)
-    table = np.full(1 << 16, np.nan, dtype=np.float32)
-    pos = (bits & packing.HALF_SIGN_BIT == 0) & np.isfinite(v) & (v > 0)
-    target = v[pos].astype(np.float64)
-    with np.errstate(divide="ignore"):
-        start = np.log(target)
-    # float32(exp(L)) >= v makes truncation give v back; rounding does too since
-    # each step moves exp(L) by far less than half a half-ulp.
-    table[pos] = _nudge_up(start, lambda L: np.exp(L.astype(np.float64)).astype(np.float32) >= target)
-    table[bits == 0] = -np.inf
-    table[bits == packing.HALF_SIGN_BIT] = -np.inf  # -0 has no logarithm; exp(-inf) gives +0 (reported)
-    table[bits == packing.HALF_INF_BITS] = np.inf
-    nan = np.isnan(v)
-    table[nan] = v[nan]  # NaN passes through both ways with its payload
-    table.flags.writeable = False
-    return table
-
-
-def _color_table() -> np.ndarray:
-    """Model colour for each byte: smallest float32 f >= c/255 with f*255 >= c."""
-    c = np.arange(256, dtype=np.float64)
-    table = _nudge_up(c / 255.0, lambda f: f.astype(np.float64) * 255.0 >= c)
-    table.flags.writeable = False
-    return table
-
-
-def _sigmoid255(logit: np.ndarray) -> np.ndarray:
-    """Alpha byte value before rounding, computed the way splaTV's JS does (double)."""
-    return 1.0 / (1.0 + np.exp(-np.asarray(logit, dtype=np.float64))) * 255.0
-
-
-def _alpha_table() -> np.ndarray:
-    """Model opacity (a logit) for each alpha byte."""
-    a = np.arange(1, 255, dtype=np.float64)
-    p = a / 255.0
-    # A margin of 1e-9 above the byte keeps truncation safe from a last-bit
-    # difference between this libm's exp and a browser's.
-    mid = _nudge_up(np.log(p / (1.0 - p)), lambda L: _sigmoid255(L) >= a + 1e-9)
-    table = np.concatenate([[-ALPHA_LOGIT_LIMIT], mid, [ALPHA_LOGIT_LIMIT]]).astype(np.float32)
-    table.flags.writeable = False
-    return table
-
-
-LOG_OF_HALF = _log_table()
-COLOR_OF_BYTE = _color_table()
-LOGIT_OF_BYTE = _alpha_table()
+           "read_texture", "header_bytes", "texture_height", "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW",
+           "WORDS_PER_SPLAT", "RECORD_BYTES", "HALF_WORDS", "POSITION_WORDS", "COLOR_WORD", "EXP_ATTRIBUTES",
+           "MAGIC", "PREAMBLE", "LOG_OF_HALF", "COLOR_OF_BYTE", "LOGIT_OF_BYTE", "ALPHA_LOGIT_LIMIT"]
 
 
 # --------------------------------------------------------------------------
 # Writing
 
 
-def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None) -> WriteReport:
+def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
+          **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatv``.
 
     Parameters
@@ -149,8 +78,10 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     try:
         cameras = engine.prepare(plan, not scene.cameras, report, pool)
         stream.write(header_bytes(n, cameras or scene.cameras))
-        for block in engine.blocks(plan, report, pool):
-            stream.write(memoryview(block))
+        with progress.stage("writing", n, "splat") as advance:
+            for block in engine.blocks(plan, report, pool):
+                stream.write(memoryview(block))
+                advance(len(block))
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
@@ -186,20 +117,24 @@ def encode(scene: Scene, *, compat: str | None = None, sort: str | None = None):
     return records, report
 
 
+def _values(count: int, noun: str = "value") -> str:
+    return f"{count:,} {noun}" + ("" if count == 1 else "s")
+
+
 def _write_notes(report: WriteReport, compat: bool) -> list:
     notes = []
     for name, c in report.half.items():
         if c.overflow:
             what = "became infinity (splaTV's converter)" if compat else "saturated to +-65504"
-            notes.append(f"{name}: {c.overflow} values past the half-float range {what}")
+            notes.append(f"{name}: {_values(c.overflow)} past the half-float range {what}")
         if c.underflow:
-            notes.append(f"{name}: {c.underflow} nonzero values became zero")
+            notes.append(f"{name}: {_values(c.underflow, 'nonzero value')} became zero")
     for key, count in report.clamped.items():
         if count:
-            notes.append(f"{key}: {count} values outside [0, 1] clamped")
+            notes.append(f"{key}: {_values(count)} outside [0, 1] clamped")
     for key, count in report.nan_bytes.items():
         if count:
-            notes.append(f"{key}: {count} NaN values written as 0")
+            notes.append(f"{key}: {_values(count, 'NaN value')} written as 0")
     return notes
 
 

@@ -40,7 +40,7 @@ from ..cameras import camera_for_box, framing_box
 from ..model import COLUMNS, row_fields
 from ..viewer import importance, importance_order_into
 from .base import WriteReport
-from .splatv_layout import COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, POSITION_WORDS, WORDS_PER_SPLAT
+from .splatv_layout import COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, LOG_OF_HALF, POSITION_WORDS, WORDS_PER_SPLAT
 
 #: Rows packed at a time: long numpy calls, few GIL hand-overs.
 BLOCK = 1 << 14
@@ -321,6 +321,12 @@ def _exceptions(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, listed: 
     if not compat and len(nan_at):
         half[nan_at] = packing.float_to_half_exact(nan_logs)[0]
     halves[rows, cols] = half
+    # A logarithm that reads back as itself lost nothing, though exp() of it
+    # rounds past the half range: exp(log 65504) is 65504.000000000015.
+    at = at[~nan]
+    if len(at):
+        same = LOG_OF_HALF[half[at]].view(np.uint32) == logs[rows[at], _LOG_INDEX[cols[at]]].view(np.uint32)
+        overflow[at[same]] = False
     for what, mask in (("overflow", overflow), ("underflow", underflow), ("nonfinite", nonfinite)):
         per_column = np.bincount(cols[mask], minlength=_WIDTH)
         for col in np.flatnonzero(per_column):

@@ -7,6 +7,7 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from ..errors import FormatError, UnsupportedError
 
@@ -80,7 +81,6 @@ def is_image(path) -> bool:
 
 def load_image(path) -> np.ndarray:
     """An image file as ``(H, W, 3) uint8`` RGB (alpha dropped, palette expanded)."""
-    from PIL import Image, UnidentifiedImageError
 
     path = os.fspath(path)
     try:
@@ -94,6 +94,5 @@ def load_image(path) -> np.ndarray:
 
 def save_png(img: np.ndarray, stream) -> None:
     """Write ``(H, W, 3+) uint8`` RGB to an open binary stream as PNG (use an atomic writer)."""
-    from PIL import Image
 
     Image.fromarray(np.ascontiguousarray(img[..., :3]), "RGB").save(stream, format="PNG")

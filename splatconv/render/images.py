@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from PIL import Image, ImageDraw
 
 #: Output kinds by suffix, for a sweep of several frames.
 ANIMATED = (".gif", ".webp")
@@ -12,8 +13,6 @@ STILL = (".png",)
 
 
 def _image(frame: np.ndarray):
-    from PIL import Image
-
     return Image.fromarray(np.ascontiguousarray(frame[:, :, :3]), "RGB")
 
 
@@ -42,8 +41,6 @@ def save(frames, times, stream, suffix: str, fps: float = 10.0) -> tuple:
     (int, int)
         Width and height of the image written (of the sheet, for a sheet).
     """
-    from PIL import Image, ImageDraw
-
     suffix = suffix.lower()
     frames = iter(frames)
     if len(times) == 1 and suffix in STILL:

@@ -31,8 +31,8 @@ def shader_source(name: str) -> str:
 
 
 def vertex_source(path: str) -> str:
-    """The vertex shader for ``path`` ``"splatv"`` (quantized texture) or ``"float"``."""
-    fetch = {"splatv": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
+    """The vertex shader for ``path`` ``"texture"`` (the stored, quantized texture) or ``"float"``."""
+    fetch = {"texture": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
     return "\n".join(shader_source(n) for n in ("splat_head.glsl", fetch, "splat_main.glsl"))
 
 
@@ -79,7 +79,7 @@ class Renderer:
         self.ctx = ctx or create_context()
         frag = shader_source("splat.frag")
         self._programs = {p: self.ctx.program(vertex_shader=vertex_source(p), fragment_shader=frag)
-                          for p in ("splatv", "float")}
+                          for p in ("texture", "float")}
         self._quad = self.ctx.buffer(_QUAD.tobytes())
         self._index = None
         self._texture = None
@@ -124,7 +124,7 @@ class Renderer:
         self._set_texture((TEXWIDTH, rows), records, "u4")
         self._positions = records[:, 0:3].view(np.float32).copy()
         self._count = len(records)
-        self._path = "splatv"
+        self._path = "texture"
         return _time.perf_counter() - t0
 
     def load_float(self, texels: np.ndarray) -> float:
@@ -204,7 +204,7 @@ class Renderer:
         prog["viewport"].value = (view.width, view.height)
         prog["time"].value = time
         self._texture.use(0)
-        sampler = "u_texture" if self._path == "splatv" else "u_ftexture"
+        sampler = "u_texture" if self._path == "texture" else "u_ftexture"
         prog[sampler].value = 0
         self.ctx.finish()
         t2 = _time.perf_counter()
