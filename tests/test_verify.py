@@ -476,7 +476,7 @@ def test_verify_and_diff_report_progress(faithful):
 
     rec = Recorder()
     verify(SAMPLE, faithful, times=[0.2, 0.4, 0.6], cameras="0,1", size=(32, 18), progress=rec)
-    assert rec.stages == [["reading", 2, "file", 2], ["checking attributes", None, "it", 0],
+    assert rec.stages == [["reading", 2, "file", 2], ["checking attributes", 2, "step", 2],
                           ["drawing", 6, "frame", 6]]
     rec = Recorder()
     diff_files(SAMPLE, faithful, size="32x18", progress=rec)

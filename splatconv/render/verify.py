@@ -178,9 +178,11 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         advance()
         converted = load(paths[1], color=color)
         advance()
-    with progress.stage("checking attributes"):
+    with progress.stage("checking attributes", 2, "step") as advance:
         order = align(source.scene, converted.scene, *paths)
+        advance()
         attributes = compare_scenes(source.scene, converted.scene, order)
+        advance()
     available = cameras_of(source, converted)
     indices = parse_cameras(cameras, len(available))
     outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=source.scene.count)
