@@ -105,6 +105,7 @@ class GroupError:
     compared: int  # pairs finite on both sides
     values: int = 0  # values in the group: splats x components
     became_infinite: int = 0  # finite source values stored as infinity (part of unexplained)
+    nonfinite_changed: int = 0  # NaN or infinite source values stored as something else (part of unexplained)
     nan_stored: int = 0  # NaN source values stored as numbers by a byte that cannot hold NaN (explained)
 
 
@@ -117,8 +118,8 @@ def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupEr
     a = viewer.group_values(source_cols, group)
     b = viewer.group_values(converted_cols, group)
     both = np.isfinite(a) & np.isfinite(b)
-    err = np.abs(np.where(both, a - b, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # inf - inf before the mask
+        err = np.abs(np.where(both, a - b, 0.0))
         rel = np.where(both & (a != 0), err / np.abs(a), 0.0)
     bound = quantization_bound(group, np.where(both, a, 0.0))
     # Finite values past the half range saturate (or become infinite in splaTV's
@@ -132,7 +133,7 @@ def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupEr
     return GroupError(group, float(err.max()) if err.size else 0.0, float(rel.max()) if rel.size else 0.0,
                       float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n,
                       values=int(a.size), became_infinite=int((bad & np.isfinite(a) & np.isinf(b)).sum()),
-                      nan_stored=int(nan_stored.sum()))
+                      nonfinite_changed=int((bad & ~np.isfinite(a)).sum()), nan_stored=int(nan_stored.sum()))
 
 
 #: Rows compared per step: bounds the float64 temporaries of group_errors (a few MB a column).
@@ -167,4 +168,5 @@ def _merge(parts: list) -> GroupError:
                       float(np.sqrt(square_sum / compared)) if compared else 0.0,
                       sum(p.unexplained for p in parts), max(p.worst_bound for p in parts), compared,
                       values=sum(p.values for p in parts), became_infinite=sum(p.became_infinite for p in parts),
+                      nonfinite_changed=sum(p.nonfinite_changed for p in parts),
                       nan_stored=sum(p.nan_stored for p in parts))

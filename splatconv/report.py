@@ -99,15 +99,18 @@ def attributes_text(data: dict) -> str:
 
 
 def _drift_text(name: str, g: dict) -> str:
+    """What drifted in one attribute: values made infinite, non-finite values changed, the rest."""
     parts = []
+    of = f"of {_count(g['values'], 'value')}"
     if g["became_infinite"]:
-        parts.append(f"{g['became_infinite']:,} of {_count(g['values'], 'value')} became infinite "
-                     f"(finite in the source)")
-    off = g["unexplained"] - g["became_infinite"]
+        parts.append(f"{g['became_infinite']:,} {of} became infinite (finite in the source)")
+    if g["nonfinite_changed"]:
+        parts.append(f"{g['nonfinite_changed']:,} {'' if parts else of + ' '}that were NaN or infinite in the "
+                     f"source were stored as something else")
+    off = g["unexplained"] - g["became_infinite"] - g["nonfinite_changed"]
     if off:
-        what = "more" if parts else f"of {_count(g['values'], 'value')}"
-        parts.append(f"{off:,} {what} off by more than quantization explains (largest error between finite "
-                     f"values {g['max_abs_error']:.4g}, relative {100 * g['max_rel_error']:.3g}%)")
+        parts.append(f"{off:,} {'more' if parts else of} off by more than quantization explains (largest error "
+                     f"between finite values {g['max_abs_error']:.4g}, relative {100 * g['max_rel_error']:.3g}%)")
     return f"FAIL: {name} drifted: " + "; ".join(parts)
 
 

@@ -130,7 +130,8 @@ def test_json_shape(faithful):
     assert set(data["attributes"]) == {"position", "rotation", "scale", "color", "opacity", "motion", "omega",
                                       "trbf"}
     assert set(data["attributes"]["scale"]) == {"max_abs_error", "max_rel_error", "rmse", "unexplained",
-                                                "became_infinite", "nan_stored", "compared", "values", "ok"}
+                                                "became_infinite", "nonfinite_changed", "nan_stored", "compared",
+                                                "values", "ok"}
     assert data["attributes"]["scale"]["values"] == 3 * 5000
     assert [(f["time"], f["camera"]) for f in data["frames"]] == [(0.25, 0), (0.6, 0)]
     assert list(data["frames"][0]) == ["time", "camera", "psnr", "identical", "max_abs_error", "mean_abs_error",
@@ -513,3 +514,23 @@ def test_attribute_check_in_row_blocks_gives_the_whole_scenes_figures(faithful, 
         assert (b.max_abs_error, b.max_rel_error, b.unexplained, b.compared, b.values) == (
             e.max_abs_error, e.max_rel_error, e.unexplained, e.compared, e.values)
         assert b.rmse == pytest.approx(e.rmse, rel=1e-9)
+
+
+def test_nonfinite_values_that_splatvjs_changes_are_called_so(tmp_path):
+    # splaTV's converter writes NaN as infinity: the verdict says so instead of an error of 0.
+    from .conftest import random_columns
+
+    cols = random_columns(3000, seed=11)
+    cols["omega_0"][:50] = np.nan
+    cols["motion_0"][:20] = np.float32(40000.0)
+    src = _scene_file(tmp_path, "s.ply", cols)
+    out = _convert(src, tmp_path / "js.splatv", "--compat", "splatv-js")
+    data = json.loads(run("verify", src, out, *TINY, "--json").stdout)
+    omega, motion = data["attributes"]["omega"], data["attributes"]["motion"]
+    assert (omega["unexplained"], omega["nonfinite_changed"], omega["became_infinite"]) == (50, 50, 0)
+    assert (motion["unexplained"], motion["nonfinite_changed"], motion["became_infinite"]) == (20, 0, 20)
+    verdict = run("verify", src, out, *TINY).stdout.split("\n\n")[-1].splitlines()
+    assert verdict[:2] == [
+        "FAIL: motion drifted: 20 of 27,000 values became infinite (finite in the source)",
+        "FAIL: omega drifted: 50 of 12,000 values that were NaN or infinite in the source were stored as "
+        "something else"]

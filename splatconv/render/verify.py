@@ -131,7 +131,8 @@ class Outcome:
         if self.attributes is not None:
             out["attributes"] = {g.group: {
                 "max_abs_error": g.max_abs_error, "max_rel_error": g.max_rel_error, "rmse": g.rmse,
-                "unexplained": g.unexplained, "became_infinite": g.became_infinite, "nan_stored": g.nan_stored,
+                "unexplained": g.unexplained, "became_infinite": g.became_infinite,
+                "nonfinite_changed": g.nonfinite_changed, "nan_stored": g.nan_stored,
                 "compared": g.compared, "values": g.values, "ok": not g.unexplained,
             } for g in self.attributes.values()}
         worst = self.worst
