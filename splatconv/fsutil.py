@@ -310,6 +310,86 @@ def exit_on_signals() -> None:
             signal.signal(signum, _exit_for_signal)
 
 
+class AtomicGroup:
+    """Several outputs written all or nothing; see :func:`atomic_group`."""
+
+    def __init__(self, replace: bool = True):
+        self.replace = replace
+        self._staged = []  # (temporary path, output path)
+        self._locks = []  # descriptors holding the part files' locks
+
+    @contextlib.contextmanager
+    def open(self, output: str | os.PathLike):
+        """A binary file to write ``output``'s content to: a temporary file beside it until the group ends."""
+        output = os.fspath(output)
+        parent = os.path.dirname(os.path.abspath(output))
+        remove_stale_parts(output)
+        held = hold_signals()  # a signal between creating the part and recording it would leave it behind
+        try:
+            fd, tmp = _locked_part(output, parent)
+            # Held (locked) until the group ends, so no other run takes it for a dead one's.
+            self._locks.append(os.dup(fd))
+        except BaseException:
+            release_signals(held)
+            raise
+        self._staged.append((tmp, output))
+        release_signals(held)
+        try:
+            with os.fdopen(fd, "wb") as f:
+                yield f
+        except OSError as e:
+            if e.filename in (None, tmp):
+                e.filename, e.filename2 = output, None
+            raise
+
+
+@contextlib.contextmanager
+def atomic_group(replace: bool = True):
+    """Write several files all or nothing (e.g. a numbered frame sequence).
+
+    Each file is written to a temporary file beside it (:meth:`AtomicGroup.open`);
+    when the block ends without an exception, every temporary file is renamed
+    over its output, else all are removed and no output is touched. (The renames
+    at the end are one system call each: only a failure between them, such as a
+    power cut, could leave some outputs new and some old.)
+
+    With ``replace`` false, an output that appeared since it was checked is not
+    replaced: the group fails there (as :func:`atomic_writer` does).
+
+    Yields
+    ------
+    AtomicGroup
+    """
+    group = AtomicGroup(replace)
+    try:
+        yield group
+        umask = os.umask(0)
+        os.umask(umask)
+        for tmp, output in group._staged:
+            os.chmod(tmp, 0o666 & ~umask)
+        linked = []
+        try:
+            for tmp, output in group._staged:
+                if replace:
+                    os.replace(tmp, output)
+                else:
+                    _link_into_place(tmp, output)
+                    linked.append(output)
+        except BaseException:
+            for output in linked:  # new names this group made a moment ago: none may stay
+                with contextlib.suppress(OSError):
+                    os.unlink(output)
+            raise
+    except BaseException:
+        for tmp, _output in group._staged:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+        raise
+    finally:
+        for lock in group._locks:
+            os.close(lock)
+
+
 #: madvise(2) MADV_POPULATE_READ (Linux 5.14+): map every page of a file mapping now.
 _MADV_POPULATE_READ = getattr(mmap, "MADV_POPULATE_READ", 22 if sys.platform.startswith("linux") else None)
 

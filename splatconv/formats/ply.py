@@ -3,7 +3,8 @@
 Reading accepts binary (either endianness) and ASCII PLY, float or double
 properties (narrowed to float32 once, here), CRLF headers, comments and
 obj_info, any property order, extra properties and extra elements. Writing
-produces the Spacetime Gaussians lite layout, float32 little endian.
+produces the Spacetime Gaussians lite layout or the plain 3DGS layout (SH
+degree 0), float32 little endian.
 """
 
 from __future__ import annotations
@@ -21,13 +22,13 @@ import plyfile
 
 from .. import model
 from ..cameras import validate_cameras
-from ..errors import FormatError, UnsupportedError
+from ..errors import FormatError, UnsupportedError, UsageError
 from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, Scene, constant_column
 from ..progress import SILENT
 from ..viewer import importance, importance_order
-from .base import WriteReport
+from .base import WriteReport, refuse_time_varying
 
 NAME = "ply"
 SUFFIXES = (".ply",)
@@ -568,16 +569,23 @@ def _cameras_from_comments(comments, path: str):
 
 #: Row type of the written lite layout.
 LITE_DTYPE = np.dtype([(name, "<f4") for name in LITE_LAYOUT])
+#: Property order of the written 3DGS layout: SH degree 0 only (the viewer draws
+#: view-independent colour), as 3DGS tools and web viewers read it.
+GS_LAYOUT = model.POSITION + NORMALS + model.COLOR + model.OPACITY + model.SCALE + model.ROTATION
+#: Row type of the written 3DGS layout.
+GS_DTYPE = np.dtype([(name, "<f4") for name in GS_LAYOUT])
+#: Layouts :func:`write` produces, by ``layout=`` name.
+LAYOUTS = {"lite": LITE_LAYOUT, "3dgs": GS_LAYOUT}
 
 
-def header_bytes(count: int, cameras) -> bytes:
-    """The PLY header of a lite file of ``count`` rows."""
+def header_bytes(count: int, cameras, layout: str = "lite") -> bytes:
+    """The PLY header of a file of ``count`` rows in ``layout`` (a :data:`LAYOUTS` name)."""
     lines = ["ply", "format binary_little_endian 1.0"]
     if cameras:
         text = json.dumps(cameras, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
         lines.append("comment " + CAMERA_COMMENT + text)
     lines.append(f"element vertex {count}")
-    lines.extend(f"property float {name}" for name in LITE_LAYOUT)
+    lines.extend(f"property float {name}" for name in LAYOUTS[layout])
     lines.append("end_header")
     return ("\n".join(lines) + "\n").encode("ascii")
 
@@ -585,8 +593,14 @@ def header_bytes(count: int, cameras) -> bytes:
 BLOCK = 1 << 16
 
 
-def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_options):
-    """Write ``scene`` in the Spacetime Gaussians lite layout (float32 LE, normals 0).
+def default_layout(scene: Scene) -> str:
+    """The layout a scene is written in when none is asked: a plain 3DGS scene stays 3DGS, all else lite."""
+    return "3dgs" if scene.variant == model.VARIANT_3DGS else "lite"
+
+
+def write(scene: Scene, stream, *, sort: str | None = None, layout: str | None = None,
+          progress=SILENT, **_options):
+    """Write ``scene`` as a binary little-endian float32 PLY.
 
     Parameters
     ----------
@@ -595,16 +609,26 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_
     sort : {None, "none", "importance"}
         ``importance`` orders rows largest first as the splatv writer does; the
         default keeps the input order.
+    layout : {None, "lite", "3dgs"}
+        ``lite``: the Spacetime Gaussians lite layout (normals 0, RGB in
+        f_dc_0..2). ``3dgs``: the plain 3DGS layout (colour as the degree-0 SH
+        coefficient (rgb - 0.5) / SH_C0, no f_rest, log scales, logit opacity),
+        refused for a scene that moves or fades (see
+        :func:`splatconv.formats.base.refuse_time_varying`). None: 3DGS for a
+        scene read as plain 3DGS, lite otherwise (:func:`default_layout`).
 
     Returns
     -------
     WriteReport
     """
+    layout = layout or default_layout(scene)
+    if layout not in LAYOUTS:
+        raise UsageError(f"unknown PLY layout {layout!r} (expected one of {', '.join(LAYOUTS)})")
+    if layout == "3dgs":
+        return _write_3dgs(scene, stream, sort, progress)
     n = scene.count
     report = WriteReport(count=n)
-    order = None
-    if sort == "importance":
-        order = importance_order(importance(scene.columns))
+    order = _order(scene, sort)
     stream.write(header_bytes(n, scene.cameras))
     rows = _lite_rows_of(scene)
     with progress.stage("writing", n, "splat") as advance:
@@ -626,6 +650,49 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_
             stream.write(memoryview(out).cast("B"))
             advance(stop - start)
     return report
+
+
+def _order(scene: Scene, sort: str | None):
+    """The written row order: None for the input order."""
+    return importance_order(importance(scene.columns)) if sort == "importance" else None
+
+
+def _write_3dgs(scene: Scene, stream, sort: str | None, progress) -> WriteReport:
+    """The plain 3DGS layout; see :func:`write`."""
+    cols = scene.columns
+    refuse_time_varying(cols, "a 3DGS PLY")
+    n = scene.count
+    report = WriteReport(count=n)
+    static_basis = (_all_equal(cols["trbf_center"], model.STATIC_TRBF_CENTER)
+                    and _all_equal(cols["trbf_scale"], model.STATIC_TRBF_SCALE))
+    if n and not static_basis:
+        report.notes.append("trbf: temporal basis dropped (every splat is within half an alpha step of full "
+                            "opacity over the whole clip)")
+    order = _order(scene, sort)
+    stream.write(header_bytes(n, scene.cameras, "3dgs"))
+    block = np.zeros(min(BLOCK, max(n, 1)), dtype=GS_DTYPE)  # normals stay 0
+    with progress.stage("writing", n, "splat") as advance:
+        for start in range(0, n, BLOCK):
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            out = block[: stop - start]
+            for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION:
+                out[name] = np.asarray(cols[name])[rows]
+            for name in model.COLOR:
+                rgb = np.asarray(cols[name])[rows].astype(np.float64)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    out[name] = (rgb - 0.5) / SH_C0
+            stream.write(memoryview(out).cast("B"))
+            advance(stop - start)
+    return report
+
+
+def _all_equal(column, value) -> bool:
+    """Whether every value of ``column`` is ``value`` (a constant column is checked at no cost)."""
+    column = np.asarray(column)
+    if column.ndim == 1 and column.strides[0] == 0:
+        column = column[:1]
+    return bool(np.all(column == value))
 
 
 def _lite_rows_of(scene: Scene):
