@@ -561,3 +561,35 @@ def test_bytes_after_a_list_element_after_the_vertices_are_noted(tmp_path):
     assert splatconv.read(path).notes == ["5 bytes after the last element ignored"]
     path.write_bytes(head + body.tobytes() + faces[:13] + struct.pack("<B4i", 4, 0, 1, 2, 3) + b"\x03junk")
     assert splatconv.read(path).notes == []  # face lists vary: not walked, the tail not checked
+
+
+def test_stale_decompressed_temporaries_are_removed(tmp_path, private_tmp, lite_ply):
+    packed = tmp_path / "s.ply.zst"
+    packed.write_bytes(zstandard.compress(lite_ply.read_bytes()))
+    stale = private_tmp / "splatconv-abcd1234.ply"
+    stale.write_bytes(b"left by a killed run")
+    live = private_tmp / "splatconv-efgh5678.splatv"
+    live.write_bytes(b"being read")
+    other = private_tmp / "splatconv-notours.txt.bak"
+    other.write_bytes(b"x")
+    with open(live, "rb") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        assert run("info", packed).exit_code == 0
+    assert sorted(os.listdir(private_tmp)) == ["splatconv-efgh5678.splatv", "splatconv-notours.txt.bak"]
+
+
+def test_fuzz_finds_element_without_properties_and_signalling_nan_colour(tmp_path):
+    # Found by bench/bench_fuzz.py: an element with no property lines (rows of no bytes),
+    # and a 3DGS colour coefficient that is a signalling NaN (widening it warned).
+    rng = np.random.default_rng(2)
+    cols = {name: rng.normal(0, 1, 6).astype(np.float32) for name in ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2",
+                                                                     "opacity", "scale_0", "scale_1", "scale_2",
+                                                                     "rot_0", "rot_1", "rot_2", "rot_3")}
+    cols["f_dc_1"][2] = np.uint32(0x7FA00000).view(np.float32)  # signalling NaN
+    path = write_ply(tmp_path / "gs.ply", cols)
+    raw = path.read_bytes().replace(b"element vertex", b"element empty 3\nelement vertex", 1)
+    path.write_bytes(raw)
+    scene = splatconv.read(path)  # RuntimeWarnings are errors under pytest
+    assert scene.count == 6 and np.isnan(scene.columns["f_dc_1"][2])
+    r = run("convert", path, tmp_path / "o.splatv")
+    assert r.exit_code == 0, r.output

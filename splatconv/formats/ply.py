@@ -147,8 +147,9 @@ def _minimum_body(layout: _Layout, path: str, file_size: int) -> None:
     body = file_size - layout.header_bytes
     need = 0
     for name, count, row_bytes, props, _list in layout.elements:
-        # At least one byte a value in binary; a digit and a separator in ASCII.
-        row = max(row_bytes, 1) if fmt != "ascii" else 2 * max(props, 1)
+        # At least one byte a value in binary; a digit and a separator in ASCII (a
+        # row of an element without properties: nothing, or an empty line).
+        row = row_bytes if fmt != "ascii" else 2 * props or 1
         need += count * row
         if need > body + (fmt == "ascii"):
             what = f"{count * row} bytes" if fmt != "ascii" else f"at least {count * row - 1} bytes"
@@ -286,6 +287,8 @@ def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: 
         if lengths is None:
             raise FormatError("row 0: unexpected end of file", path, where)
     dtype = _element_dtype(element, byte_order, lengths)
+    if dtype.itemsize == 0:
+        return np.zeros(count, dtype), 0  # an element without properties
     if offset + count * dtype.itemsize <= len(buf):
         rows = buf[offset:offset + count * dtype.itemsize].view(dtype)
         if not has_list or all((rows[f"\n{i}len"] == n).all() for i, n in lengths.items()):
@@ -545,8 +548,9 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
                          "view-independent colour")
     color_mode = color if color != "auto" else ("rgb" if variant == model.VARIANT_LITE else "sh")
     if color_mode == "sh":
-        for name in model.COLOR:
-            columns[name] = (0.5 + SH_C0 * columns[name].astype(np.float64)).astype(np.float32)
+        with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
+            for name in model.COLOR:
+                columns[name] = (0.5 + SH_C0 * columns[name].astype(np.float64)).astype(np.float32)
     cameras = _cameras_from_comments(ply.comments, path)
     meta = {
         "format": ply.text and "ascii" or ("binary_" + ("little" if ply.byte_order == "<" else "big") + "_endian"),
