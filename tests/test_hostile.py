@@ -100,6 +100,10 @@ HOSTILE_CASES = [
     ("varlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
      b"property list uchar float l\nend_header\n" + struct.pack("<fB2f", 1, 2, 0, 0) + struct.pack("<fB", 1, 9),
      "element 'vertex': row 1: unexpected end of file"),
+    ("noend.ply", _LITE_HDR.replace(b"end_header\n", b"") + b"\xbf" * 64,
+     f"bad header: no end_header line in the first {len(_LITE_HDR) - 11 + 64:,} bytes"),
+    ("twovertex.ply", _LITE_HDR.replace(b"end_header\n", b"element vertex 1\nproperty float q\nend_header\n")
+     + _LITE_BODY + bytes(4), "cannot parse: two elements with same name"),
     ("floatlen.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
      b"property list double float l\nend_header\n" + struct.pack("<fd", 1, 1.5) + b"\0" * 8,
      "element 'vertex': property 'l': list length type 'double' is not an integer type"),
@@ -117,6 +121,22 @@ def test_hostile_headers_give_one_error_line(tmp_path, name, data, message):
         r = run(*args)
         assert (r.exit_code, r.stderr) == (1, f"Error: {path}: {message}\n"), r.output
     assert sorted(os.listdir(tmp_path)) == [name]
+
+
+@pytest.mark.parametrize("edit", ["cr", "crlf", "comment", "separator"])
+def test_header_lines_are_split_as_plyfile_splits_them(tmp_path, edit):
+    cols = lite_columns_with_normals(random_columns(4))
+    body = np.zeros(4, ply.LITE_DTYPE)
+    for name in ply.LITE_LAYOUT:
+        body[name] = cols[name]
+    head = {"cr": _LITE_HDR.replace(b"\n", b"\r"), "crlf": _LITE_HDR.replace(b"\n", b"\r\n"),
+            "comment": _LITE_HDR.replace(b"element", b"comment not end_header\nelement", 1),
+            "separator": _LITE_HDR.replace(b"vertex 4", b"vertex 4 \x1c", 1)}[edit]
+    path = tmp_path / "h.ply"
+    path.write_bytes(head + body.tobytes())
+    scene = splatconv.read(path)
+    assert scene.count == 4 and scene.notes == []
+    np.testing.assert_array_equal(scene.columns["x"], cols["x"])
 
 
 def test_texture_without_bytes_or_height_reads_as_no_splats(tmp_path):
