@@ -6,6 +6,7 @@ Used by ``verify`` (is every error explained by quantization?) and by ``stats``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,15 +88,52 @@ class GroupError:
     worst_bound: float  # the bound at the worst unexplained value (or 0)
     compared: int
 
+    def merge(self, other: "GroupError") -> "GroupError":
+        """The errors of both sets of rows together (``other`` another block of the same group)."""
+        n = self.compared + other.compared
+        top = max(self.rmse, other.rmse)
+        # Scaled by the larger: a saturated value's error (up to 1e308) squared would overflow.
+        rmse = top * math.sqrt(((self.rmse / top) ** 2 * self.compared + (other.rmse / top) ** 2 * other.compared)
+                               / n) if n and top else 0.0
+        return GroupError(self.group, max(self.max_abs_error, other.max_abs_error),
+                          max(self.max_rel_error, other.max_rel_error), rmse,
+                          self.unexplained + other.unexplained, max(self.worst_bound, other.worst_bound), n)
+
 
 def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupError:
-    """Error statistics of one group over finite pairs; NaN must stay NaN."""
-    a = viewer.group_values(source_cols, group)
-    b = viewer.group_values(converted_cols, group)
+    """Error statistics of one group over finite pairs; NaN must stay NaN.
+
+    Parameters
+    ----------
+    source_cols, converted_cols : dict of str to (N,) ndarray
+        Model columns, row i of one matching row i of the other.
+    group : str
+        A key of :data:`splatconv.model.GROUPS`.
+    """
+    return value_errors(viewer.group_values(source_cols, group), viewer.group_values(converted_cols, group), group)
+
+
+def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
+    """:func:`group_errors` of values already in viewer units.
+
+    Parameters
+    ----------
+    a, b : (N, k) float64 ndarray
+        ``viewer.group_values`` of source and converted rows.
+    group : str
+
+    Notes
+    -----
+    Differences and ratios are taken only where both values are finite (``where=``
+    masks, not ``np.where`` after the fact): inf - inf or NaN would warn.
+    """
     both = np.isfinite(a) & np.isfinite(b)
-    err = np.abs(np.where(both, a - b, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rel = np.where(both & (a != 0), err / np.abs(a), 0.0)
+    err = np.zeros(a.shape, dtype=np.float64)
+    np.subtract(a, b, out=err, where=both)
+    np.abs(err, out=err)
+    rel = np.zeros(a.shape, dtype=np.float64)
+    with np.errstate(over="ignore"):  # an error past 1e308 times a float64-subnormal value: inf is the truth
+        np.divide(err, np.abs(a), out=rel, where=both & (a != 0))
     bound = quantization_bound(group, np.where(both, a, 0.0))
     # Finite values past the half range saturate (or become infinite in splaTV's
     # converter); NaN stays NaN. Both are lossy but expected, counted elsewhere.
@@ -104,8 +142,10 @@ def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupEr
     bad = ~(both & (err <= bound)) & ~over & ~same_special
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
-    return GroupError(group, float(err.max()) if err.size else 0.0, float(rel.max()) if rel.size else 0.0,
-                      float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n)
+    top = float(err.max()) if err.size else 0.0
+    # Scaled by the largest error: a saturated value's error (up to 1e308) squared would overflow.
+    rmse = top * math.sqrt(float(np.square(err[both] / top).mean())) if n and top else 0.0
+    return GroupError(group, top, float(rel.max()) if rel.size else 0.0, rmse, int(bad.sum()), worst, n)
 
 
 def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None) -> dict:
