@@ -33,13 +33,23 @@ def _visible_text(info: dict) -> str:
     return _fmt_range(r)
 
 
+def _detail_text(value) -> str:
+    if isinstance(value, list):
+        return ", ".join(_detail_text(v) for v in value) if value else "none"
+    if isinstance(value, dict):
+        return " ".join(f"{k} {_detail_text(v)}" for k, v in value.items())
+    return str(value)
+
+
 def info_text(info: dict) -> str:
     """Human-readable ``info`` output, one fact per line."""
+    details = dict(info["details"])
+    ply_format, color = details.pop("ply_format", None), details.pop("color", None)
     lines = [
         f"file:      {info['path']} ({plural(info['file_bytes'], 'byte')}"
         + (f", {info['compressed_bytes']:,} zstd-compressed)" if info.get("compressed_bytes") else ")"),
-        f"format:    {info['format']}" + (f" ({info['ply_format']})" if info.get("ply_format") else ""),
-        f"variant:   {info['variant']}" + (f", colour read as {info['color']}" if info.get("color") else ""),
+        f"format:    {info['format']}" + (f" ({ply_format})" if ply_format else ""),
+        f"variant:   {info['variant']}" + (f", colour read as {color}" if color else ""),
         f"count:     {plural(info['count'], 'splat')}",
     ]
     tex = info["texture"]
@@ -59,13 +69,17 @@ def info_text(info: dict) -> str:
         hi = ", ".join(f"{v:.4g}" for v in b["max"])
         lines.append(f"bounds:    min ({lo})  max ({hi})")
     bad = {k: v for k, v in info["nonfinite"].items() if v}
-    lines.append("nonfinite: " + (", ".join(f"{k} {v}" for k, v in bad.items()) if bad else "none"))
-    if info.get("ignored_properties"):
-        lines.append("ignored:   " + ", ".join(info["ignored_properties"]))
-    if info.get("extra_elements"):
-        lines.append("elements:  also " + ", ".join(info["extra_elements"]) + " (ignored)")
-    if info.get("chunks") and len(info["chunks"]) > 1:
-        lines.append("chunks:    " + ", ".join(f"{c['type']} ({c['size']:,} bytes)" for c in info["chunks"]))
+    lines.append("nonfinite: " + (", ".join(f"{k} {v:,}" for k, v in bad.items()) if bad else "none"))
+    ignored, extra = details.pop("ignored_properties", None), details.pop("extra_elements", None)
+    if ignored:
+        lines.append("ignored:   " + ", ".join(ignored))
+    if extra:
+        lines.append("elements:  also " + ", ".join(extra) + " (ignored)")
+    chunks = details.pop("chunks", None)
+    if chunks and len(chunks) > 1:
+        lines.append("chunks:    " + ", ".join(f"{c['type']} ({plural(c['size'], 'byte')})" for c in chunks))
+    for key, value in details.items():  # a format's other facts, as they come
+        lines.append(f"{key + ':':<10} {_detail_text(value)}")
     for note in info["notes"]:
         lines.append(f"note:      {note}")
     return "\n".join(lines)

@@ -28,27 +28,32 @@ def _finite_range(values: np.ndarray):
     return [float(v.min()), float(v.max())]
 
 
+#: Version of the ``info`` JSON (``specs/json.md``); raised when a key changes meaning or goes.
+INFO_SCHEMA = "splatconv.info/1"
+
+
 def describe(scene: Scene, path: str, module) -> dict:
-    """Facts about a scene file, as JSON-able data.
+    """Facts about a scene file, as JSON-able data (keys documented in ``specs/json.md``).
+
+    The same keys for every format, in the same order; what only the file's
+    format has (its module's ``info_fields``) is under ``details``.
 
     Parameters
     ----------
     scene : Scene
     path : str
     module : format module
-        The file's format (see :mod:`splatconv.formats`); its ``info_fields``
-        add what only that format has.
+        The file's format (see :mod:`splatconv.formats`).
 
     Returns
     -------
     dict
-        Keys: path, format, variant, count, file_bytes (uncompressed),
-        compressed_bytes (on disk, for .zst files, else None), cameras,
-        time_range, visible_time_range, bounds, nonfinite, the format's own
-        fields, notes.
+        Keys: schema, path, format, variant, count, file_bytes (uncompressed),
+        compressed_bytes (on disk, for .zst files, else None), cameras, texture,
+        time_range, visible_time_range, visible_always, bounds, nonfinite,
+        details, notes.
     """
     cols = scene.columns
-    n = scene.count
     meta = scene.meta
     bounds = None
     pos = viewer.positions(cols)
@@ -57,31 +62,34 @@ def describe(scene: Scene, path: str, module) -> dict:
         bounds = {"min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()}
     centre = np.asarray(cols["trbf_center"], dtype=np.float64)
     lo, hi = viewer.visible_interval(cols)
-    info = {
+    # A splat with an infinite or NaN centre, or a NaN scale, has no interval
+    # on the time axis (counted under ``nonfinite``).
+    timed = np.isfinite(centre) & ~np.isnan(lo) & ~np.isnan(hi)
+    return {
+        "schema": INFO_SCHEMA,
         "path": path,
         "format": module.NAME,
         "variant": scene.variant,
-        "count": n,
+        "count": scene.count,
         "file_bytes": meta.get("file_bytes"),
         "compressed_bytes": meta.get("compressed_bytes"),
         "cameras": [{"id": c.get("id"), "img_name": c.get("img_name"), "width": c.get("width"),
                      "height": c.get("height")} for c in (scene.cameras or [])],
         "texture": _texture(scene),
         "time_range": _finite_range(centre),
-        "visible_time_range": _visible_range(lo, hi),
-        "visible_always": int(np.count_nonzero(np.isinf(hi) & np.isinf(lo))),
+        "visible_time_range": _visible_range(lo[timed], hi[timed]),
+        "visible_always": int(np.count_nonzero(timed & np.isinf(hi))),
         "bounds": bounds,
         "nonfinite": {name: int(np.count_nonzero(~np.isfinite(cols[name]))) for name in COLUMNS},
+        "details": module.info_fields(scene),
+        "notes": list(scene.notes),
     }
-    info.update(module.info_fields(scene))
-    info["notes"] = list(scene.notes)
-    return info
 
 
 def _visible_range(lo: np.ndarray, hi: np.ndarray):
-    """[earliest, latest] time any splat is drawn; an end is None (JSON null) where some
-    splat is drawn at every time (infinite temporal scale: see ``visible_always``)."""
-    lo, hi = lo[~np.isnan(lo)], hi[~np.isnan(hi)]
+    """[earliest, latest] time any splat is drawn, over splats with a finite centre; both ends are
+    None (JSON null) when some splat is drawn at every time (an infinite temporal scale: see
+    ``visible_always``); None when no splat has a finite centre."""
     if lo.size == 0:
         return None
     first, last = float(lo.min()), float(hi.max())
