@@ -93,8 +93,10 @@ class GroupError:
         n = self.compared + other.compared
         top = max(self.rmse, other.rmse)
         # Scaled by the larger: a saturated value's error (up to 1e308) squared would overflow.
-        rmse = top * math.sqrt(((self.rmse / top) ** 2 * self.compared + (other.rmse / top) ** 2 * other.compared)
-                               / n) if n and top else 0.0
+        rmse = 0.0
+        if n and top:
+            rmse = top if math.isinf(top) else top * math.sqrt(
+                ((self.rmse / top) ** 2 * self.compared + (other.rmse / top) ** 2 * other.compared) / n)
         return GroupError(self.group, max(self.max_abs_error, other.max_abs_error),
                           max(self.max_rel_error, other.max_rel_error), rmse,
                           self.unexplained + other.unexplained, max(self.worst_bound, other.worst_bound), n)
@@ -129,22 +131,27 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
     """
     both = np.isfinite(a) & np.isfinite(b)
     err = np.zeros(a.shape, dtype=np.float64)
-    np.subtract(a, b, out=err, where=both)
+    with np.errstate(over="ignore"):  # a difference past 1.8e308 is infinite, which is the truth
+        np.subtract(a, b, out=err, where=both)
     np.abs(err, out=err)
     rel = np.zeros(a.shape, dtype=np.float64)
-    with np.errstate(over="ignore"):  # an error past 1e308 times a float64-subnormal value: inf is the truth
+    with np.errstate(over="ignore"):  # an error over a float64-subnormal value may pass 1.8e308: inf is the truth
         np.divide(err, np.abs(a), out=rel, where=both & (a != 0))
     bound = quantization_bound(group, np.where(both, a, 0.0))
     # Finite values past the half range saturate (or become infinite in splaTV's
     # converter); NaN stays NaN. Both are lossy but expected, counted elsewhere.
-    over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) if group != "position" else False
+    over = False
+    if group != "position":
+        over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) & (np.signbit(a) == np.signbit(b))
     same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
     bad = ~(both & (err <= bound)) & ~over & ~same_special
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
     top = float(err.max()) if err.size else 0.0
     # Scaled by the largest error: a saturated value's error (up to 1e308) squared would overflow.
-    rmse = top * math.sqrt(float(np.square(err[both] / top).mean())) if n and top else 0.0
+    rmse = 0.0
+    if n and top:
+        rmse = top if math.isinf(top) else top * math.sqrt(float(np.square(err[both] / top).mean()))
     return GroupError(group, top, float(rel.max()) if rel.size else 0.0, rmse, int(bad.sum()), worst, n)
 
 

@@ -208,7 +208,8 @@ def _counts(a: np.ndarray, b: np.ndarray, raw: dict, group: str) -> dict:
         # Compared in float32: a half read back through exp() may land a hair
         # below 2^-14 in double, never in float32.
         out["subnormal"] = int(np.count_nonzero((b32 != 0) & (b32 < _HALF_MIN_NORMAL)))
-    if group != "position":
+        # Halves keep relative precision, so a nonzero value becoming zero is lost; a colour or
+        # alpha below half a byte step becoming byte 0 is the bytes' ordinary rounding.
         out["underflow"] = int(np.count_nonzero(finite & (a != 0) & (b == 0)))
     if group == "color":
         # NaN is clamped too: the writers store it as 0.
@@ -433,8 +434,14 @@ class _Tally:
     def attributes(self):
         if self.errors is None:
             return None
-        return {g: {"max_abs_error": e.max_abs_error, "max_rel_error": e.max_rel_error, "rmse": e.rmse,
-                    **self.counts[g]} for g, e in ((g, self.errors.get(g) or _NO_ERRORS[g]) for g in GROUPS)}
+        return {g: {"max_abs_error": _finite(e.max_abs_error), "max_rel_error": _finite(e.max_rel_error),
+                    "rmse": _finite(e.rmse), **self.counts[g]}
+                for g, e in ((g, self.errors.get(g) or _NO_ERRORS[g]) for g in GROUPS)}
+
+
+def _finite(v: float):
+    """``v``, or None (JSON null) where it is infinite: JSON has no infinity."""
+    return v if math.isfinite(v) else None
 
 
 _NO_ERRORS = {g: GroupError(g, 0.0, 0.0, 0.0, 0, 0.0, 0) for g in GROUPS}
