@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import struct
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -387,16 +389,154 @@ def test_text_fits_100_columns_with_huge_counts(lite_ply):
     assert "268435456" in text and "NaN positions 67,108,864" in " ".join(text.split())
 
 
-def test_json_keys_are_documented():
-    from pathlib import Path
+# --------------------------------------------------------------------------
+# specs/json.md: the keys it lists are the keys info and stats print, in order.
 
-    spec = (Path(__file__).resolve().parent.parent / "specs" / "stats.md").read_text()
-    for key in ("files", "role", "path", "bytes", "bytes_per_splat", "zstd_bytes", "zstd_level", "ratio",
-                "zstd_ratio", "count", "bounds", "time", "visible", "motion", "attributes", "max_abs_error",
-                "max_rel_error", "rmse", "nonfinite", "overflow", "underflow", "subnormal", "clamped", "viewer",
-                "texture_height", "fits_max_texture_size", "empty_cameras", "nan_positions", "splatv_js_damage",
-                "infinity", "garbled"):
-        assert f"`{key}`" in spec, key
+JSON_SPEC = (Path(__file__).resolve().parent.parent / "specs" / "json.md").read_text(encoding="utf-8")
+
+
+def spec_keys(section: str) -> dict:
+    """The key tree of a section of specs/json.md: ``{key: subtree}`` from its bullet lists.
+
+    A bullet's keys are the backquoted names before its first colon; sub-bullets
+    (two more spaces) are the keys inside it.
+    """
+    text = JSON_SPEC.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+    root: dict = {}
+    stack = [(-1, root)]
+    for line in text.splitlines():
+        m = re.match(r"( *)\* (.*)", line)
+        if not m:
+            continue
+        indent, body = len(m.group(1)), m.group(2)
+        while stack[-1][0] >= indent:
+            stack.pop()
+        node: dict = {}
+        for key in re.findall(r"`(\w+)`", body.split(":", 1)[0]):
+            stack[-1][1][key] = node
+        stack.append((indent, node))
+    return root
+
+
+def test_info_keys_are_documented_for_every_format(tmp_path, lite_ply):
+    from splatconv.formats import REGISTRY
+
+    spec = spec_keys("info")
+    details = spec.pop("details")
+    modules = {m.NAME: m for m in REGISTRY.values()}
+    assert set(details) == set(modules), "every format's details are documented"
+    for name, module in modules.items():
+        if not (module.CAN_WRITE and module.CAN_READ):
+            continue
+        path = tmp_path / f"written{module.SUFFIXES[0]}"
+        assert run("convert", lite_ply, path).exit_code == 0
+        info = json.loads(run("info", path, "--json").stdout)
+        assert [k for k in info if k != "details"] == list(spec), name
+        assert list(info).index("details") == list(info).index("notes") - 1  # where the spec lists it
+        assert info["schema"] == "splatconv.info/1"
+        assert list(info["details"]) == list(details[name]), name
+        assert list(info["texture"]) == list(spec["texture"])
+        assert list(info["bounds"]) == ["min", "max"]
+    cams = json.loads(run("info", lite_ply, "--json").stdout)
+    assert cams["cameras"] == []
+
+
+def test_stats_keys_are_documented(tmp_path, lite_ply):
+    from splatconv.model import GROUPS
+
+    spec = spec_keys("stats")
+    conv = tmp_path / "s.splatv"
+    assert run("convert", lite_ply, conv).exit_code == 0
+    data = json.loads(run("stats", lite_ply, conv, "--json", "--zstd-level", "1").stdout)
+    assert list(data) == list(spec)
+    assert data["schema"] == "splatconv.stats/1"
+    for entry in data["files"]:
+        assert list(entry) == list(spec["files"])
+    assert list(data["time"]) == list(spec["time"])
+    # Maps keyed by name list the names in their bullet's text and each entry's keys below it.
+    section = JSON_SPEC.split("\n## stats\n", 1)[1]
+    motion_text = section.split("* `motion`", 1)[1].split("\n  *", 1)[0]
+    assert re.findall(r"`(\w+)`\s+\(", motion_text) == list(data["motion"])
+    for values in data["motion"].values():
+        assert list(values) == list(spec["motion"])
+    attributes_text = section.split("* `attributes`", 1)[1].split("\n  *", 1)[0]
+    assert re.findall(r"`(\w+)`", attributes_text.split("One entry per group", 1)[1]) == list(GROUPS)
+    assert list(data["attributes"]) == list(GROUPS)
+    for group in data["attributes"].values():
+        assert list(group) == list(spec["attributes"])
+    assert list(data["viewer"]) == list(spec["viewer"])
+    damage = data["viewer"]["splatv_js_damage"]
+    assert list(damage) == list(HALF_GROUPS)
+    damage_text = section.split("* `splatv_js_damage`", 1)[1].split("\n    *", 1)[0]
+    names = damage_text.split("One entry per group stored as halves", 1)[1].split(", in viewer units", 1)[0]
+    assert re.findall(r"`(\w+)`", names) == list(damage)
+    for group in damage.values():
+        assert list(group) == list(spec["viewer"]["splatv_js_damage"])
+
+
+def test_a_splatv_alone_is_reported_as_stored(tmp_path, lite_ply):
+    conv = tmp_path / "s.splatv"
+    assert run("convert", lite_ply, conv).exit_code == 0
+    data = json.loads(run("stats", conv, "--json", "--zstd-level", "1").stdout)
+    assert [f["role"] for f in data["files"]] == ["source"]
+    assert data["attributes"] is None and data["viewer"]["splatv_js_damage"] is None
+    assert data["count"] == 3000 and sum(data["time"]["visible"]) > 0
+    text = run("stats", conv, "--zstd-level", "1").stdout
+    assert "converted" not in text and "against source" not in text
+    assert "attributes: none compared (SOURCE alone is a splatv file, which the viewer loads as stored)" in text
+    md = run("stats", conv, "--markdown", "--zstd-level", "1").stdout
+    assert "| attribute |" not in md and "- attributes: none compared" in md
+
+
+def test_plurals(tmp_path):
+    from .conftest import splatv_bytes
+
+    rec = np.zeros((1, 16), "<u4")
+    rec[0, 0] = np.float32(1.0).view(np.uint32)
+    rec[0, 15] = 0x3C00 << 16  # trbf_scale 1: visible at every time step
+    p = tmp_path / "one.splatv"
+    p.write_bytes(splatv_bytes(rec))
+    info = run("info", p).stdout
+    assert "count:     1 splat\n" in info
+    text = run("stats", p, "--zstd-level", "1").stdout
+    assert "count: 1 splat\n" in text
+    assert "time: 20 steps over [0, 1]: 1 splat drawn at each" in text
+    for output in (info, text):
+        assert not re.search(r"\b1 (splats|values|frames|cameras|bytes)\b|\(s\)", output), output
+
+
+def test_info_says_when_splats_are_drawn_at_every_time(tmp_path):
+    cols = lite_columns_with_normals(random_columns(6, 3))
+    cols["trbf_scale"][:2] = np.inf  # two splats visible always
+    cols["trbf_center"][2] = np.nan  # no interval: left out
+    cols["trbf_center"][3] = np.inf  # never drawn at a finite time: left out
+    src = write_ply(tmp_path / "always.ply", cols)
+    info = json.loads(run("info", src, "--json").stdout)
+    assert info["visible_time_range"] == [None, None] and info["visible_always"] == 2
+    assert info["nonfinite"]["trbf_center"] == 2 and info["nonfinite"]["trbf_scale"] == 2
+    text = run("info", src).stdout
+    assert "visible at every time (2 splats with an infinite temporal scale)" in text
+    # Without them, the ends are those of the splats with finite centres only.
+    cols["trbf_scale"][:2] = 0.0
+    info = json.loads(run("info", write_ply(tmp_path / "finite.ply", cols), "--json").stdout)
+    c = cols["trbf_center"].astype(np.float64)[[0, 1, 4, 5]]
+    reach = np.exp(cols["trbf_scale"].astype(np.float64)[[0, 1, 4, 5]]) * math.sqrt(-math.log(0.02))
+    assert info["visible_time_range"] == pytest.approx([(c - reach).min(), (c + reach).max()], rel=1e-12)
+    assert info["visible_always"] == 0
+    # No finite centre at all: no range, said in words.
+    cols["trbf_center"][:] = np.nan
+    none = write_ply(tmp_path / "none.ply", cols)
+    assert json.loads(run("info", none, "--json").stdout)["visible_time_range"] is None
+    assert "visible never (no splat has a finite time centre)" in run("info", none).stdout
+
+
+def test_info_of_several_files_is_a_list_each_with_its_schema(tmp_path, lite_ply):
+    conv = tmp_path / "s.splatv"
+    assert run("convert", lite_ply, conv).exit_code == 0
+    both = json.loads(run("info", lite_ply, conv, "--json").stdout)
+    assert [i["schema"] for i in both] == ["splatconv.info/1"] * 2
+    assert [i["format"] for i in both] == ["ply", "splatv"]
+    assert [list(i) for i in both][0] == [list(i) for i in both][1]
 
 
 # --------------------------------------------------------------------------
