@@ -23,13 +23,15 @@ HALF_REL = 2.0**-10
 HALF_ABS = 2.0**-24
 #: One 8-bit step.
 BYTE = 1.0 / 255.0
+#: Groups stored as bytes (the rest of the attributes are halves, positions float32).
+BYTE_GROUPS = ("color", "opacity")
 
 
 def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
     """Largest error a faithful .splatv conversion may introduce, per value."""
     if group == "position":
         return np.zeros_like(values)
-    if group in ("color", "opacity"):
+    if group in BYTE_GROUPS:
         return np.full_like(values, BYTE * (1 + 1e-6))
     with np.errstate(invalid="ignore"):
         return np.maximum(np.abs(values) * HALF_REL, HALF_ABS)
@@ -144,6 +146,8 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
     if group != "position":
         over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) & (np.signbit(a) == np.signbit(b))
     same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
+    if group in BYTE_GROUPS:  # the writers store a NaN colour or opacity as byte 0 (read back as 0 or logit -40)
+        same_special |= np.isnan(a) & (np.abs(b) < BYTE / 2)
     bad = ~(both & (err <= bound)) & ~over & ~same_special
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
