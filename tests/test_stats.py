@@ -690,3 +690,37 @@ def test_a_faithful_conversion_of_a_nasty_scene_is_all_explained(nasty_files):
         source, converted = read(a), read(b)
         errors = compare_scenes(source, converted, align(source, converted))
         assert {g: e.unexplained for g, e in errors.items()} == dict.fromkeys(errors, 0), (a, b)
+
+
+def test_progress_stages_cover_the_work(tmp_path, lite_ply):
+    # stats_report reports a stage per file compressed and one for the comparison, each advanced to its total.
+    import contextlib
+
+    from splatconv.progress import Progress
+    from splatconv.stats import stats_report
+
+    class Recorder(Progress):
+        def __init__(self):
+            self.stages = []
+
+        @contextlib.contextmanager
+        def stage(self, label, total=None, unit="it"):
+            entry = [label, total, unit, 0]
+            self.stages.append(entry)
+
+            def advance(n=1):
+                entry[3] += n
+
+            yield advance
+
+    conv = tmp_path / "s.splatv"
+    assert run("convert", lite_ply, conv).exit_code == 0
+    for args, expected in (((lite_ply, conv), ["zstd-1 scene.ply", "zstd-1 s.splatv", "comparing"]),
+                           ((lite_ply,), ["zstd-1 scene.ply", "zstd-1 (as converted)", "comparing"]),
+                           ((conv,), ["zstd-1 s.splatv", "reading values"])):
+        recorder = Recorder()
+        stats_report(*map(str, args), zstd_level=1, progress=recorder)
+        assert [s[0] for s in recorder.stages] == expected
+        for label, total, unit, done in recorder.stages:
+            assert done == total and unit == ("splat" if label in ("comparing", "reading values") else "byte")
+        assert recorder.stages[-1][1] == 3000
