@@ -150,24 +150,13 @@ def _times(steps: int = TIME_STEPS) -> np.ndarray:
 
 
 def _visible_counts(cols: dict, times: np.ndarray) -> np.ndarray:
-    """Splats the viewer draws at each time (:func:`splatconv.viewer.visible`): ``(steps,) int64``."""
-    return np.array([np.count_nonzero(viewer.visible(cols, t)) for t in times], dtype=np.int64)
-
-
-def time_coverage(cols: dict, steps: int = TIME_STEPS) -> dict:
-    """How many splats the viewer draws at each of ``steps`` times over [0, 1].
+    """Splats the viewer draws at each time: ``(steps,) int64``.
 
     A splat is drawn unless its temporal opacity is below the viewer's cut
-    (:func:`splatconv.viewer.visible`; a NaN temporal opacity is drawn, as the
+    (:func:`splatconv.viewer.visible`: a NaN temporal opacity is drawn, as the
     viewer's test does not reject it).
-
-    Returns
-    -------
-    dict
-        ``times``: list of float; ``visible``: list of int, one per time.
     """
-    times = _times(steps)
-    return {"times": [round(float(t), 6) for t in times], "visible": _visible_counts(cols, times).tolist()}
+    return np.array([np.count_nonzero(viewer.visible(cols, t)) for t in times], dtype=np.int64)
 
 
 def _magnitudes(cols: dict, names) -> np.ndarray:
@@ -178,11 +167,6 @@ def _magnitudes(cols: dict, names) -> np.ndarray:
         v = np.asarray(cols[name], dtype=np.float64)
         total += v * v
     return np.sqrt(total)
-
-
-def motion_summary(cols: dict) -> dict:
-    """Percentiles of |velocity|, |acceleration|, |jerk| (motion_0..8) and |omega|."""
-    return {term: _percentiles(_magnitudes(cols, names)) for term, names in MOTION_TERMS.items()}
 
 
 def _counts(a: np.ndarray, b: np.ndarray, raw: dict, group: str) -> dict:
