@@ -11,9 +11,11 @@ console script, interpreter start included):
 
 at the default zstd level, and prints the median wall seconds and the peak RSS
 (``ru_maxrss`` of the child, from ``os.wait4``) of ``--repeat`` runs, against
-the targets (at most 10 s and 600 MB for the pair). The machine it was built on
-is shared by several jobs: figures vary from run to run; the exit status is 0
-whatever they are (a report, not a test).
+the targets (at most 10 s and 600 MB for the pair), and the CPU seconds (user +
+system, all threads): on a machine shared with other jobs the wall time grows
+with the load and the CPU time much less, so the CPU seconds bound what a quiet
+machine takes. Figures vary from run to run; the exit status is 0 whatever they
+are (a report, not a test).
 
 Run::
 
@@ -42,13 +44,15 @@ TARGET_RSS_MB = 600.0
 
 CLI = os.path.join(os.path.dirname(sys.executable), "splatconv")
 
-#: Launcher: run argv[1:] with stdout discarded, then print its exit code, wall seconds and ru_maxrss (KiB).
+#: Launcher: run argv[1:] with stdout discarded, then print its exit code, wall seconds, ru_maxrss (KiB)
+#: and CPU seconds (user + system, all threads).
 LAUNCHER = """\
 import os, subprocess, sys, time
 t = time.perf_counter()
 p = subprocess.Popen(sys.argv[1:], stdout=subprocess.DEVNULL)
 _, status, usage = os.wait4(p.pid, 0)
-print("BENCH_CHILD", os.waitstatus_to_exitcode(status), time.perf_counter() - t, usage.ru_maxrss, flush=True)
+print("BENCH_CHILD", os.waitstatus_to_exitcode(status), time.perf_counter() - t, usage.ru_maxrss,
+      usage.ru_utime + usage.ru_stime, flush=True)
 """
 
 
@@ -59,14 +63,14 @@ def make_ply(path: str, n: int) -> None:
     module.make_ply(path, n)
 
 
-def run(args: list) -> tuple[float, float]:
-    """(wall seconds, peak RSS MB) of one ``splatconv`` run."""
+def run(args: list) -> tuple[float, float, float]:
+    """(wall seconds, peak RSS MB, CPU seconds) of one ``splatconv`` run."""
     out = subprocess.run([sys.executable, "-c", LAUNCHER, CLI, *args], capture_output=True, text=True,
                          check=True).stdout
-    code, wall, rss = out.split("BENCH_CHILD", 1)[1].split()
+    code, wall, rss, cpu = out.split("BENCH_CHILD", 1)[1].split()
     if int(code) != 0:
         raise SystemExit(f"splatconv {' '.join(args)} exited {code}")
-    return float(wall), int(rss) * 1024 / 1e6
+    return float(wall), int(rss) * 1024 / 1e6, float(cpu)
 
 
 def main() -> None:
@@ -89,15 +93,16 @@ def main() -> None:
         cases = [("pair: stats SCENE.ply SCENE.splatv", [ply, splatv]),
                  ("PLY alone (conversion simulated)", [ply]),
                  (".splatv alone (as stored)", [splatv])]
-        print(f"{'':<36}  {'seconds':>9}  {'peak RSS MB':>11}")
+        print(f"{'':<36}  {'seconds':>9}  {'CPU s':>7}  {'peak RSS MB':>11}")
         pair = None
         for label, files in cases:
             runs = [run(["stats", *files, *level]) for _ in range(args.repeat)]
             wall = statistics.median(r[0] for r in runs)
             rss = statistics.median(r[1] for r in runs)
+            cpu = statistics.median(r[2] for r in runs)
             pair = pair or (wall, rss)
-            print(f"{label:<36}  {wall:>9.2f}  {rss:>11.0f}   (runs: "
-                  + ", ".join(f"{w:.2f} s" for w, _ in runs) + ")", flush=True)
+            print(f"{label:<36}  {wall:>9.2f}  {cpu:>7.2f}  {rss:>11.0f}   (runs: "
+                  + ", ".join(f"{r[0]:.2f} s" for r in runs) + ")", flush=True)
         wall, rss = pair
         print(f"\npair against the targets: {wall:.2f} s (target <= {TARGET_SECONDS:g} s: "
               f"{'met' if wall <= TARGET_SECONDS else 'NOT met'}), {rss:.0f} MB "
