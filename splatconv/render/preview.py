@@ -19,12 +19,8 @@ import numpy as np
 from ..formats.splatv_layout import SPLATS_PER_ROW, TEXWIDTH, WORDS_PER_SPLAT
 from . import camera as cam
 from .gl import create_context
-from .layout import FLOAT_SPLATS_PER_ROW, FLOAT_WORDS, float_attributes
+from .layout import FLOAT_SPLATS_PER_ROW, FLOAT_WORDS
 from .sort import viewer_order
-
-#: What :meth:`Renderer.load_float` takes is built by ``float_attributes`` (its home is
-#: :mod:`splatconv.render.layout`; named here too for the Renderer's callers).
-__all__ = ["Renderer", "View", "FrameTimes", "float_attributes", "shader_source", "vertex_source"]
 
 _QUAD = np.array([-2, -2, 2, -2, 2, 2, -2, 2], dtype="f4")
 
