@@ -13,7 +13,7 @@ import numpy as np
 from .. import viewer
 from ..errors import UsageError
 from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
-from ._table import blocks, blockwise, derive, gather, keep_rows
+from ._table import blockwise, derive, gather, keep_rows, run_blocks
 from .report import OpReport
 
 #: Groups whose every value must be finite for a splat to be kept by
@@ -39,8 +39,11 @@ def nonfinite_mask(columns: dict) -> np.ndarray:
     """
     out = np.empty(len(columns["x"]), dtype=bool)
     test = nonfinite_tester(columns)
-    for part, block in blocks(columns, _CHECKED):
-        out[part] = test(part, block)
+
+    def job(part):
+        out[part] = test(part, {name: columns[name][part] for name in _CHECKED})
+
+    run_blocks(len(out), job)
     return out
 
 
