@@ -120,7 +120,8 @@ def nonfinite_report(columns: dict, keep: np.ndarray, alive: np.ndarray | None =
         report.notes.append(f"drop-nonfinite: removed {len(rows):,} of {count_in:,} splats with a NaN or infinite "
                             f"value ({groups}; a splat may count in several)")
     else:
-        report.notes.append(f"drop-nonfinite: all {count_in:,} splats finite, none removed")
+        report.notes.append(f"drop-nonfinite: removed 0 of {count_in:,} splats: none has a NaN or an infinity "
+                            f"that removes it")
     return report
 
 

@@ -394,8 +394,11 @@ def transform_report(count: int, cameras: int, transform: Transform, grown: int)
     """The report of :func:`apply_transform`."""
     report = OpReport("transform", count, count)
     moved = f" and {cameras:,} camera{'' if cameras == 1 else 's'}" if cameras else ""
+    rotates = not np.array_equal(np.asarray(transform.matrix), np.eye(3))
+    changed = ["positions"] + (["motion"] if rotates or transform.scale != 1.0 else []) + (
+        ["rotations", "omega"] if rotates else []) + (["scales"] if transform.scale != 1.0 else [])
     report.notes.append(f"transform: p' = R(S p) + T with {transform.describe()} applied to {count:,} splats"
-                        f"{moved} (positions, motion, rotations, omega, scales)")
+                        f"{moved} ({', '.join(changed)})")
     if grown:
         report.notes.append(f"transform: {grown:,} finite values grew beyond float32 and are now infinite")
     report.counts = {"cameras": cameras, "overflow": grown}
