@@ -338,3 +338,20 @@ def test_blocks_and_threads_change_nothing(monkeypatch):
     assert many_reports[-1].counts["overflow"] >= 2
     for name in COLUMNS:
         assert np.array_equal(many.columns[name], one.columns[name], equal_nan=True), name
+
+
+def test_signalling_nans_raise_no_warning():
+    """A hostile file may hold signalling NaNs, which warn when widened or compared unless handled."""
+    scene = moving_scene(3000, seed=6)
+    snan = np.array([0x7F800001, 0xFFC00001], dtype=np.uint32).view(np.float32)
+    for i, name in enumerate(COLUMNS):
+        scene.columns[name][[10 + i, 2000 + i]] = snan
+    for plan in PLANS:
+        out, _ = apply_edits(scene, plan)
+    cleaned, report = drop_nonfinite(scene)
+    assert report.removed == 2 * len(COLUMNS)
+    trim(scene, 0.2, 0.4)
+    crop(scene, (-1, -1, -1), (1, 1, 1))
+    min_opacity(scene, 0.5)
+    max_splats(scene, 10)
+    apply_transform(scene, make_transform((1, 2, 3), "y:20", 2))

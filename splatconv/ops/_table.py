@@ -34,10 +34,18 @@ def run_blocks(n: int, job, size: int = CHUNK) -> list:
     Jobs must touch only their own rows; their results come back in block order.
     """
     parts = [slice(start, min(n, start + size)) for start in range(0, n, size)]
+
+    def quiet(part):
+        # NaN is handled explicitly everywhere; a signalling NaN (a hostile file may
+        # hold them) would otherwise warn when widened or compared. The error state
+        # belongs to a thread, so it is set in each job.
+        with np.errstate(invalid="ignore"):
+            return job(part)
+
     if len(parts) > 1 and WORKERS > 1:
         with ThreadPoolExecutor(max_workers=WORKERS) as pool:
-            return list(pool.map(job, parts))
-    return [job(part) for part in parts]
+            return list(pool.map(quiet, parts))
+    return [quiet(part) for part in parts]
 
 
 def gather(columns: dict, index: np.ndarray | None = None) -> dict:

@@ -94,18 +94,18 @@ def _nonfinite_block(block: dict) -> np.ndarray:
 def _nonfinite_counts(columns: dict, rows: np.ndarray) -> dict:
     """Of rows ``rows``, how many have a disqualifying value in each group (a row may count in several)."""
     counts = {}
-    for group, names in FINITE_GROUPS.items():
-        bad = np.zeros(len(rows), dtype=bool)
-        for name in names:
-            bad |= ~np.isfinite(np.asarray(columns[name])[rows])
-        counts[group] = int(bad.sum())
-    for group, names in NAN_GROUPS.items():
-        bad = np.zeros(len(rows), dtype=bool)
-        for name in names:
-            v = np.asarray(columns[name])[rows]
-            bad |= np.isnan(v) | ((v == -np.inf) if name == "trbf_scale" else False)
-        counts[group] = int(bad.sum())
-    return {k: v for k, v in counts.items() if v}
+    groups = [(g, names, False) for g, names in FINITE_GROUPS.items()] + [
+        (g, names, True) for g, names in NAN_GROUPS.items()]
+    with np.errstate(invalid="ignore"):  # signalling NaNs compared
+        for group, names, nan_only in groups:
+            bad = np.zeros(len(rows), dtype=bool)
+            for name in names:
+                v = np.asarray(columns[name])[rows]
+                bad |= (np.isnan(v) | (v == -np.inf if name == "trbf_scale" else False)) if nan_only \
+                    else ~np.isfinite(v)
+            if bad.any():
+                counts[group] = int(bad.sum())
+    return counts
 
 
 def nonfinite_report(columns: dict, keep: np.ndarray, alive: np.ndarray | None = None) -> OpReport:
