@@ -172,7 +172,7 @@ def test_never_writes_onto_the_input(tmp_path, lite_ply, how):
 def test_usage_errors_exit_2(tmp_path, lite_ply):
     r = run("convert", lite_ply, tmp_path / "x.obj")
     assert r.exit_code == 2
-    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .ply, .splatv, optionally + .zst)\n"
+    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .ply, .splat, .splatv, optionally + .zst)\n"
     r = run("convert", lite_ply, tmp_path / "x.ply", "--compat", "splatv-js")
     assert r.exit_code == 2
     assert r.stderr == f"Error: {tmp_path / 'x.ply'}: --compat splatv-js applies to .splatv output only\n"
@@ -263,7 +263,7 @@ def test_help_documents_each_commands_defaults():
     assert "[default: 0.5]" in diff_help and "[default: 0]" in diff_help
     assert "drawn at one time from one camera" in diff_help
     verify_help = " ".join(run("verify", "--help").stdout.split())
-    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: all]" in verify_help
+    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: the first 8]" in verify_help
     for cmd in ("verify", "diff"):
         assert "fx and fy scale with the size" in " ".join(run(cmd, "--help").stdout.split()), cmd
     assert "An explicit size keeps the camera's fx and fy" in " ".join(run("render", "--help").stdout.split())

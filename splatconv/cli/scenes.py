@@ -34,6 +34,9 @@ def _zstd_option(what: str):
                       "(importance for .splatv, none for .ply)."),
     click.option("--cameras", "cameras", type=click.Path(dir_okay=False),
                  help="A 3DGS / Spacetime Gaussians cameras.json to store in the output."),
+    click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
+                 help="PLY output: lite (Spacetime Gaussians, keeps motion and time) or 3dgs (plain 3DGS, "
+                      "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
     color_option(),
     _zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
     force_option(),
@@ -41,8 +44,8 @@ def _zstd_option(what: str):
 )
 @edit_options()
 @library_errors
-def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, force, quiet, **edits):
-    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, either + .zst).
+def convert(input_path, output_path, compat, sort, cameras, layout, color, zstd_level, force, quiet, **edits):
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
     reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
@@ -54,7 +57,7 @@ def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, f
       splatconv convert scene.splatv scene.ply
     """
     scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                               force=force, zstd_level=zstd_level, progress=progress(quiet),
+                               force=force, zstd_level=zstd_level, layout=layout, progress=progress(quiet),
                                edit=scene_editor(edits))
     notes(scene.notes)
     notes(report.notes)
