@@ -355,3 +355,13 @@ def test_signalling_nans_raise_no_warning():
     min_opacity(scene, 0.5)
     max_splats(scene, 10)
     apply_transform(scene, make_transform((1, 2, 3), "y:20", 2))
+
+
+def test_convert_help_states_the_edit_order_and_an_example():
+    text = CliRunner().invoke(main, ["convert", "--help"], terminal_width=200).output
+    assert ("Edits apply in this order, whatever the order of the options: --drop-nonfinite, --trim, --crop, "
+            "--min-opacity, --max-splats, then --translate/--rotate/--scale, as p' = R(S p) + T") in text
+    assert "  splatconv convert scene.ply clean.splatv --drop-nonfinite --trim 0.25,0.75 --rotate x:180" in text
+    for option in ("--drop-nonfinite", "--trim T0,T1", "--crop X0,Y0,Z0,X1,Y1,Z1", "--min-opacity A",
+                   "--max-splats N", "--translate X,Y,Z", "--rotate STEPS", "--scale S"):
+        assert f"  {option} " in text, option
