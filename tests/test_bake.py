@@ -22,7 +22,8 @@ from splatconv.model import Scene
 from splatconv.ops.bake import bake, baked_opacity, frame_times
 from splatconv.render import camera as cam
 from splatconv.render.diff import compare
-from splatconv.render.preview import Renderer, View, float_attributes
+from splatconv.render.layout import float_attributes
+from splatconv.render.preview import Renderer, View
 
 from .conftest import random_columns
 
