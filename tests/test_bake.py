@@ -205,7 +205,8 @@ def test_bake_frames_writes_every_moment(tmp_path, sample_splatv):
     # Again: refused without --force, nothing changed; with --force replaced.
     before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
     r = run("bake", sample_splatv, out, "--frames", "3")
-    assert r.exit_code == 1 and r.stderr == f"Error: {out / 'frame_0000.ply'}: already exists (use --force to replace it)\n"
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {out / 'frame_0000.ply'}: already exists (use --force to replace it)\n"
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
     assert run("bake", sample_splatv, out, "--frames", "3", "--force").exit_code == 0
 
