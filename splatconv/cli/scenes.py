@@ -6,13 +6,39 @@ import os
 
 import click
 
-from .. import io
+from .. import io, sequence_io
 from ..formats import format_for
-from ..report import info_text, stats_markdown, stats_text, to_json
+from ..ops.sequence import SAME_SPLATS_MODES
+from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
 from ..stats import describe, stats_report
 from ..transport import DEFAULT_LEVEL
-from ._base import (Failure, color_option, force_option, library_errors, main, notes, options, progress,
-                    quiet_option)
+from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
+                    progress, quiet_option)
+
+
+class _Times(click.ParamType):
+    """A comma-separated list of finite numbers."""
+
+    name = "T0,T1,..."
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, list):
+            return value
+        return [FINITE.convert(part.strip(), param, ctx) for part in str(value).split(",")]
+
+
+def sequence_options():
+    return (
+        click.option("--frame-times", type=_Times(), default=None,
+                     help="Time of each frame of a sequence, comma-separated, increasing "
+                          "(default: frame k of N at k/(N-1)."),
+        click.option("--same-splats", type=click.Choice(SAME_SPLATS_MODES), default="auto", show_default=True,
+                     help="Whether row i of every frame is the same splat (fit its motion); auto: when "
+                          "every frame has the same count."),
+        click.option("--max-error", type=POSITIVE, default=None,
+                     help="Largest position error (scene units) of a fitted splat before it is split into "
+                          "pieces (default: 0.001 of the first frame's extent)."),
+    )
 
 
 def _zstd_option(what: str):
@@ -21,7 +47,7 @@ def _zstd_option(what: str):
 
 
 @main.command()
-@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
+@click.argument("input_paths", metavar="INPUT...", nargs=-1, required=True, type=click.Path())
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
 @options(
     click.option("--compat", type=click.Choice(io.COMPAT_MODES),
@@ -35,22 +61,46 @@ def _zstd_option(what: str):
                  help="A 3DGS / Spacetime Gaussians cameras.json to store in the output."),
     color_option(),
     _zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
+    *sequence_options(),
     force_option(),
     quiet_option(),
 )
 @library_errors
-def convert(input_path, output_path, compat, sort, cameras, color, zstd_level, force, quiet):
+def convert(input_paths, output_path, compat, sort, cameras, color, zstd_level, frame_times, same_splats,
+            max_error, force, quiet):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, either + .zst).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
     reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
     compressed while it is written.
 
+    A frame sequence (a directory, a quoted glob or several files, in natural
+    order) becomes one 4D scene: frame k of N at time k/(N-1) unless
+    --frame-times says otherwise. With the same splats in every frame each
+    splat's motion, rotation and opacity are fitted; otherwise each frame is
+    shown around its own time. See README "Frame sequences".
+
     \b
     Example:
       splatconv convert scene.ply scene.splatv --cameras cameras.json
       splatconv convert scene.splatv scene.ply
+      splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
     """
+    if sequence_io.is_sequence(input_paths):
+        scene, fit, report, _ = sequence_io.convert_frames(
+            input_paths, output_path, frame_times=frame_times, same_splats=same_splats, max_error=max_error,
+            compat=compat, sort=sort, cameras=cameras, color=color, force=force, zstd_level=zstd_level,
+            progress=progress(quiet))
+        notes(scene.notes)
+        notes(fit.notes)
+        notes(report.notes)
+        click.echo(sequence_text(fit.as_dict()))
+        size = os.path.getsize(output_path)
+        click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
+        return
+    if frame_times is not None or same_splats != "auto" or max_error is not None:
+        raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
+    input_path = input_paths[0]
     scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
                                force=force, zstd_level=zstd_level)
     notes(scene.notes)
