@@ -17,7 +17,7 @@ from splatconv.ops import sequence
 from splatconv.render.diff import compare
 from splatconv.render.preview import Renderer, float_attributes
 from splatconv.render.verify import frame_views
-from splatconv.sequence_io import frame_paths, natural_key
+from splatconv.clips import frame_paths, natural_key
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data/dancers.ply"

@@ -6,7 +6,7 @@ import os
 
 import click
 
-from .. import io, sequence_io
+from .. import io, clips
 from ..formats import format_for
 from ..ops.sequence import SAME_SPLATS_MODES
 from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
@@ -86,8 +86,8 @@ def convert(input_paths, output_path, compat, sort, cameras, color, zstd_level, 
       splatconv convert scene.splatv scene.ply
       splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
     """
-    if sequence_io.is_sequence(input_paths):
-        scene, fit, report, _ = sequence_io.convert_frames(
+    if clips.is_sequence(input_paths):
+        scene, fit, report, _ = clips.convert_frames(
             input_paths, output_path, frame_times=frame_times, same_splats=same_splats, max_error=max_error,
             compat=compat, sort=sort, cameras=cameras, color=color, force=force, zstd_level=zstd_level,
             progress=progress(quiet))

@@ -1,9 +1,10 @@
-"""Frame sequences on disk: which files, in which order, read one at a time into one 4D scene.
+"""Long clips on disk: frame sequences become one 4D scene; segment files join on one timeline.
 
-The fitting itself is :mod:`splatconv.ops.sequence` (no I/O); this module
-resolves a directory, a glob or a list of files into frame paths and feeds the
-frames to it through :func:`splatconv.io.read`, so any format that can be read
-can be a frame.
+The fitting and the merging are :mod:`splatconv.ops.sequence` and
+:mod:`splatconv.ops.segments` (no I/O); this module resolves a directory, a glob
+or a list of files into frame paths and feeds the frames to the fit one at a
+time through :func:`splatconv.io.read`, so any format that can be read can be a
+frame; and reads, merges, checks and writes segment files.
 """
 
 from __future__ import annotations
@@ -17,6 +18,7 @@ from .errors import UnsupportedError, UsageError
 from .formats import REGISTRY, format_for
 from .fsutil import check_output
 from .io import check_write_options, read, write
+from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, fidelity, merge_segments
 from .ops.sequence import fit_sequence
 from .progress import SILENT
 from .transport import inner_name
@@ -121,3 +123,30 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level)
     return scene, fit, report, paths
+
+
+def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
+                        sort=None, color: str = "auto", force: bool = False, zstd_level=None, check: bool = True,
+                        check_every: int = 1, camera: int = 0, progress=SILENT):
+    """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
+
+    Parameters
+    ----------
+    check : bool
+        Measure each output frame against its segment (:func:`splatconv.ops.segments.fidelity`).
+
+    Returns
+    -------
+    (Scene, SegmentReport, WriteReport, list of dict)
+        The merged scene, what merging did, what the writer did, the per-frame fidelity ([] unless ``check``).
+    """
+    inputs = [os.fspath(p) for p in inputs]
+    for p in inputs:
+        format_for(p, purpose="read")
+    check_write_options(output, sort=sort)
+    check_output(output, inputs, force)
+    scenes = [read(p, color=color) for p in inputs]
+    merged, report = merge_segments(scenes, durations, leak=leak, budget=budget, progress=progress)
+    rows = fidelity(merged, scenes, report, camera=camera, every=check_every, progress=progress) if check else []
+    written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level)
+    return merged, report, written, rows
