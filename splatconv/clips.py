@@ -84,7 +84,7 @@ def frame_paths(inputs) -> list:
 
 def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto", max_error=None,
                    compat=None, sort=None, cameras=None, color: str = "auto", force: bool = False,
-                   zstd_level=None, progress=SILENT):
+                   zstd_level=None, layout=None, progress=SILENT):
     """Read a frame sequence and write it as one 4D scene (see :func:`splatconv.ops.sequence.fit_sequence`).
 
     Parameters
@@ -104,7 +104,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     paths = frame_paths(inputs)
     for p in paths:
         format_for(p, purpose="read")
-    module = check_write_options(output, compat=compat, sort=sort)
+    module = check_write_options(output, compat=compat, sort=sort, layout=layout)
     check_output(output, paths, force)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     found = {}
@@ -121,12 +121,14 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
         raise UnsupportedError(f"the frames hold no splats; a {module.NAME} file cannot hold an empty scene",
                                paths[0])
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
-    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level)
+    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
+                   layout=layout, progress=progress)
     return scene, fit, report, paths
 
 
 def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
-                        sort=None, color: str = "auto", force: bool = False, zstd_level=None, check: bool = True,
+                        sort=None, layout=None, color: str = "auto", force: bool = False, zstd_level=None,
+                        check: bool = True,
                         check_every: int = 1, camera: int = 0, progress=SILENT):
     """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
 
@@ -143,10 +145,11 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
     inputs = [os.fspath(p) for p in inputs]
     for p in inputs:
         format_for(p, purpose="read")
-    check_write_options(output, sort=sort)
+    check_write_options(output, sort=sort, layout=layout)
     check_output(output, inputs, force)
     scenes = [read(p, color=color) for p in inputs]
     merged, report = merge_segments(scenes, durations, leak=leak, budget=budget, progress=progress)
     rows = fidelity(merged, scenes, report, camera=camera, every=check_every, progress=progress) if check else []
-    written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level)
+    written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level, layout=layout,
+                    progress=progress)
     return merged, report, written, rows

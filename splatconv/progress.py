@@ -3,7 +3,7 @@
 Library functions that can take more than a couple of seconds accept a
 ``progress`` argument: a :class:`Progress` (default :data:`SILENT`). They call
 ``progress.stage(label, total)`` and advance the returned counter; they never
-print. The CLI passes a bar on stderr (:mod:`splatconv.cli`) when stderr is a
+print. The CLI passes a one-line bar on stderr (``splatconv/cli/_progress.py``) when stderr is a
 terminal and ``--quiet`` is not given.
 """
 

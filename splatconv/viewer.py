@@ -139,13 +139,13 @@ def positions(cols: dict) -> np.ndarray:
     return _f64(cols, POSITION)
 
 
-def position_at(cols: dict, t: float) -> np.ndarray:
-    """Centre at time ``t``: ``(N, 3) float64``.
+def position_at(cols: dict, t) -> np.ndarray:
+    """Centre at time ``t`` (a float, or ``(N,)`` times, one a splat): ``(N, 3) float64``.
 
     xyz + m0 dt + m1 dt^2 + m2 dt^3 with dt = t - trbf_center, the terms summed in
     the viewer's order.
     """
-    dt = (float(t) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
+    dt = (np.asarray(t, dtype=np.float64) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
     m = motion(cols)
     with np.errstate(over="ignore", invalid="ignore"):
         return positions(cols) + (m[:, 0] * dt + m[:, 1] * dt * dt + m[:, 2] * dt * dt * dt)

@@ -96,13 +96,13 @@ INVALID_CASES = [
 
 
 @pytest.mark.parametrize("name,data,message", INVALID_CASES, ids=[c[0] for c in INVALID_CASES])
-def test_invalid_input_gives_one_error_line(tmp_path, name, data, message):
+def test_invalid_input_gives_one_error_line(monkeypatch, tmp_path, name, data, message):
     src = tmp_path / name
     src.write_bytes(data)
     out = tmp_path / ("out.ply" if name.endswith(".splatv") else "out.splatv")
     if name == "empty.splatv":
         out = tmp_path / "out.splatv"
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     result = CliRunner().invoke(main, ["convert", name, out.name])
     assert result.exit_code == 1, result.output
     assert result.stderr == f"Error: {name}: {message}\n"
@@ -172,7 +172,7 @@ def test_never_writes_onto_the_input(tmp_path, lite_ply, how):
 def test_usage_errors_exit_2(tmp_path, lite_ply):
     r = run("convert", lite_ply, tmp_path / "x.obj")
     assert r.exit_code == 2
-    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .ply, .splatv, optionally + .zst)\n"
+    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .ply, .splat, .splatv, optionally + .zst)\n"
     r = run("convert", lite_ply, tmp_path / "x.ply", "--compat", "splatv-js")
     assert r.exit_code == 2
     assert r.stderr == f"Error: {tmp_path / 'x.ply'}: --compat splatv-js applies to .splatv output only\n"
@@ -263,7 +263,7 @@ def test_help_documents_each_commands_defaults():
     assert "[default: 0.5]" in diff_help and "[default: 0]" in diff_help
     assert "drawn at one time from one camera" in diff_help
     verify_help = " ".join(run("verify", "--help").stdout.split())
-    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: all]" in verify_help
+    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: the first 8]" in verify_help
     for cmd in ("verify", "diff"):
         assert "fx and fy scale with the size" in " ".join(run(cmd, "--help").stdout.split()), cmd
     assert "An explicit size keeps the camera's fx and fy" in " ".join(run("render", "--help").stdout.split())
@@ -366,3 +366,39 @@ def test_info_takes_several_files(tmp_path, sample_splatv, lite_ply):
     common = {"path", "format", "variant", "count", "texture", "cameras", "time_range", "visible_time_range",
               "visible_always", "bounds", "nonfinite", "notes"}
     assert common <= set(data[0]) and common <= set(data[1])
+
+
+def _stderr_on_a_terminal(args, cwd):
+    """Run ``python -m splatconv ARGS`` with stderr on a pseudo-terminal; what it wrote there."""
+    import pty
+    import subprocess
+
+    master, slave = pty.openpty()
+    proc = subprocess.run([sys.executable, "-m", "splatconv", *args], stderr=slave, stdout=subprocess.PIPE,
+                          cwd=cwd)
+    os.close(slave)
+    out = b""
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:
+            break
+        if not chunk:
+            break
+        out += chunk
+    os.close(master)
+    assert proc.returncode == 0, out
+    return out.decode()
+
+
+def test_progress_shows_on_a_terminal_and_not_with_quiet_or_in_a_pipe(tmp_path, lite_ply):
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    shown = _stderr_on_a_terminal(["convert", str(lite_ply), str(tmp_path / "a.splatv")], root)
+    assert "writing:" in shown and "splats" in shown
+    assert shown.count("\r\x1b[K") >= 1  # the bar is cleared when its stage ends
+    quiet = _stderr_on_a_terminal(["convert", "--quiet", str(lite_ply), str(tmp_path / "b.splatv")], root)
+    assert "writing:" not in quiet
+    piped = run("convert", lite_ply, tmp_path / "c.splatv")
+    assert piped.exit_code == 0 and "writing:" not in piped.stderr

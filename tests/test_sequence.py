@@ -15,8 +15,7 @@ from splatconv.cli import main
 from splatconv.model import MOTION, OMEGA, STATIC_TRBF_CENTER, STATIC_TRBF_SCALE, Scene
 from splatconv.ops import sequence
 from splatconv.render.diff import compare
-from splatconv.render.preview import Renderer, float_attributes
-from splatconv.render.verify import frame_views
+from splatconv.render.frames import render_scene
 from splatconv.clips import frame_paths, natural_key
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -49,17 +48,8 @@ def snapshot(cols: dict, t: float) -> Scene:
 
 
 def draw(scenes, times, size=(320, 240)):
-    """Float-reference frames of each scene at each time from camera 0: list per scene."""
-    (_, view), = frame_views(CAMERAS, [0], size)
-    r = Renderer(view.width, view.height)
-    try:
-        out = []
-        for s in scenes:
-            r.load_float(float_attributes(s))
-            out.append([r.draw(view, float(t)) for t in times])
-        return out
-    finally:
-        r.release()
+    """Float-reference frames of each scene at each time from camera 0: an array per scene."""
+    return [render_scene(s, CAMERAS[0], times, size=size) for s in scenes]
 
 
 def write_frames(directory: Path, scenes, stem="frame_") -> list:

@@ -9,7 +9,9 @@ import click
 
 from .. import __version__
 from ..errors import SplatconvError, UsageError
+from ..fsutil import exit_on_signals
 from ..io import COLOR_MODES
+from ..transport import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
 from ._progress import progress_for
 
 
@@ -106,8 +108,18 @@ def progress(quiet: bool):
     return progress_for(quiet)
 
 
+def _max_decompressed(ctx, param, value):
+    try:
+        set_max_decompressed(None if value is None else parse_byte_size(value))
+    except ValueError as e:
+        raise click.BadParameter(str(e), ctx, param) from None
+
+
 @click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="splatconv")
+@click.option("--max-decompressed", metavar="SIZE", callback=_max_decompressed, expose_value=False,
+              help=f"Largest size a .zst input may decompress to, e.g. 8G (or set {MAX_DECOMPRESSED_ENV}) "
+                   f"[default: {DEFAULT_MAX_DECOMPRESSED >> 30}G].")
 def main():
     """Convert, check and preview 4D Gaussian-splatting scenes: Spacetime Gaussians and 3DGS PLY,
     splaTV's .splatv.
@@ -117,3 +129,4 @@ def main():
       splatconv convert scene.ply scene.splatv
       splatconv info scene.splatv
     """
+    exit_on_signals()  # SIGTERM, SIGHUP: clean up part and temporary files as Ctrl-C does

@@ -6,7 +6,7 @@ import os
 
 import click
 
-from .. import io, clips
+from .. import clips, io
 from ..formats import format_for
 from ..ops.sequence import SAME_SPLATS_MODES
 from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
@@ -14,6 +14,12 @@ from ..stats import describe, stats_report
 from ..transport import DEFAULT_LEVEL
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, quiet_option)
+from ._edit import edit_options, scene_editor
+
+
+def _zstd_option(what: str):
+    return click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
+                        help=f"zstd level for {what} [default: {DEFAULT_LEVEL}].")
 
 
 class _Times(click.ParamType):
@@ -30,20 +36,28 @@ class _Times(click.ParamType):
 def sequence_options():
     return (
         click.option("--frame-times", type=_Times(), default=None,
-                     help="Time of each frame of a sequence, comma-separated, increasing "
-                          "(default: frame k of N at k/(N-1)."),
+                     help="Frame sequences: the time of each frame, comma-separated, increasing "
+                          "(default: frame k of N at k/(N-1))."),
         click.option("--same-splats", type=click.Choice(SAME_SPLATS_MODES), default="auto", show_default=True,
-                     help="Whether row i of every frame is the same splat (fit its motion); auto: when "
-                          "every frame has the same count."),
+                     help="Frame sequences: whether row i of every frame is the same splat (its motion is "
+                          "fitted); auto: when every frame has the same count."),
         click.option("--max-error", type=POSITIVE, default=None,
-                     help="Largest position error (scene units) of a fitted splat before it is split into "
-                          "pieces (default: 0.001 of the first frame's extent)."),
+                     help="Frame sequences: largest position error (scene units) of a fitted splat before it "
+                          "is split into pieces (default: 0.001 of the first frame's extent)."),
     )
 
 
-def _zstd_option(what: str):
-    return click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
-                        help=f"zstd level for {what} [default: {DEFAULT_LEVEL}].")
+def _convert_frames(inputs, output_path, *, edits, quiet, **options):
+    """``convert`` of a frame sequence: fit or stack the frames, then write."""
+    if any(v not in (None, False, ()) for v in edits.values()):
+        raise Failure("edit options apply to one INPUT, not to a frame sequence (convert it first)", 2)
+    scene, fit, report, _ = clips.convert_frames(inputs, output_path, progress=progress(quiet), **options)
+    notes(scene.notes)
+    notes(fit.notes)
+    notes(report.notes)
+    click.echo(sequence_text(fit.as_dict()))
+    size = os.path.getsize(output_path)
+    click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
 
 
 @main.command()
@@ -59,26 +73,24 @@ def _zstd_option(what: str):
                       "(importance for .splatv, none for .ply)."),
     click.option("--cameras", "cameras", type=click.Path(dir_okay=False),
                  help="A 3DGS / Spacetime Gaussians cameras.json to store in the output."),
+    click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
+                 help="PLY output: lite (Spacetime Gaussians, keeps motion and time) or 3dgs (plain 3DGS, "
+                      "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
     color_option(),
     _zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
     *sequence_options(),
     force_option(),
     quiet_option(),
 )
+@edit_options()
 @library_errors
-def convert(input_paths, output_path, compat, sort, cameras, color, zstd_level, frame_times, same_splats,
-            max_error, force, quiet):
-    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, either + .zst).
+def convert(input_paths, output_path, compat, sort, cameras, layout, color, zstd_level, frame_times, same_splats,
+            max_error, force, quiet, **edits):
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
     reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
     compressed while it is written.
-
-    A frame sequence (a directory, a quoted glob or several files, in natural
-    order) becomes one 4D scene: frame k of N at time k/(N-1) unless
-    --frame-times says otherwise. With the same splats in every frame each
-    splat's motion, rotation and opacity are fitted; otherwise each frame is
-    shown around its own time. See README "Frame sequences".
 
     \b
     Example:
@@ -87,22 +99,16 @@ def convert(input_paths, output_path, compat, sort, cameras, color, zstd_level, 
       splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
     """
     if clips.is_sequence(input_paths):
-        scene, fit, report, _ = clips.convert_frames(
-            input_paths, output_path, frame_times=frame_times, same_splats=same_splats, max_error=max_error,
-            compat=compat, sort=sort, cameras=cameras, color=color, force=force, zstd_level=zstd_level,
-            progress=progress(quiet))
-        notes(scene.notes)
-        notes(fit.notes)
-        notes(report.notes)
-        click.echo(sequence_text(fit.as_dict()))
-        size = os.path.getsize(output_path)
-        click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
+        _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
+                        color=color, zstd_level=zstd_level, frame_times=frame_times, same_splats=same_splats,
+                        max_error=max_error, force=force, quiet=quiet, edits=edits)
         return
     if frame_times is not None or same_splats != "auto" or max_error is not None:
         raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
     input_path = input_paths[0]
     scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                               force=force, zstd_level=zstd_level)
+                               force=force, zstd_level=zstd_level, layout=layout, progress=progress(quiet),
+                               edit=scene_editor(edits))
     notes(scene.notes)
     notes(report.notes)
     size = os.path.getsize(output_path)

@@ -15,9 +15,9 @@ import os
 
 from ..errors import UsageError
 from ..transport import inner_name
-from . import ply, splatv
+from . import ply, splat, splatv
 
-_MODULES = (ply, splatv)
+_MODULES = (ply, splatv, splat)
 REGISTRY = {suffix: module for module in _MODULES for suffix in module.SUFFIXES}
 
 

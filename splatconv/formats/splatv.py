@@ -16,11 +16,13 @@ from .. import packing
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input
+from ..jsonutil import decode as decode_json
 from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
+from ..progress import SILENT
 from . import splatv_engine as engine
 from .base import WriteReport
-from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, LOG_OF_HALF, LOGIT_OF_BYTE, _sigmoid255,
+from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE, _sigmoid255,
                             COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
                             MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXWIDTH,
                             WORDS_PER_SPLAT, header_bytes, texture_bytes, texture_height)
@@ -50,7 +52,8 @@ __all__ = ["NAME", "SUFFIXES", "read", "write", "encode", "info_fields", "read_r
 # Writing
 
 
-def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None) -> WriteReport:
+def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
+          **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatv``.
 
     Parameters
@@ -76,8 +79,10 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     try:
         cameras = engine.prepare(plan, not scene.cameras, report, pool)
         stream.write(header_bytes(n, cameras or scene.cameras))
-        for block in engine.blocks(plan, report, pool):
-            stream.write(memoryview(block))
+        with progress.stage("writing", n, "splat") as advance:
+            for block in engine.blocks(plan, report, pool):
+                stream.write(memoryview(block))
+                advance(len(block))
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
@@ -191,8 +196,28 @@ def _check_splat_chunk(chunk: dict, path: str, where: tuple) -> None:
     cameras = chunk.get("cameras", [])
     try:
         validate_cameras(cameras, path)
-    except Exception as e:
+    except FormatError as e:
         raise FormatError(e.message, path, where + ("cameras",) + e.where) from None
+
+
+def declared_size(head: bytes):
+    """File size the header at the start of ``head`` declares: preamble, JSON and every chunk.
+
+    None when ``head`` does not hold the whole header or it is not valid (the
+    reader says why). Used to bound the decompression of a ``.splatv.zst``.
+    """
+    if len(head) < PREAMBLE.size:
+        return None
+    magic, json_len = PREAMBLE.unpack_from(head)
+    if magic != MAGIC or PREAMBLE.size + json_len > len(head):
+        return None
+    try:
+        chunks = decode_json(head[PREAMBLE.size:PREAMBLE.size + json_len])
+    except ValueError:
+        return None
+    if not isinstance(chunks, list) or not all(isinstance(c, dict) and _is_count(c.get("size")) for c in chunks):
+        return None
+    return PREAMBLE.size + json_len + sum(c["size"] for c in chunks)
 
 
 def read_records(path: str | os.PathLike):
@@ -201,7 +226,8 @@ def read_records(path: str | os.PathLike):
     Returns
     -------
     records : (count, 16) uint32 ndarray
-        Records up to the last one that is not all zero.
+        The splats' records: as many as the header's ``count`` says where it
+        can be trusted, else up to the last record that is not all zero.
     chunk : dict
         The splat chunk's header object.
     meta : dict
@@ -250,7 +276,7 @@ def read_records(path: str | os.PathLike):
             raise FormatError(f"read {got} of {actual} texture bytes", path)
         raw[actual:] = bytes(len(raw) - actual)
     records = buf.reshape(-1, WORDS_PER_SPLAT)
-    count = _records_used(records)
+    count = _splat_count(records, chunk, notes)
     if skipped:
         notes.append(f"skipped {len(skipped)} chunk(s) of other types: "
                      + ", ".join(sorted({c['type'] for c in skipped})))
@@ -265,12 +291,44 @@ def read_records(path: str | os.PathLike):
     return records[:count], chunk, meta, notes
 
 
+def _splat_count(records: np.ndarray, chunk: dict, notes: list) -> int:
+    """Splats in ``records`` (``(N, 16) uint32``, all present): the header's count where it can be trusted.
+
+    The count splatconv writes (:data:`COUNT_KEY`) is used when it is an integer
+    within the texture and every record after it is zero padding; a splat whose
+    record is all zero is then kept. Otherwise (files of other writers, or a
+    count that disagrees with the data: noted) the splats are the records up to
+    the last one that is not all zero.
+    """
+    if COUNT_KEY not in chunk:
+        return _records_used(records)
+    count = chunk[COUNT_KEY]
+    capacity = chunk["texheight"] * SPLATS_PER_ROW
+    if not _is_count(count) or count > capacity:
+        shown = repr(count) if not isinstance(count, int) or abs(count) < 1 << 64 else "a huge number"
+        notes.append(f"header '{COUNT_KEY}' {shown[:40]} is not a splat count within the texture "
+                     f"({capacity} records); splats counted up to the last record that is not all zero")
+        return _records_used(records)
+    used = _records_used(records[count:])
+    if used:
+        notes.append(f"header '{COUNT_KEY}' says {count} splats but the records after it hold data; splats "
+                     f"counted up to the last record that is not all zero ({count + used})")
+        return count + used
+    if count > len(records):
+        notes.append(f"header '{COUNT_KEY}' says {count} splats but the texture data holds only "
+                     f"{len(records)} records")
+        return len(records)
+    return count
+
+
 def _records_used(records: np.ndarray) -> int:
     """Records up to the last one that is not all zero, ``records`` being ``(N, 16) uint32``.
 
     Searches back from the end in growing steps: the zero padding is at most a
     texture row in files splatconv writes, so this rarely reads more than that.
     """
+    if len(records) == 0:
+        return 0
     words = records.reshape(len(records), -1)
     stop = len(words)
     step = SPLATS_PER_ROW
@@ -350,7 +408,8 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     """Read a ``.splatv`` file into a :class:`Scene`.
 
     Texture data shorter than declared is padded with zeros (noted once); the
-    splat count excludes trailing all-zero records. NaN, infinities, subnormal
+    splat count is the header's ``count`` (see :func:`_splat_count`), or, in
+    files without one, excludes trailing all-zero records. NaN, infinities, subnormal
     halves and zero scales are read as they are.
     """
     records, chunk, meta, notes = read_records(path)

@@ -24,6 +24,9 @@ RECORD_BYTES = WORDS_PER_SPLAT * 4
 MAX_JSON_BYTES = 64 << 20
 #: Largest texture height accepted: past any GPU's MAX_TEXTURE_SIZE (4 GiB of data).
 MAX_TEXHEIGHT = 65536
+#: Key of the splat chunk holding the number of splats (splatconv's; the viewer
+#: ignores it). Without it a splat whose record is all zero cannot be told from padding.
+COUNT_KEY = "count"
 
 #: Record words 0-2: position as float32 bits.
 POSITION_WORDS = {0: "x", 1: "y", 2: "z"}
@@ -69,6 +72,7 @@ def header_bytes(count: int, cameras: list) -> bytes:
         "size": texture_bytes(texheight),
         "texwidth": TEXWIDTH,
         "texheight": texheight,
+        COUNT_KEY: count,
         "cameras": cameras,
     }
     text = json.dumps([chunk], separators=(",", ":"), ensure_ascii=False, allow_nan=False).encode("utf-8")

@@ -37,7 +37,8 @@ from ..cameras import framing_camera
 from ..progress import SILENT
 from ..render import camera as cam
 from ..render.diff import compare
-from ..render.preview import Renderer, View, float_attributes
+from ..render.layout import float_attributes
+from ..render.preview import Renderer, View
 from .sequence import _shift_poly
 
 #: Frames per segment when no durations are given (Spacetime Gaussians trains 50).
