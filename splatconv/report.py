@@ -89,25 +89,57 @@ def _psnr(v) -> str:
     return "inf" if v is None else f"{v:.2f}"
 
 
+def _count(n: int, word: str) -> str:
+    """``1 frame``, ``2 frames``, ``3,000 values``."""
+    return f"{n:,} {word}{'' if n == 1 else 's'}"
+
+
+def _frames_footnote(frames: list) -> str:
+    why = f"(errors out of 255; pixels off: a channel off by more than {frames[0]['tolerance']}"
+    if any(f["identical"] for f in frames):
+        why += "; inf: the two frames are identical"
+    return why + ")"
+
+
 def frames_text(data: dict) -> str:
-    """The per-frame table and verdict of ``verify`` / ``diff`` (from ``Outcome.as_dict``)."""
+    """The per-frame table of ``verify`` / ``diff`` of scene files (from ``Outcome.as_dict``)."""
     lines = [f"{'time':>6}  {'camera':>6}  {'PSNR dB':>8}  {'max err':>7}  {'mean err':>8}  {'pixels off':>10}"]
     for f in data["frames"]:
         lines.append(f"{f['time']:>6.3f}  {f['camera']:>6}  {_psnr(f['psnr']):>8}  {f['max_abs_error']:>7}  "
                      f"{f['mean_abs_error']:>8.3f}  {100 * f['share_off']:>9.3f}%")
     if data["frames"]:
-        lines.append(f"(errors out of 255; pixels off: a channel off by more than "
-                     f"{data['frames'][0]['tolerance']})")
+        lines.append(_frames_footnote(data["frames"]))
     return "\n".join(lines)
 
 
-def structure_text(data: dict) -> str:
-    """Per-attribute errors of ``verify``, against what quantization explains."""
+def attributes_text(data: dict) -> str:
+    """Per-attribute errors of ``verify`` (its ``attributes`` block), against what quantization explains."""
     lines = [f"{'attribute':<10}  {'max abs err':>11}  {'max rel err':>11}  {'rmse':>10}  {'unexplained':>11}"]
-    for name, g in data["structure"].items():
+    for name, g in data["attributes"].items():
         lines.append(f"{name:<10}  {g['max_abs_error']:>11.4g}  {g['max_rel_error']:>11.4g}  {g['rmse']:>10.4g}  "
                      f"{g['unexplained']:>11,}")
+    lines.append("(errors between values finite on both sides, in the viewer's units)")
+    for name, g in data["attributes"].items():
+        if g["nan_stored"]:
+            lines.append(f"{name}: {_count(g['nan_stored'], 'NaN value')} stored as numbers "
+                         f"(a byte cannot hold NaN)")
     return "\n".join(lines)
+
+
+def _drift_text(name: str, g: dict) -> str:
+    """What drifted in one attribute: values made infinite, non-finite values changed, the rest."""
+    parts = []
+    of = f"of {_count(g['values'], 'value')}"
+    if g["became_infinite"]:
+        parts.append(f"{g['became_infinite']:,} {of} became infinite (finite in the source)")
+    if g["nonfinite_changed"]:
+        parts.append(f"{g['nonfinite_changed']:,} {'' if parts else of + ' '}that were NaN or infinite in the "
+                     f"source were stored as something else")
+    off = g["unexplained"] - g["became_infinite"] - g["nonfinite_changed"]
+    if off:
+        parts.append(f"{off:,} {'more' if parts else of} off by more than quantization explains (largest error "
+                     f"between finite values {g['max_abs_error']:.4g}, relative {100 * g['max_rel_error']:.3g}%)")
+    return f"FAIL: {name} drifted: " + "; ".join(parts)
 
 
 def verdict_text(data: dict) -> str:
@@ -115,19 +147,17 @@ def verdict_text(data: dict) -> str:
     lines = []
     bad_frames = sorted((f for f in data["frames"] if f["psnr"] is not None and f["psnr"] < data["min_psnr"]),
                         key=lambda f: f["psnr"])
-    for name, g in data.get("structure", {}).items():
+    for name, g in (data.get("attributes") or {}).items():
         if g["unexplained"]:
-            lines.append(f"FAIL: {name} drifted: {g['unexplained']:,} of {g['compared']:,} values off by more than "
-                         f"quantization explains (max error {g['max_abs_error']:.4g}, relative "
-                         f"{100 * g['max_rel_error']:.3g}%)")
+            lines.append(_drift_text(name, g))
     if bad_frames:
         worst = ", ".join(f"t={f['time']:g} camera {f['camera']} ({f['psnr']:.2f} dB)" for f in bad_frames[:3])
-        lines.append(f"FAIL: {len(bad_frames)} of {len(data['frames'])} frames below {data['min_psnr']:g} dB; "
-                     f"worst: {worst}")
+        lines.append(f"FAIL: {len(bad_frames):,} of {_count(len(data['frames']), 'frame')} below "
+                     f"{data['min_psnr']:g} dB; worst: {worst}")
     if not lines:
         w = data["worst"]
         worst = "" if w is None else f"; worst {_psnr(w['psnr'])} dB at t={w['time']:g} camera {w['camera']}"
-        lines.append(f"PASS: {len(data['frames'])} frames at or above {data['min_psnr']:g} dB{worst}")
+        lines.append(f"PASS: {_count(len(data['frames']), 'frame')} at or above {data['min_psnr']:g} dB{worst}")
     return "\n".join(lines)
 
 
@@ -286,7 +316,7 @@ def images_text(data: dict) -> str:
         lines.append(f"{a:<{wa}}  {b:<{wb}}  {_psnr(f['psnr']):>8}  {f['max_abs_error']:>7}  "
                      f"{f['mean_abs_error']:>8.3f}  {100 * f['share_off']:>9.3f}%")
     if rows:
-        lines.append(f"(errors out of 255; pixels off: a channel off by more than {rows[0][2]['tolerance']})")
+        lines.append(_frames_footnote(data["frames"]))
     return "\n".join(lines)
 
 
@@ -296,3 +326,25 @@ def images_verdict_text(data: dict) -> str:
     word, relation = ("FAIL", "below") if bad else ("PASS", "at or above")
     w = data["worst"]
     return f"{word}: {w['a']} vs {w['b']}: {_psnr(w['psnr'])} dB, {relation} {data['min_psnr']:g} dB"
+
+
+def _dist(d: dict, fmt: str) -> str:
+    return "  ".join(f"{k} {fmt.format(d[k])}" for k in ("p50", "p90", "p99", "max"))
+
+
+def sequence_text(data: dict) -> str:
+    """A frame-sequence fit (:class:`splatconv.ops.sequence.SequenceReport` as a dict) as text."""
+    n = data["frames"]
+    times = data["times"]
+    span = f"t {times[0]:g} .. {times[-1]:g}" if times else ""
+    if not data["same_splats"]:
+        per = data["splats_per_frame"]
+        return (f"{n} frames ({span}), different splats per frame: {sum(per):,} splats, each frame shown "
+                "around its own time")
+    lines = [f"{n} frames ({span}), the same {data['splats_per_frame'][0]:,} splats in each: motion fitted"]
+    lines.append(f"  position error ({data['max_error']:.3g} allowed): {_dist(data['position_error'], '{:.3g}')}")
+    lines.append(f"  rotation error (degrees):  {_dist(data['rotation_error_deg'], '{:.3g}')}")
+    lines.append(f"  opacity error:             {_dist(data['opacity_error'], '{:.3g}')}")
+    if data["split_splats"]:
+        lines.append(f"  split into pieces: {data['split_splats']:,} splats, {data['pieces_added']:+,} splats")
+    return "\n".join(lines)

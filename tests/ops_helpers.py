@@ -7,7 +7,8 @@ import numpy as np
 from splatconv.model import COLUMNS, Scene
 from splatconv.render import camera as cam
 from splatconv.render.diff import compare
-from splatconv.render.preview import View, float_attributes
+from splatconv.render.layout import float_attributes
+from splatconv.render.preview import View
 
 W, H = 160, 120
 FOCAL = 140.0

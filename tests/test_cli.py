@@ -263,7 +263,7 @@ def test_help_documents_each_commands_defaults():
     assert "[default: 0.5]" in diff_help and "[default: 0]" in diff_help
     assert "drawn at one time from one camera" in diff_help
     verify_help = " ".join(run("verify", "--help").stdout.split())
-    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: all]" in verify_help
+    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: the first 8]" in verify_help
     for cmd in ("verify", "diff"):
         assert "fx and fy scale with the size" in " ".join(run(cmd, "--help").stdout.split()), cmd
     assert "An explicit size keeps the camera's fx and fy" in " ".join(run("render", "--help").stdout.split())

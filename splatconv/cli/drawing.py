@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import click
 
-from ..render.commands import DIFF_CAMERAS, DIFF_TIMES, diff_files, render_file
-from ..render.verify import DEFAULT_MIN_PSNR, DEFAULT_TIMES, VERIFY_MAX_WIDTH, verify as run_verify
-from ..report import frames_text, images_text, images_verdict_text, structure_text, to_json, verdict_text
-from ._base import FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, options, quiet_option
+from ..render.camera import MAX_DEFAULT_WIDTH
+from ..render.commands import diff_files, render_file
+from ..render.verify import DEFAULT_CAMERAS, DEFAULT_MIN_PSNR, DEFAULT_TIMES, DIFF_TIMES, VERIFY_MAX_WIDTH
+from ..render.verify import verify as run_verify
+from ..report import attributes_text, frames_text, images_text, images_verdict_text, to_json, verdict_text
+from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
+                    progress, quiet_option)
 
 
 def _times_text(times) -> str:
@@ -31,6 +34,7 @@ def _view_options(times, cameras: str):
 
 
 def _finish(data: dict, as_json: bool, parts) -> None:
+    notes(data["notes"])
     if as_json:
         click.echo(to_json(data))
     else:
@@ -48,9 +52,9 @@ def _finish(data: dict, as_json: bool, parts) -> None:
     click.option("--camera", type=int, help="Header camera to view from (default 0)."),
     click.option("--view", help="Column-major view matrix as the viewer keeps it in its URL hash: "
                                 "a JSON list of 16 numbers."),
-    click.option("--size", help="Image size WxH. Default: the camera's, scaled down to at most 1280 wide, "
-                                "fx and fy scaled along. An explicit size keeps the camera's fx and fy, as "
-                                "the viewer does in a window of that size."),
+    click.option("--size", help=f"Image size WxH (of each frame). Default: the camera's, scaled down to at most "
+                                f"{MAX_DEFAULT_WIDTH} wide, fx and fy scaled along. An explicit size keeps the "
+                                "camera's fx and fy, as the viewer does in a window of that size."),
     click.option("--fx", type=POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
                                              "default size)."),
     click.option("--fy", type=POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
@@ -81,14 +85,15 @@ def render(input_path, output_path, time_, camera, view, size, fx, fy, frames, r
     if camera is not None and view is not None:
         raise Failure("--camera and --view cannot be used together", 2)
     result = render_file(input_path, output_path, time=time_, camera=camera, view=view, size=size,
-                         fx=fx, fy=fy, frames=frames, reference=reference, color=color, force=force)
+                         fx=fx, fy=fy, frames=frames, reference=reference, color=color, force=force,
+                         progress=progress(quiet))
     click.echo(result)
 
 
 @main.command()
 @click.argument("source", type=click.Path(dir_okay=False))
 @click.argument("converted", type=click.Path(dir_okay=False))
-@_view_options(DEFAULT_TIMES, "all")
+@_view_options(DEFAULT_TIMES, f"the first {DEFAULT_CAMERAS}")
 @options(
     click.option("--report-dir", type=click.Path(file_okay=False),
                  help="Write each frame's images, a diff heatmap and a side-by-side picture here "
@@ -103,6 +108,8 @@ def verify(source, converted, times, cameras, size, min_psnr, as_json, color, re
     Compares every attribute against what half-float and 8-bit quantization can
     explain, then draws SOURCE through the float reference path and CONVERTED as
     stored, from the same cameras at the same times, and compares the pixels.
+    By default it draws from the first few cameras only (a note says so when
+    the file has more).
     Exits 0 when every frame reaches --min-psnr and no attribute drifted, 1
     otherwise. Existing --report-dir files are refused before anything is drawn
     unless --force.
@@ -113,26 +120,27 @@ def verify(source, converted, times, cameras, size, min_psnr, as_json, color, re
       splatconv verify scene.ply scene.splatv --times 0,0.5,1 --cameras 0 --report-dir report/
     """
     outcome = run_verify(source, converted, times=times, cameras=cameras, size=size, min_psnr=min_psnr,
-                         color=color, report_dir=report_dir, force=force)
-    _finish(outcome.as_dict(), as_json, (structure_text, frames_text, verdict_text))
+                         color=color, report_dir=report_dir, force=force, progress=progress(quiet))
+    _finish(outcome.as_dict(), as_json, (attributes_text, frames_text, verdict_text))
 
 
 @main.command()
 @click.argument("a", type=click.Path(dir_okay=False))
 @click.argument("b", type=click.Path(dir_okay=False))
-@_view_options(DIFF_TIMES, DIFF_CAMERAS)
+@_view_options(DIFF_TIMES, "0")
 @options(
     click.option("--out", type=click.Path(dir_okay=False),
                  help="Write a heatmap of the (worst) difference here (.png)."),
     click.option("--reference", is_flag=True, help="Draw scene files' attributes unquantized."),
     force_option("--out"),
+    quiet_option(),
 )
 @library_errors
-def diff(a, b, times, cameras, size, min_psnr, as_json, color, out, reference, force):
+def diff(a, b, times, cameras, size, min_psnr, as_json, color, out, reference, force, quiet):
     """Compare A and B: two images, or two scene files drawn the same way.
 
     Scene files are drawn at one time from one camera unless --times / --cameras
-    say otherwise (verify draws five times from every camera). Prints PSNR,
+    say otherwise (verify draws five times from several cameras). Prints PSNR,
     largest and mean error and the share of pixels off per frame (for two
     images, one row named by the files); exits 0 when every frame reaches
     --min-psnr, 1 otherwise.
@@ -143,7 +151,7 @@ def diff(a, b, times, cameras, size, min_psnr, as_json, color, out, reference, f
       splatconv diff scene.ply edited.splatv --times 0,1 --cameras all
     """
     outcome = diff_files(a, b, size=size, cameras=cameras, times=times, min_psnr=min_psnr, color=color,
-                         out=out, reference=reference, force=force)
+                         out=out, reference=reference, force=force, progress=progress(quiet))
     images = bool(outcome.frames) and bool(outcome.frames[0].names)
     parts = (images_text, images_verdict_text) if images else (frames_text, verdict_text)
     _finish(outcome.as_dict(), as_json, parts)

@@ -25,8 +25,14 @@ class ImageDiff:
     share_off: float  # share of pixels with a channel off by more than the tolerance
     tolerance: int
 
+    @property
+    def identical(self) -> bool:
+        """The RGB channels are equal (PSNR is infinite)."""
+        return math.isinf(self.psnr)
+
     def as_dict(self) -> dict:
-        return {"psnr": None if math.isinf(self.psnr) else round(self.psnr, 3),
+        """JSON form: ``psnr`` is null for identical images (``identical`` says so), as JSON has no infinity."""
+        return {"psnr": None if self.identical else round(self.psnr, 3), "identical": self.identical,
                 "max_abs_error": self.max_abs_error, "mean_abs_error": round(self.mean_abs_error, 4),
                 "share_off": round(self.share_off, 6), "tolerance": self.tolerance}
 
@@ -69,6 +75,7 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 
 
 def is_image(path) -> bool:
+    """Whether ``path`` names an image file (by suffix) rather than a scene file."""
     return os.fspath(path).lower().endswith(IMAGE_SUFFIXES)
 
 
