@@ -65,7 +65,7 @@ def render_file(input_path, output_path, *, time: float = 0.5, camera: int | Non
             width, height = images.save(drawn, times, stream, suffix)
     if len(times) == 1:
         return f"wrote {output_path}: {width}x{height}, t={time:g}"
-    if (width, height) != (v.width, v.height):
+    if suffix in images.STILL:
         return (f"wrote {output_path}: {width}x{height} contact sheet of {len(times)} frames "
                 f"({v.width}x{v.height} each) over t=0..1")
     return f"wrote {output_path}: {width}x{height}, {len(times)} frames over t=0..1"
