@@ -30,8 +30,8 @@ import numpy as np
 
 from .. import model
 from ..errors import FormatError
-from ..fsutil import open_input
-from ..model import Scene
+from ..fsutil import open_input, populate
+from ..model import Scene, constant_column
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales
 from .base import WriteReport, refuse_time_varying
@@ -88,31 +88,35 @@ def read(path: str | os.PathLike, **_options) -> Scene:
             raise FormatError(f"size {size:,} bytes is not a whole number of {RECORD_BYTES}-byte records: "
                               f"{size % RECORD_BYTES} bytes after record {size // RECORD_BYTES:,}; file truncated?",
                               path)
-        records = np.fromfile(f, dtype=RECORD, count=size // RECORD_BYTES)
+        # Mapped, not read: the scene's table is four times the file, the file need not be held too.
+        records = np.memmap(f, dtype=RECORD, mode="r", shape=(size // RECORD_BYTES,))
+        populate(records)
     n = len(records)
-    _rows, cols = model.lite_rows(n)
+    cols = {}
     notes = []
-    for i in range(3):
-        cols[model.POSITION[i]][:] = records["position"][:, i]
+    for i, name in enumerate(model.POSITION):
+        cols[name] = records["position"][:, i]  # views of the mapped file: no copy
     linear = records["scale"]
     negative = int(np.count_nonzero(linear < 0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        for i in range(3):
-            cols[model.SCALE[i]][:] = np.log(linear[:, i])
+        for i, name in enumerate(model.SCALE):
+            cols[name] = np.log(linear[:, i])
     if negative:
         notes.append(f"scale: {negative:,} negative values have no logarithm; read as NaN")
-    for i in range(3):
-        cols[model.COLOR[i]][:] = COLOR_OF_BYTE[records["rgba"][:, i]]
-    cols["opacity"][:] = LOGIT_OF_BYTE[records["rgba"][:, 3]]
-    for i in range(4):
-        cols[model.ROTATION[i]][:] = (records["rot"][:, i].astype(np.float32) - np.float32(ROT_STEPS)) / np.float32(
-            ROT_STEPS)
-    cols["trbf_center"][:] = model.STATIC_TRBF_CENTER
-    cols["trbf_scale"][:] = model.STATIC_TRBF_SCALE
+    for i, name in enumerate(model.COLOR):
+        cols[name] = COLOR_OF_BYTE[records["rgba"][:, i]]
+    cols["opacity"] = LOGIT_OF_BYTE[records["rgba"][:, 3]]
+    rot = (records["rot"].astype(np.float32) - np.float32(ROT_STEPS)) / np.float32(ROT_STEPS)
+    for i, name in enumerate(model.ROTATION):
+        cols[name] = rot[:, i]
+    # A static scene: the same constants for every splat, held once.
+    cols["trbf_center"] = constant_column(model.STATIC_TRBF_CENTER, n)
+    cols["trbf_scale"] = constant_column(model.STATIC_TRBF_SCALE, n)
     for name in model.MOTION + model.OMEGA:
-        cols[name][:] = 0.0
+        cols[name] = constant_column(0.0, n)
     meta = {"file_bytes": size, "records": n}
-    return Scene(columns=cols, cameras=None, variant=model.VARIANT_3DGS, meta=meta, notes=notes)
+    return Scene(columns={name: cols[name] for name in model.COLUMNS}, cameras=None, variant=model.VARIANT_3DGS,
+                 meta=meta, notes=notes)
 
 
 def _refuse_other_formats(head: bytes, path: str) -> None:
