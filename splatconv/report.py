@@ -285,3 +285,25 @@ def images_verdict_text(data: dict) -> str:
     word, relation = ("FAIL", "below") if bad else ("PASS", "at or above")
     w = data["worst"]
     return f"{word}: {w['a']} vs {w['b']}: {_psnr(w['psnr'])} dB, {relation} {data['min_psnr']:g} dB"
+
+
+def _dist(d: dict, fmt: str) -> str:
+    return "  ".join(f"{k} {fmt.format(d[k])}" for k in ("p50", "p90", "p99", "max"))
+
+
+def sequence_text(data: dict) -> str:
+    """A frame-sequence fit (:class:`splatconv.ops.sequence.SequenceReport` as a dict) as text."""
+    n = data["frames"]
+    times = data["times"]
+    span = f"t {times[0]:g} .. {times[-1]:g}" if times else ""
+    if not data["same_splats"]:
+        per = data["splats_per_frame"]
+        return (f"{n} frames ({span}), different splats per frame: {sum(per):,} splats, each frame shown "
+                "around its own time")
+    lines = [f"{n} frames ({span}), the same {data['splats_per_frame'][0]:,} splats in each: motion fitted"]
+    lines.append(f"  position error ({data['max_error']:.3g} allowed): {_dist(data['position_error'], '{:.3g}')}")
+    lines.append(f"  rotation error (degrees):  {_dist(data['rotation_error_deg'], '{:.3g}')}")
+    lines.append(f"  opacity error:             {_dist(data['opacity_error'], '{:.3g}')}")
+    if data["split_splats"]:
+        lines.append(f"  split into pieces: {data['split_splats']:,} splats, {data['pieces_added']:+,} splats")
+    return "\n".join(lines)

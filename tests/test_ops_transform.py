@@ -197,3 +197,19 @@ def test_identity_transform_changes_nothing():
     for name in scene.columns:
         assert np.array_equal(out.columns[name], scene.columns[name])
     assert Transform().is_identity and not make_transform(scale=2).is_identity
+
+
+@pytest.mark.parametrize("kwargs, changed", [
+    ({"translate": (1, 0, 0)}, "(positions)"),
+    ({"scale": 2.0}, "(positions, motion, scales)"),
+    ({"rotate": "z:10"}, "(positions, motion, rotations, omega)"),
+    ({"rotate": "z:10", "scale": 0.5, "translate": (0, 0, 1)}, "(positions, motion, rotations, omega, scales)"),
+])
+def test_transform_note_names_only_what_changed(kwargs, changed):
+    scene = moving_scene(10)
+    out, report = apply_transform(scene, make_transform(**kwargs))
+    assert report.notes[0].endswith(f"applied to 10 splats and 1 camera {changed}")
+    untouched = {"(positions)": ("motion_0", "rot_0", "omega_0", "scale_0"),
+                 "(positions, motion, scales)": ("rot_0", "omega_0")}.get(changed, ())
+    for name in untouched:
+        assert np.array_equal(out.columns[name], scene.columns[name]), name

@@ -69,7 +69,8 @@ def parse_cameras(text: str | None, available: int, first: int = DEFAULT_CAMERAS
         raise UsageError(f"--cameras: expected 'all' or comma-separated indices, got {text!r}") from None
     bad = [c for c in picked if not 0 <= c < available]
     if bad:
-        raise UsageError(f"--cameras: no camera {bad[0]}; there are {available:,} (0..{available - 1})")
+        there = "there is 1 (0)" if available == 1 else f"there are {available:,} (0..{available - 1})"
+        raise UsageError(f"--cameras: no camera {bad[0]}; {there}")
     return picked
 
 
