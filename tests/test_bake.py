@@ -294,3 +294,12 @@ def test_bake_drop_nonfinite(tmp_path):
     assert "note: drop-nonfinite: " in r.stderr
     back = io.read(clean)
     assert np.isfinite(back.columns["x"]).all() and back.count == io.read(kept).count - 3
+
+
+def test_bake_frames_notes_stale_frames(tmp_path, sample_splatv):
+    out = tmp_path / "flip"
+    assert run("bake", sample_splatv, out, "--frames", "4").exit_code == 0
+    r = run("bake", sample_splatv, out, "--frames", "2", "--force")
+    assert r.exit_code == 0
+    assert (f"note: {out} also holds 2 other frame files from before (frame_0002.ply, ...): a flipbook player "
+            "would show them too\n") in r.stderr

@@ -159,6 +159,10 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
                                 inputs=[input_path], progress=progress(quiet))
     for name, report in zip(names, reports):
         notes(f"{name}: {line}" for line in report.notes)
+    stale = bake_ops.other_frames(os.listdir(output_path), names, frame_suffix)
+    if stale:
+        notes([f"{output_path} also holds {len(stale)} other frame files from before ({stale[0]}, ...): "
+               "a flipbook player would show them too"])
     counts = [r.count for r in reports]
     click.echo(f"wrote {frames} frames to {output_path}: {names[0]} .. {names[-1]} (t = {moments[0]:g} .. "
                f"{moments[-1]:g}), {min(counts):,} to {max(counts):,} splats a frame")
