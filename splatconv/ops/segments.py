@@ -1,0 +1,568 @@
+"""Segments end to end: several 4D scenes on one timeline, each in its own interval.
+
+Spacetime Gaussians trains a long clip as segments of about 50 frames. Segment i
+of K, with n_i frames, is placed on the output's frames F_i .. F_i + n_i - 1 of
+N = sum n_i, frame f at time f / (N - 1): its local [0, 1] maps onto
+[a_i, b_i] = [F_i, F_i + n_i - 1] / (N - 1), remapped as trim does (centre,
+scale, motion term k by d^k, omega by d, d = b_i - a_i).
+
+The viewer hides a splat only by its temporal opacity, cut below 0.02. A splat
+whose visible interval (centre +- 1.978 temporal scales) stays clear of the
+neighbouring segments' frames is kept as it is. Every other splat ("long-lived":
+a background visible through the whole segment has a temporal scale above 1, or
+an infinite one) becomes *pieces*: copies of it, each shown through a Gaussian
+time window narrow enough to be cut before the neighbouring segment's frames
+(after a hand-over of ``leak`` frames), whose composited opacity follows the
+splat's over its own segment. The windows of a segment (centres, widths and
+weights) are chosen once per segment shape by a small deterministic search that
+minimises the composited opacity error over the segment's frames; a splat's
+piece is the product of its own temporal Gaussian and a window (a Gaussian
+again, so the viewer draws it exactly), with the motion and rotation re-centred
+(exact) and a peak opacity 1 - (1 - P mu)^w that composites to the splat's opacity.
+How many pieces a long-lived splat gets is set by the splat budget (default at
+most twice the segments' splats). See specs/segments.md for the measured limits.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import viewer
+from ..errors import UsageError
+from ..model import COLUMNS, MOTION, OMEGA, POSITION, ROTATION, VARIANT_LITE, Scene, lite_rows
+from ..cameras import framing_camera
+from ..progress import SILENT
+from ..render import camera as cam
+from ..render.diff import compare
+from ..render.layout import float_attributes
+from ..render.preview import Renderer, View
+from .sequence import _shift_poly
+
+#: Frames per segment when no durations are given (Spacetime Gaussians trains 50).
+DEFAULT_FRAMES = 50
+#: Output splats at most this many times the segments' splats together.
+DEFAULT_BUDGET = 2.0
+#: Frames of the neighbouring segment through which a segment's long-lived splats may still fade.
+DEFAULT_LEAK = 1
+#: Most windows a long-lived splat is split into.
+MAX_PIECES = 7
+#: Radii are kept this much inside a cut, for the viewer's float32 maths.
+_MARGIN = 0.995
+#: Pieces whose peak opacity is below half an 8-bit step are left out.
+_MIN_PEAK = 0.5 / 255
+#: Opacities the window search balances (compositing is not additive near 1).
+_ALPHAS = (0.3, 0.7, 0.95, 1.0)
+#: Weight of the opacity a frame's leading piece does not carry (see :func:`_layout_cost`).
+_SHARE_COST = 0.5
+#: Weight of a neighbour's leaked opacity in one's own frames (its content differs a little).
+_LEAK_COST = 0.25
+
+
+@dataclass
+class Placement:
+    """Where a segment lies on the output timeline."""
+
+    frames: int            # n_i
+    first: int             # F_i, its first output frame
+    start: float           # a_i
+    end: float             # b_i
+    cut_before: float      # its splats are hidden at and before this time (-inf: none)
+    cut_after: float       # ... at and after this time (+inf: none)
+
+    def local(self, t):
+        """Output time -> the segment's own time."""
+        return (np.asarray(t, np.float64) - self.start) / (self.end - self.start)
+
+
+@dataclass
+class SegmentReport:
+    """What :func:`merge_segments` did."""
+
+    placements: list
+    counts_in: list
+    counts_out: list
+    long_lived: list
+    pieces: list
+    dropped: list
+    leak: int
+    budget: float
+    notes: list = field(default_factory=list)
+
+    @property
+    def count_in(self) -> int:
+        return sum(self.counts_in)
+
+    @property
+    def count_out(self) -> int:
+        return sum(self.counts_out)
+
+    def frame_times(self) -> list:
+        """(output frame, output time, segment, local time) for every frame of every segment."""
+        total = sum(p.frames for p in self.placements)
+        out = []
+        for i, p in enumerate(self.placements):
+            for j in range(p.frames):
+                f = p.first + j
+                out.append((f, f / (total - 1), i, j / (p.frames - 1)))
+        return out
+
+    def as_dict(self) -> dict:
+        return {
+            "segments": [{"frames": p.frames, "first_frame": p.first, "start": p.start, "end": p.end,
+                          "splats_in": ci, "splats_out": co, "long_lived": ll, "pieces_per_long_lived": m,
+                          "dropped": d}
+                         for p, ci, co, ll, m, d in zip(self.placements, self.counts_in, self.counts_out,
+                                                         self.long_lived, self.pieces, self.dropped)],
+            "splats_in": self.count_in, "splats_out": self.count_out,
+            "ratio": round(self.count_out / self.count_in, 4) if self.count_in else None,
+            "leak_frames": self.leak, "budget": self.budget, "notes": list(self.notes),
+        }
+
+
+def placements(durations, leak: int = DEFAULT_LEAK) -> list:
+    """Each segment's interval and cuts on the output's [0, 1].
+
+    Parameters
+    ----------
+    durations : list of int
+        Frames of each segment (>= 2 each).
+    leak : int
+        Frames of a neighbour a segment's pieces may still show in (0: cut before its first).
+    """
+    n = [int(d) for d in durations]
+    if len(n) < 2:
+        raise UsageError("--segments needs at least two segments")
+    if any(d < 2 for d in n):
+        raise UsageError("--durations: every segment needs at least 2 frames")
+    total = sum(n)
+    step = 1.0 / (total - 1)
+    out, first = [], 0
+    for i, d in enumerate(n):
+        a, b = first * step, (first + d - 1) * step
+        before = a - (leak + 1) * step if i > 0 else -math.inf
+        after = b + (leak + 1) * step if i < len(n) - 1 else math.inf
+        out.append(Placement(d, first, a, b, before, after))
+        first += d
+    return out
+
+
+def place(columns: dict, start: float, end: float) -> dict:
+    """Map a scene's own [0, 1] onto [start, end] of a longer timeline: float64 columns.
+
+    t' = start + t (end - start): centres move, temporal scales and the motion
+    and angular-velocity terms rescale so that the scene at t' draws as it did at t.
+    """
+    d = end - start
+    out = {name: np.asarray(columns[name], np.float64) for name in COLUMNS}
+    out["trbf_center"] = start + out["trbf_center"] * d
+    out["trbf_scale"] = out["trbf_scale"] + math.log(d)
+    for k in range(3):
+        for name in MOTION[3 * k:3 * k + 3]:
+            out[name] = out[name] / d ** (k + 1)
+    for name in OMEGA:
+        out[name] = out[name] / d
+    return out
+
+
+# --------------------------------------------------------------------------
+# Windows: the pieces' time windows of one segment shape, found by a small search.
+
+
+def _radius_scale(x, n, leak, left, right):
+    """Largest window scale (frame units) at centres ``x`` that is cut before the cuts."""
+    lo = -(leak + 1) if left else -np.inf
+    hi = n - 1 + (leak + 1) if right else np.inf
+    return _MARGIN * np.minimum(x - lo, hi - x) / viewer.VISIBLE_RADIUS
+
+
+def _window_values(x, s, t):
+    with np.errstate(invalid="ignore", divide="ignore"):
+        g = np.exp(-((t[:, None] - x[None, :]) / s[None, :]) ** 2)
+    g[~(g >= viewer.TEMPORAL_CUTOFF)] = 0.0
+    return g
+
+
+def _nonnegative_lstsq(A, b):
+    active = np.ones(A.shape[1], bool)
+    w = np.zeros(A.shape[1])
+    for _ in range(A.shape[1] + 1):
+        w = np.zeros(A.shape[1])
+        if not active.any():
+            return w
+        w[active] = np.linalg.lstsq(A[:, active], b, rcond=None)[0]
+        if (w >= 0).all():
+            return w
+        active &= w > 0
+    return np.clip(w, 0.0, None)
+
+
+def _peaks(alpha, w):
+    """Piece peak opacities 1 - (1 - alpha)^w (alpha 1: 1 where w > 0)."""
+    alpha = np.asarray(alpha, np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(alpha >= 1.0, (w > 0) * 1.0, -np.expm1(w * np.log1p(-np.minimum(alpha, 1.0))))
+
+
+def _layout_cost(x, n, leak, left, right):
+    s = _radius_scale(x, n, leak, left, right)
+    t = np.arange(n, dtype=np.float64)
+    g = _window_values(x, s, t)
+    w = _nonnegative_lstsq(g, np.ones(n))
+    # The neighbours' pieces, assumed laid out alike (mirrored), still show in the
+    # leak frames: they fill in some of the fade, and cost a little as content.
+    mirror = []
+    if right:
+        mirror.append(2 * n - 1 - x)
+    if left:
+        mirror.append(-1 - x)
+    gn = [_window_values(m, s, t) for m in mirror]
+    cost = 0.0
+    for alpha in _ALPHAS:
+        p = _peaks(alpha, w)
+        own = 1.0 - np.prod(1.0 - p[None, :] * g, axis=1)
+        other = np.zeros(n)
+        for gm in gn:
+            other = 1.0 - (1.0 - other) * np.prod(1.0 - p[None, :] * gm, axis=1)
+        both = 1.0 - (1.0 - own) * (1.0 - other)
+        # Copies of a splat that share a moment blend with other splats' copies between
+        # them (depth order interleaves them): prefer one piece carrying each frame.
+        lead = (p[None, :] * g).max(axis=1)
+        cost += (np.mean((both - alpha) ** 2) + _LEAK_COST * np.mean(other ** 2)
+                 + _SHARE_COST * np.mean((own - lead) ** 2))
+    return cost / len(_ALPHAS), s, w
+
+
+_LAYOUTS: dict = {}
+
+
+def windows(n: int, pieces: int, leak: int, left: bool, right: bool):
+    """Window centres, scales (frame units, frame 0 .. n-1) and weights for one segment shape.
+
+    A deterministic random search (fixed seed), cached per shape.
+
+    Returns
+    -------
+    (x, s, table, cost) : ``(m,) float64`` centres and scales, the peak table
+        (:func:`_peak_table`) and the search's mean square composited error.
+    """
+    key = (n, pieces, leak, left, right)
+    if key in _LAYOUTS:
+        return _LAYOUTS[key]
+    rng = np.random.default_rng(20260 + 7 * pieces + n)
+    lo = -(leak + 1) + 0.01 if left else -2.0 * n
+    hi = n - 1 + (leak + 1) - 0.01 if right else 3.0 * n
+    best = None
+    tries = 300 + 100 * pieces
+    for it in range(tries):
+        if best is None or it < tries // 3:
+            x = np.sort(rng.uniform(lo, hi, pieces))
+        else:
+            spread = (hi - lo) * (0.05 if it < 2 * tries // 3 else 0.01)
+            x = np.sort(np.clip(best[1] + rng.normal(0.0, spread, pieces), lo, hi))
+        cost, s, w = _layout_cost(x, n, leak, left, right)
+        if best is None or cost < best[0]:
+            best = (cost, x, s, w)
+    cost, x, s, w = best
+    keep = w > 0
+    x, s, w = x[keep], s[keep], w[keep]
+    table = _peak_table(x, s, w, n, left, right)
+    _LAYOUTS[key] = (x, s, table, cost)
+    return _LAYOUTS[key]
+
+
+#: Opacities at which the peak table is solved (denser towards 1, where compositing bends most).
+PEAK_GRID = 1.0 - np.linspace(1.0, 0.0, 41) ** 2
+
+
+def _peak_table(x, s, w, n, left, right) -> np.ndarray:
+    """Peaks of each window for each opacity of :data:`PEAK_GRID`: ``(len(PEAK_GRID), m)``.
+
+    Projected Gauss-Newton on the composited opacity at the segment's frames,
+    1 - prod_j (1 - P_j g_j(t)) = alpha, the mirrored neighbours' leak included
+    at its current value; started from the log-additive guess 1 - (1 - alpha)^w.
+    """
+    t = np.arange(n, dtype=np.float64)
+    g = _window_values(x, s, t)
+    mirror = ([2 * n - 1 - x] if right else []) + ([-1 - x] if left else [])
+    gn = [_window_values(mx, s, t) for mx in mirror]
+    table = np.zeros((len(PEAK_GRID), len(x)))
+    for a, alpha in enumerate(PEAK_GRID):
+        p = np.clip(_peaks(alpha, w), 0.0, 1.0)
+        for _ in range(40):
+            keep = 1.0 - p[None, :] * g                        # (n, m)
+            own = np.prod(keep, axis=1)
+            other = np.ones(n)
+            for gm in gn:
+                other = other * np.prod(1.0 - p[None, :] * gm, axis=1)
+            r = 1.0 - own * other - alpha
+            with np.errstate(divide="ignore", invalid="ignore"):
+                J = np.where(keep > 1e-12, g * (own * other)[:, None] / keep, 0.0)
+            step = np.linalg.lstsq(J.T @ J + 1e-9 * np.eye(len(x)), J.T @ r, rcond=None)[0]
+            p = np.clip(p - step, 0.0, 1.0)
+        table[a] = p
+    return table
+
+
+def _lookup_peaks(table: np.ndarray, alpha: np.ndarray) -> np.ndarray:
+    """Peaks ``(M, m)`` for opacities ``alpha`` ``(M, m)`` (each piece by its own column)."""
+    out = np.empty_like(alpha)
+    a = np.clip(np.nan_to_num(alpha, nan=0.0), 0.0, 1.0)
+    for j in range(table.shape[1]):
+        out[:, j] = np.interp(a[:, j], PEAK_GRID, table[:, j])
+    return out
+
+
+# --------------------------------------------------------------------------
+# Merging.
+
+
+def _long_lived(cols: dict, p: Placement) -> tuple:
+    """Rows to split (visible at or beyond a cut) and rows with no time (NaN centre or scale)."""
+    lo, hi = viewer.visible_interval(cols)
+    nan_time = np.isnan(lo) | np.isnan(hi)
+    with np.errstate(invalid="ignore"):
+        split = ~nan_time & ((lo <= p.cut_before) | (hi >= p.cut_after))
+    return split, nan_time
+
+
+def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> dict:
+    """Pieces of splats ``rows`` (placed, float64 columns) for segment ``p``, ``m`` windows each: float64 columns."""
+    left, right = first_last
+    x, s, table, _ = windows(p.frames, m, leak, left, right)
+    step = (p.end - p.start) / (p.frames - 1)
+    wc = p.start + x * step                                   # window centres, output time
+    ws = s * step                                             # window scales
+    c = cols["trbf_center"][rows]
+    sc = viewer.exp(cols["trbf_scale"][rows])
+    peak = viewer.opacity(cols)[rows]
+    J = len(wc)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        inv = 1.0 / sc[:, None] ** 2 + 1.0 / ws[None, :] ** 2          # (M, J)
+        s_new = 1.0 / np.sqrt(inv)
+        c_new = np.where(np.isinf(sc)[:, None], wc[None, :],
+                         (c[:, None] / sc[:, None] ** 2 + wc[None, :] / ws[None, :] ** 2) / inv)
+        mu = np.where(np.isinf(sc)[:, None], 1.0, np.exp(-(c[:, None] - wc[None, :]) ** 2
+                                                         / (sc[:, None] ** 2 + ws[None, :] ** 2)))
+    # The product lies inside the window, so inside the cuts; keep a float margin anyway.
+    reach = np.minimum(c_new - p.cut_before, p.cut_after - c_new) * _MARGIN / viewer.VISIBLE_RADIUS
+    s_new = np.minimum(s_new, reach)
+    pk = _lookup_peaks(table, peak[:, None] * mu)
+    ok = (reach > 0) & (pk >= _MIN_PEAK) & np.isfinite(c_new) & (s_new > 0)
+    src, j = np.nonzero(ok)
+    rows_src = rows[src]
+    cn, sn = c_new[src, j], s_new[src, j]
+    out = {}
+    shift = cn - cols["trbf_center"][rows_src]
+    coef = np.stack([np.stack([cols[n][rows_src] for n in POSITION], axis=1)]
+                    + [np.stack([cols[MOTION[3 * k + i]][rows_src] for i in range(3)], axis=1) for k in range(3)],
+                    axis=1)                                              # (P, 4, 3)
+    with np.errstate(over="ignore", invalid="ignore"):
+        moved = _shift_poly(coef, shift)
+    for i, name in enumerate(POSITION):
+        out[name] = moved[:, 0, i]
+    for k in range(3):
+        for i in range(3):
+            out[MOTION[3 * k + i]] = moved[:, k + 1, i]
+    with np.errstate(over="ignore", invalid="ignore"):
+        for i in range(4):
+            out[ROTATION[i]] = cols[ROTATION[i]][rows_src] + cols[OMEGA[i]][rows_src] * shift
+            out[OMEGA[i]] = cols[OMEGA[i]][rows_src]
+    for name in COLUMNS:
+        if name not in out:
+            out[name] = cols[name][rows_src]
+    out["trbf_center"] = cn
+    out["trbf_scale"] = np.log(sn)
+    out["opacity"] = viewer.logit(np.clip(pk[src, j], 1e-7, 1 - 1e-7))
+    return out
+
+
+def impact(cols: dict, rows: np.ndarray) -> np.ndarray:
+    """How much a splat can matter in an image: peak opacity x its two largest axes' area: ``(M,) float64``."""
+    s = np.sort(viewer.scales(cols)[rows], axis=1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        v = viewer.opacity(cols)[rows] * s[:, 2] * s[:, 1]
+    return np.where(np.isfinite(v), v, 0.0)
+
+
+def allocate(weights: np.ndarray, extra: int, costs: dict) -> np.ndarray:
+    """Pieces per long-lived splat (1 .. MAX_PIECES) given ``extra`` pieces beyond one each.
+
+    Greedy on marginal gains: each extra piece goes where weight x (cost(m) -
+    cost(m + 1)) is largest, ``costs[m]`` being the windows' composited error with
+    m pieces. Ties and order are deterministic (stable sort).
+    """
+    n = len(weights)
+    m = np.ones(n, dtype=np.int64)
+    if n == 0 or extra <= 0:
+        return m
+    steps = [max(costs[k] - costs[k + 1], 0.0) for k in range(1, MAX_PIECES)]
+    # Keep the gains decreasing (a lower hull): a later step never outranks an earlier one.
+    for k in range(1, len(steps)):
+        steps[k] = min(steps[k], steps[k - 1])
+    gains = (weights[:, None] * np.array(steps)[None, :]).ravel()
+    take = min(extra, len(gains))
+    order = np.argsort(-gains, kind="stable")[:take]
+    order = order[gains[order] > 0]
+    np.add.at(m, order // len(steps), 1)
+    return m
+
+
+def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
+                   pieces: int | None = None, progress=SILENT):
+    """Lay scenes end to end on one timeline (see the module docstring).
+
+    Parameters
+    ----------
+    scenes : list of Scene
+        Two or more segments, each over its own [0, 1].
+    durations : list of int, optional
+        Frames of each segment (default :data:`DEFAULT_FRAMES` each): segment i
+        takes that share of the output and its frames stay at frame times.
+    leak : int
+        Frames of a neighbour a long-lived splat may still fade through.
+    budget : float
+        Output splats at most ``budget`` times the inputs' (sets pieces per long-lived splat).
+    pieces : int, optional
+        Pieces per long-lived splat, overriding the budget.
+
+    Returns
+    -------
+    (Scene, SegmentReport)
+        Cameras: the first segment's that has any.
+    """
+    if durations is None:
+        durations = [DEFAULT_FRAMES] * len(scenes)
+    if len(durations) != len(scenes):
+        raise UsageError(f"--durations gives {len(durations)} value(s) for {len(scenes)} segment(s)")
+    if not (budget >= 1.0):
+        raise UsageError("the splat budget must be at least 1")
+    places = placements(durations, leak)
+    parts, report = [], SegmentReport(places, [], [], [], [], [], leak, budget)
+    with progress.stage("placing segments", len(scenes), "segment") as advance:
+        for i, (scene, p) in enumerate(zip(scenes, places)):
+            cols = place(scene.columns, p.start, p.end)
+            split, nan_time = _long_lived(cols, p)
+            keep = ~split & ~nan_time
+            n_long = int(split.sum())
+            kept = {name: v[keep] for name, v in cols.items()}
+            m = np.zeros(0, np.int64)
+            if n_long:
+                rows = np.flatnonzero(split)
+                sides = (i > 0, i < len(scenes) - 1)
+                if pieces is not None:
+                    m = np.full(n_long, pieces, np.int64)
+                else:
+                    costs = {k: windows(p.frames, k, leak, *sides)[3] for k in range(1, MAX_PIECES + 1)}
+                    extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - n_long
+                    m = allocate(impact(cols, rows), extra, costs)
+                extra_cols = [_pieces(cols, rows[m == k], p, int(k), leak, sides) for k in np.unique(m)]
+                kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
+            parts.append(kept)
+            report.counts_in.append(scene.count)
+            report.counts_out.append(len(kept["x"]))
+            report.long_lived.append(n_long)
+            report.pieces.append({str(int(k)): int((m == k).sum()) for k in np.unique(m)})
+            report.dropped.append(int(nan_time.sum()))
+            advance()
+    total = sum(report.counts_out)
+    _rows, out = lite_rows(total)
+    at = 0
+    overflow = 0
+    for part in parts:
+        k = len(part["x"])
+        for name in COLUMNS:
+            with np.errstate(over="ignore", invalid="ignore"):
+                out[name][at:at + k] = part[name]
+            overflow += int((np.isinf(out[name][at:at + k]) & np.isfinite(part[name])).sum())
+        at += k
+    if sum(report.dropped):
+        report.notes.append(f"{sum(report.dropped):,} splat(s) with a NaN temporal centre or scale dropped "
+                            "(they have no place in time)")
+    if overflow:
+        report.notes.append(f"{overflow:,} finite values grew beyond float32 and are now infinite")
+    long_total = sum(report.long_lived)
+    report.notes.append(
+        f"segments: {len(scenes)} on one timeline ({', '.join(str(d) for d in durations)} frames); "
+        f"{long_total:,} long-lived splat(s) split into time-windowed pieces; "
+        f"{report.count_in:,} -> {report.count_out:,} splats ({report.count_out / max(report.count_in, 1):.2f}x)")
+    cameras = next((s.cameras for s in scenes if s.cameras), None)
+    return Scene(columns=out, cameras=cameras, variant=VARIANT_LITE, meta={}), report
+
+
+# --------------------------------------------------------------------------
+# Fidelity: the merged scene against each segment alone, frame by frame.
+
+#: Width of the fidelity renders (the camera's size scaled down to it).
+FIDELITY_WIDTH = 320
+#: Splats drawn per frame are those at or above this temporal opacity (below the viewer's
+#: 0.02 so that the shader, not this pre-selection, makes the cut).
+_PRESELECT = 0.019
+
+
+def _view(cameras, index: int, columns: dict, width: int) -> View:
+    cams = cameras or [framing_camera(columns["x"], columns["y"], columns["z"])]
+    if not 0 <= index < len(cams):
+        raise UsageError(f"--camera {index}: the segments have {len(cams)} camera(s), 0..{len(cams) - 1}")
+    w, h, fx, fy = cam.fit(cams[index], None, width)
+    return View(cam.view_matrix(cams[index]), fx, fy, w, h)
+
+
+def _visible_rows(columns: dict, t: float) -> np.ndarray:
+    return np.flatnonzero(~(viewer.temporal_opacity(columns, t, cut=False) < _PRESELECT))
+
+
+def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: int = 0, every: int = 1,
+             width: int = FIDELITY_WIDTH, progress=SILENT) -> list:
+    """PSNR of the merged scene at each output frame time against its segment at the local time.
+
+    Both are drawn with the float reference renderer (unquantized attributes,
+    the viewer's shader maths) from the stored camera ``camera`` (the first
+    segment's cameras; a framing camera when none has any), ``width`` pixels wide.
+    Only splats that pass the temporal cut at the frame's time are uploaded
+    (the others draw nothing).
+
+    Parameters
+    ----------
+    every : int
+        Check every ``every``-th output frame (1: all).
+
+    Returns
+    -------
+    list of dict
+        ``frame``, ``time``, ``segment``, ``local_time``, ``psnr`` (None when identical).
+    """
+    frames = report.frame_times()[::max(1, int(every))]
+    view = _view(merged.cameras or next((s.cameras for s in segments if s.cameras), None), camera,
+                 merged.columns, width)
+    a = Renderer(view.width, view.height)
+    b = Renderer(view.width, view.height, ctx=a.ctx)
+    out = []
+    try:
+        with progress.stage("checking frames", len(frames), "frame") as advance:
+            for f, t, i, local in frames:
+                images = []
+                for r, scene, when in ((a, merged, t), (b, segments[i], local)):
+                    rows = _visible_rows(scene.columns, when)
+                    r.load_float(float_attributes(scene, rows))
+                    images.append(r.draw(view, float(when)))
+                psnr = compare(images[1], images[0]).psnr
+                out.append({"frame": f, "time": round(t, 9), "segment": i, "local_time": round(local, 9),
+                            "psnr": None if math.isinf(psnr) else round(psnr, 3)})
+                advance()
+    finally:
+        b.release()
+        a.release()
+    return out
+
+
+def fidelity_summary(rows: list) -> dict:
+    """Median, minimum and frames below 30 and 40 dB of :func:`fidelity` rows (identical frames count as inf)."""
+    v = np.array([math.inf if r["psnr"] is None else r["psnr"] for r in rows])
+    if len(v) == 0:
+        return {"frames": 0}
+    return {"frames": len(v), "median_psnr": float(np.median(v)) if np.isfinite(np.median(v)) else None,
+            "min_psnr": float(v.min()) if np.isfinite(v.min()) else None,
+            "below_40": int((v < 40).sum()), "below_30": int((v < 30).sum())}
