@@ -156,11 +156,12 @@ def locked_temporary(suffix: str):
     first, as :func:`remove_stale_parts` does for outputs. The lock is held
     until the file is removed; ``fd`` is the caller's to close.
     """
-    folder = tempfile.gettempdir()
-    _remove_unlocked(folder, _TEMP_PATTERN)
-    held = hold_signals()  # a signal between creating the file and the try would leave it behind
+    held = hold_signals()  # a signal between creating a file and the try would leave it behind
     lock = None
     try:
+        # Held here too: the first call probes the folder with a file of its own.
+        folder = tempfile.gettempdir()
+        _remove_unlocked(folder, _TEMP_PATTERN)
         fd, tmp = tempfile.mkstemp(prefix=TEMP_PREFIX, suffix=suffix)
         lock = os.dup(fd)
         with contextlib.suppress(OSError):
