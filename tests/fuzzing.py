@@ -223,7 +223,7 @@ def _splatv_header_edit(rng, data):
     json_len = struct.unpack_from("<I", data, 4)[0]
     try:
         chunks = json.loads(data[8:8 + json_len])
-    except ValueError:
+    except (ValueError, RecursionError):  # an earlier mutation nested it deeply
         return bit_flips(rng, data, "")
     body = data[8 + json_len:]
     text = _hostile_json(rng, chunks).encode()
@@ -260,7 +260,7 @@ def huge_count(rng, data, name):
         chunks[0][chunks_edit[0]] = chunks_edit[1]
         if chunks_edit[0] == "texheight" and rng.random() < 0.5:
             chunks[0]["size"] = 4096 * 16 * max(0, chunks_edit[1])
-    except (ValueError, struct.error, IndexError, KeyError, TypeError):
+    except (ValueError, RecursionError, struct.error, IndexError, KeyError, TypeError):
         return data
     text = json.dumps(chunks).encode()
     return data[:4] + struct.pack("<I", len(text)) + text + data[8 + json_len:]
