@@ -552,3 +552,15 @@ def test_one_camera_is_one_camera(tmp_path):
     src = _scene_file(tmp_path, "s.ply", random_columns(50))  # no cameras: one framing camera
     r = run("diff", src, src, "--cameras", "1")
     assert r.exit_code == 2 and r.stderr == "Error: --cameras: no camera 1; there is 1 (0)\n"
+
+
+def test_malformed_options_are_refused_before_any_file_is_read(tmp_path, monkeypatch):
+    # A 1M-splat verify spends seconds reading and checking: option typos fail first.
+    from splatconv.render import frames
+
+    monkeypatch.setattr(frames, "read_texture", lambda path: pytest.fail("read before the options were checked"))
+    for args in (["--cameras", "x"], ["--times", "a"], ["--size", "3"], ["--min-psnr", "nan"]):
+        r = run("verify", tmp_path / "a.ply", tmp_path / "b.splatv", *args)
+        assert r.exit_code == 2, (args, r.output)
+        r = run("diff", tmp_path / "a.ply", tmp_path / "b.splatv", *args)
+        assert r.exit_code == 2, (args, r.output)
