@@ -85,13 +85,14 @@ def make_seeds(folder) -> list:
     cams = os.path.join(folder, "cameras.json")
     with open(cams, "w") as f:
         json.dump([_camera(0), _camera(1)], f)
-    for args in (["convert", paths[0], sv, "--cameras", cams],
+    splat = os.path.join(folder, "scene.splat")
+    for args in (["convert", paths[0], sv, "--cameras", cams], ["convert", paths[3], splat],
                  ["convert", paths[0], sv + ".zst", "--zstd-level", "3"],
                  ["convert", paths[3], os.path.join(folder, "gs.ply.zst"), "--zstd-level", "3"]):
         result = runner.invoke(main, [str(a) for a in args])
         assert result.exit_code == 0, result.output
     os.unlink(cams)
-    paths += [sv, sv + ".zst", os.path.join(folder, "gs.ply.zst")]
+    paths += [sv, sv + ".zst", os.path.join(folder, "gs.ply.zst"), splat]
     return [os.fspath(p) for p in paths]
 
 

@@ -276,3 +276,30 @@ def test_write_sequence_leaves_nothing_when_a_scene_fails(tmp_path, sample):
     with pytest.raises(RuntimeError, match="boom"):
         io.write_sequence(frames(), tmp_path / "keep", [f"f{k}.ply" for k in range(4)])
     assert [p.name for p in (tmp_path / "keep").iterdir()] == ["other.txt"]
+
+
+def test_bake_drop_nonfinite(tmp_path):
+    """NaN positions are drawn nowhere by the viewer but break 3DGS tools: --drop-nonfinite removes them first."""
+    cols = random_columns(100, seed=12)
+    cols["trbf_center"][:] = 0.5
+    cols["x"][:3] = np.nan
+    src = tmp_path / "nan.ply"
+    io.write(Scene(columns=cols), src)
+    kept = tmp_path / "kept.ply"
+    assert run("bake", src, kept, "--time", "0.5").exit_code == 0
+    assert np.isnan(io.read(kept).columns["x"]).sum() == 3
+    clean = tmp_path / "clean.ply"
+    r = run("bake", src, clean, "--time", "0.5", "--drop-nonfinite")
+    assert r.exit_code == 0, r.output
+    assert "note: drop-nonfinite: " in r.stderr
+    back = io.read(clean)
+    assert np.isfinite(back.columns["x"]).all() and back.count == io.read(kept).count - 3
+
+
+def test_bake_frames_notes_stale_frames(tmp_path, sample_splatv):
+    out = tmp_path / "flip"
+    assert run("bake", sample_splatv, out, "--frames", "4").exit_code == 0
+    r = run("bake", sample_splatv, out, "--frames", "2", "--force")
+    assert r.exit_code == 0
+    assert (f"note: {out} also holds 2 other frame files from before (frame_0002.ply, ...): a flipbook player "
+            "would show them too\n") in r.stderr

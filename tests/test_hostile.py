@@ -546,3 +546,18 @@ def test_doubles_past_float32_are_noted_not_warned(tmp_path):
     assert list(scene.columns["x"][:2]) == [np.inf, -np.inf]
     assert "x: 2 finite double values past the float32 range became infinite" in scene.notes
     assert not any(n.startswith("opacity") for n in scene.notes)
+
+
+def test_bytes_after_a_list_element_after_the_vertices_are_noted(tmp_path):
+    cols = lite_columns_with_normals(random_columns(5))
+    body = np.zeros(5, ply.LITE_DTYPE)
+    for name in ply.LITE_LAYOUT:
+        body[name] = cols[name]
+    head = ply.header_bytes(5, None).replace(b"end_header\n", b"element face 2\nproperty list uchar int v\n"
+                                                                  b"end_header\n")
+    faces = struct.pack("<B3i", 3, 0, 1, 2) * 2
+    path = tmp_path / "faces.ply"
+    path.write_bytes(head + body.tobytes() + faces + b"\x03junk")
+    assert splatconv.read(path).notes == ["5 bytes after the last element ignored"]
+    path.write_bytes(head + body.tobytes() + faces[:13] + struct.pack("<B4i", 4, 0, 1, 2, 3) + b"\x03junk")
+    assert splatconv.read(path).notes == []  # face lists vary: not walked, the tail not checked

@@ -226,3 +226,15 @@ def test_merge_bad_inputs_give_one_error_line(tmp_path, sample_splatv):
     r = run("merge", sample_splatv, sample_splatv, out)
     assert r.exit_code == 1 and r.stderr == f"Error: {out}: already exists (use --force to replace it)\n"
     assert out.read_bytes() == b"x"
+
+
+def test_merge_drop_nonfinite_applies_to_every_input(tmp_path, actor):
+    cols = {name: np.array(actor.columns[name][:50]) for name in model.COLUMNS}
+    cols["rot_1"][:4] = np.inf
+    a = tmp_path / "a.ply"
+    io.write(Scene(columns=cols), a)
+    out = tmp_path / "out.ply"
+    r = run("merge", a, a, out, "--drop-nonfinite")
+    assert r.exit_code == 0, r.output
+    assert r.stderr.count("note: input ") >= 2 and "drop-nonfinite" in r.stderr
+    assert io.read(out).count == 2 * 46

@@ -331,8 +331,10 @@ def test_blocks_and_threads_change_nothing(monkeypatch):
         scene.columns["motion_7"][row] = 3.4e38
     plan = EditPlan(drop_nonfinite=False, trim=(0.1, 0.8), crop=((-2, -2, -2), (2, 2, 2)), min_opacity=0.1,
                     max_splats=20_000, transform=make_transform((1, 2, 3), "x:33,y:-10", 10.0))
+    assert len(_table.run_blocks(scene.count, lambda part: part)) > 2
     many, many_reports = apply_edits(scene, plan)
     monkeypatch.setattr(_table, "CHUNK", 1 << 20)
+    assert len(_table.run_blocks(scene.count, lambda part: part)) == 1
     one, one_reports = apply_edits(scene, plan)
     assert [r.notes for r in many_reports] == [r.notes for r in one_reports]
     assert many_reports[-1].counts["overflow"] >= 2

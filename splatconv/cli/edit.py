@@ -10,6 +10,7 @@ from .. import io
 from ..formats import REGISTRY
 from ..fsutil import check_output
 from ..ops import apply_transform, make_transform
+from ..ops import drop_nonfinite as ops_drop_nonfinite
 from ..ops import bake as bake_ops
 from ..ops import merge as merge_ops
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
@@ -71,6 +72,20 @@ def _placements(count: int, values: dict) -> dict:
     return {index: make_transform(**args) for index, args in given.items()}
 
 
+def _read(path, color: str, drop_nonfinite: bool):
+    """Read a scene, and with ``drop_nonfinite`` remove its non-finite splats (its notes say so)."""
+    scene = io.read(path, color=color)
+    if drop_nonfinite:
+        scene, _report = ops_drop_nonfinite(scene)
+    return scene
+
+
+def _drop_option(what: str):
+    return click.option("--drop-nonfinite", is_flag=True,
+                        help=f"Remove splats with a NaN or infinite position, rotation, scale, motion, omega or trbf "
+                             f"centre (as convert does) from {what} first.")
+
+
 def _layout_option(default: str):
     return click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
                         help=f"PLY output: 3dgs (plain 3DGS, SH degree 0) or lite (Spacetime Gaussians). "
@@ -101,11 +116,12 @@ def _wrote(path, report) -> None:
     _layout_option("3dgs"),
     _sort_option(),
     color_option(),
+    _drop_option("INPUT"),
     force_option("OUTPUT (or existing frame files)"),
     quiet_option(),
 )
 @library_errors
-def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, color, force, quiet):
+def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, color, drop_nonfinite, force, quiet):
     """Write the scene as the viewer shows it at one time, as a static scene.
 
     Positions and rotations at that time, opacity times the temporal opacity,
@@ -125,7 +141,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     if frames is None:
         io.check_write_options(output_path, sort=sort, layout=layout)
         check_output(output_path, [input_path], force)
-        scene = io.read(input_path, color=color)
+        scene = _read(input_path, color, drop_nonfinite)
         notes(scene.notes)
         baked, report = bake_ops.bake(scene, time)
         notes(report.notes)
@@ -134,7 +150,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
         notes(written.notes)
         _wrote(output_path, written)
         return
-    scene = io.read(input_path, color=color)
+    scene = _read(input_path, color, drop_nonfinite)
     notes(scene.notes)
     names = bake_ops.frame_names(frames, frame_suffix)
     moments = list(bake_ops.frame_times(frames))
@@ -143,6 +159,10 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
                                 inputs=[input_path], progress=progress(quiet))
     for name, report in zip(names, reports):
         notes(f"{name}: {line}" for line in report.notes)
+    stale = bake_ops.other_frames(os.listdir(output_path), names, frame_suffix)
+    if stale:
+        notes([f"{output_path} also holds {len(stale)} other frame files from before ({stale[0]}, ...): "
+               "a flipbook player would show them too"])
     counts = [r.count for r in reports]
     click.echo(f"wrote {frames} frames to {output_path}: {names[0]} .. {names[-1]} (t = {moments[0]:g} .. "
                f"{moments[-1]:g}), {min(counts):,} to {max(counts):,} splats a frame")
@@ -170,11 +190,12 @@ def _report_each(frames, names):
     _layout_option("3dgs when every input is plain 3DGS (a 3DGS PLY, a .splat, a baked moment), else lite"),
     _sort_option(),
     color_option(),
+    _drop_option("every INPUT"),
     force_option(),
     quiet_option(),
 )
 @library_errors
-def merge(paths, mode, translate, rotate, scale, layout, sort, color, force, quiet):
+def merge(paths, mode, translate, rotate, scale, layout, sort, color, drop_nonfinite, force, quiet):
     """Put several scenes in one file on the same timeline.
 
     A static 3DGS background under a dynamic actor, two actors side by side:
@@ -198,7 +219,7 @@ def merge(paths, mode, translate, rotate, scale, layout, sort, color, force, qui
     check_output(output_path, inputs, force)
     scenes = []
     for number, path in enumerate(inputs, 1):
-        scene = io.read(path, color=color)
+        scene = _read(path, color, drop_nonfinite)
         if number in placements:
             scene, _report = apply_transform(scene, placements[number])
         notes(f"input {number} ({path}): {line}" for line in scene.notes)

@@ -267,7 +267,7 @@ def _list_lengths_at(buf: np.ndarray, start: int, element, byte_order: str):
 
 
 def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: str, path: str,
-                 need_rows: bool = True):
+                 need_rows: bool = True, walk: bool = True):
     """Read ``count`` rows of ``element`` at ``offset``: ``(rows, bytes)``.
 
     Fixed-size rows are a view of ``buf``. With list properties every row is
@@ -293,6 +293,8 @@ def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: 
     elif not has_list:
         available = (len(buf) - offset) // dtype.itemsize
         raise FormatError(f"row {available}: unexpected end of file", path, where)
+    if not walk:
+        return None, None  # lists of varying lengths, and the caller would rather not walk them
     return _walk_rows(buf, offset, element, count, byte_order, path, need_rows)
 
 
@@ -381,11 +383,13 @@ def _read_binary(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFil
     vertex = None
     for element in header.elements:
         count = counts[element.name]
-        if element.name != "vertex" and vertex is not None and any(
-                isinstance(p, plyfile.PlyListProperty) for p in element.properties):
-            # Not needed, and its extent costs a walk when its lists vary: stop here.
+        after = vertex is not None and element.name != "vertex"
+        rows, nbytes = _binary_rows(buf, offset, element, count, byte_order, path, element.name == "vertex",
+                                    walk=not after)
+        if nbytes is None:
+            # Rows after the vertex element, not needed, whose lists vary: their extent
+            # would cost a walk, only to check for bytes after them. Stop here.
             return _PlyFile(header, vertex, notes)
-        rows, nbytes = _binary_rows(buf, offset, element, count, byte_order, path, element.name == "vertex")
         if element.name == "vertex":
             vertex = rows
         offset += nbytes

@@ -32,6 +32,7 @@ from .. import model
 from ..errors import FormatError
 from ..fsutil import open_input, populate
 from ..model import Scene, constant_column
+from ..packing import F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales
 from .base import WriteReport, refuse_time_varying
@@ -94,8 +95,9 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     n = len(records)
     cols = {}
     notes = []
+    position = _quiet_nans(records["position"], notes)
     for i, name in enumerate(model.POSITION):
-        cols[name] = records["position"][:, i]  # views of the mapped file: no copy
+        cols[name] = position[:, i]  # views of the mapped file when nothing was quieted: no copy
     linear = records["scale"]
     negative = int(np.count_nonzero(linear < 0))
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -117,6 +119,25 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     meta = {"file_bytes": size, "records": n}
     return Scene(columns={name: cols[name] for name in model.COLUMNS}, cameras=None, variant=model.VARIANT_3DGS,
                  meta=meta, notes=notes)
+
+
+def _quiet_nans(values: np.ndarray, notes: list) -> np.ndarray:
+    """``values`` (float32), with signalling NaNs made quiet: a copy only when there are any.
+
+    A signalling NaN raises numpy's "invalid value" warning when it is widened
+    to float64, as everything that reads the viewer's values does; it is NaN
+    either way, so only its quiet bit is set (noted).
+    """
+    bits = values.view(np.uint32)
+    signalling = ((bits & np.uint32(0x7F800000)) == np.uint32(0x7F800000)) & (
+        (bits & np.uint32(0x007FFFFF)) != 0) & ((bits & np.uint32(F32_QUIET_BIT)) == 0)
+    count = int(np.count_nonzero(signalling))
+    if not count:
+        return values
+    values = np.array(values)
+    values.view(np.uint32)[signalling] |= np.uint32(F32_QUIET_BIT)
+    notes.append(f"position: {count:,} signalling NaN values read as quiet NaN")
+    return values
 
 
 def _refuse_other_formats(head: bytes, path: str) -> None:

@@ -9,7 +9,8 @@ fast paths (:func:`splatconv.model.row_fields`).
 Columns of a row table are strided: a pass over one column touches every row's
 cache line. Ops therefore work a block of :data:`CHUNK` rows at a time (about
 1 MB of lite rows, which stays in cache across the column passes) rather than
-column after column over the whole table.
+column after column over the whole table, two threads taking blocks in turn
+(:func:`run_blocks`).
 """
 
 from __future__ import annotations
@@ -28,11 +29,13 @@ CHUNK = 1 << 13
 WORKERS = max(1, min(os.cpu_count() or 2, 2))
 
 
-def run_blocks(n: int, job, size: int = CHUNK) -> list:
+def run_blocks(n: int, job, size: int | None = None) -> list:
     """``job(part)`` for each block ``part`` (a slice) of ``n`` rows, by :data:`WORKERS` threads.
 
-    Jobs must touch only their own rows; their results come back in block order.
+    Blocks are ``size`` rows (default :data:`CHUNK`). Jobs must touch only their
+    own rows; their results come back in block order.
     """
+    size = CHUNK if size is None else size
     parts = [slice(start, min(n, start + size)) for start in range(0, n, size)]
 
     def quiet(part):

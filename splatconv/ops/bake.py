@@ -22,6 +22,7 @@ positions included (``--drop-nonfinite`` removes those).
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -176,3 +177,10 @@ def frame_names(count: int, suffix: str) -> list:
     """``frame_0000`` + ``suffix`` ... one name a frame, numbered from 0 with at least 4 digits."""
     width = max(4, len(str(count - 1)))
     return [f"frame_{k:0{width}d}{suffix}" for k in range(count)]
+
+
+def other_frames(files, names, suffix: str) -> list:
+    """Names among ``files`` that look like frames (``frame_`` digits ``suffix``) but are not ``names``, sorted."""
+    pattern = re.compile(r"frame_\d+" + re.escape(suffix) + r"\Z")
+    ours = set(names)
+    return sorted(f for f in files if pattern.match(f) and f not in ours)
