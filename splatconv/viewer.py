@@ -39,22 +39,32 @@ VISIBLE_RADIUS = math.sqrt(-math.log(TEMPORAL_CUTOFF))
 TIME_RANGE = (0.0, 1.0)
 
 
+def wide(values) -> np.ndarray:
+    """``values`` as float64, the way every column is widened for the viewer's maths.
+
+    A signalling NaN (trained scenes and hostile files carry them) raises the
+    "invalid" flag when float32 is cast to float64: the value becomes a quiet
+    NaN, which is all the maths needs, so the flag is no warning to show.
+    """
+    with np.errstate(invalid="ignore"):
+        return np.asarray(values, dtype=np.float64)
+
+
 def _f64(cols: dict, names) -> np.ndarray:
     """Columns ``names`` stacked as ``(N, k) float64``."""
-    with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
-        return np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
+    return np.stack([wide(cols[n]) for n in names], axis=1)
 
 
 def sigmoid(x: np.ndarray) -> np.ndarray:
     """1 / (1 + exp(-x)) in float64, without overflow warnings (NaN stays NaN)."""
-    x = np.asarray(x, dtype=np.float64)
+    x = wide(x)
     with np.errstate(over="ignore"):
         return 1.0 / (1.0 + np.exp(-x))
 
 
 def logit(p: np.ndarray) -> np.ndarray:
     """Inverse of :func:`sigmoid` in float64: 0 -> -inf, 1 -> inf."""
-    p = np.asarray(p, dtype=np.float64)
+    p = wide(p)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.log(p) - np.log1p(-p)
 
@@ -62,7 +72,7 @@ def logit(p: np.ndarray) -> np.ndarray:
 def exp(x: np.ndarray) -> np.ndarray:
     """exp in float64 without overflow warnings (large values become inf)."""
     with np.errstate(over="ignore"):
-        return np.exp(np.asarray(x, dtype=np.float64))
+        return np.exp(wide(x))
 
 
 def scales(cols: dict) -> np.ndarray:
@@ -104,7 +114,7 @@ def temporal_opacity(cols: dict, t: float, *, cut: bool = True) -> np.ndarray:
     A NaN result (NaN centre or scale, or a zero scale at dt = 0) compares false
     with the cutoff, so the viewer does not hide it: it stays NaN here.
     """
-    dt = float(t) - np.asarray(cols["trbf_center"], dtype=np.float64)
+    dt = float(t) - wide(cols["trbf_center"])
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         u = dt / trbf_scale(cols)
         value = np.exp(-(u * u))
@@ -124,7 +134,7 @@ def visible_interval(cols: dict) -> tuple[np.ndarray, np.ndarray]:
     ``trbf_center -+ VISIBLE_RADIUS * exp(trbf_scale)``; an infinite scale gives
     (-inf, inf). NaN where the centre or scale is NaN.
     """
-    centre = np.asarray(cols["trbf_center"], dtype=np.float64)
+    centre = wide(cols["trbf_center"])
     with np.errstate(over="ignore", invalid="ignore"):
         reach = trbf_scale(cols) * VISIBLE_RADIUS
         return centre - reach, centre + reach
@@ -146,7 +156,7 @@ def position_at(cols: dict, t) -> np.ndarray:
     xyz + m0 dt + m1 dt^2 + m2 dt^3 with dt = t - trbf_center, the terms summed in
     the viewer's order.
     """
-    dt = (np.asarray(t, dtype=np.float64) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
+    dt = (wide(t) - wide(cols["trbf_center"]))[:, None]
     m = motion(cols)
     with np.errstate(over="ignore", invalid="ignore"):
         return positions(cols) + (m[:, 0] * dt + m[:, 1] * dt * dt + m[:, 2] * dt * dt * dt)
@@ -158,7 +168,7 @@ def rotation_at(cols: dict, t: float, *, normalize: bool = True) -> np.ndarray:
     rot + omega dt, normalised as the viewer does (a zero quaternion gives NaN,
     as it does in the shader).
     """
-    dt = (float(t) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
+    dt = (float(t) - wide(cols["trbf_center"]))[:, None]
     with np.errstate(over="ignore", invalid="ignore"):
         q = _f64(cols, ROTATION) + _f64(cols, OMEGA) * dt
         if normalize:
@@ -193,8 +203,8 @@ def float_record(cols: dict) -> dict:
     """
     s = scales(cols)
     c = colors(cols)
-    out = {name: np.asarray(cols[name], dtype=np.float64) for name in POSITION + ROTATION + MOTION + OMEGA}
-    out["trbf_center"] = np.asarray(cols["trbf_center"], dtype=np.float64)
+    out = {name: wide(cols[name]) for name in POSITION + ROTATION + MOTION + OMEGA}
+    out["trbf_center"] = wide(cols["trbf_center"])
     out["trbf_scale"] = trbf_scale(cols)
     for i in range(3):
         out[f"scale_{i}"] = s[:, i]
