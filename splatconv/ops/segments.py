@@ -546,7 +546,7 @@ def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: in
                 images = []
                 for r, scene, when in ((a, merged, t), (b, segments[i], local)):
                     rows = _visible_rows(scene.columns, when)
-                    r.load_float(float_attributes(scene, rows))
+                    r.load_float(float_attributes(Scene(columns=scene.take(rows))))
                     images.append(r.draw(view, float(when)))
                 psnr = compare(images[1], images[0]).psnr
                 out.append({"frame": f, "time": round(t, 9), "segment": i, "local_time": round(local, 9),
