@@ -40,13 +40,14 @@ from ..render.diff import compare
 from ..render.layout import float_attributes
 from ..render.preview import Renderer, View
 from .sequence import _shift_poly
+from .time import remap_columns
 
 #: Frames per segment when no durations are given (Spacetime Gaussians trains 50).
 DEFAULT_FRAMES = 50
 #: Output splats at most this many times the segments' splats together.
 DEFAULT_BUDGET = 2.0
 #: Frames of the neighbouring segment through which a segment's long-lived splats may still fade.
-DEFAULT_LEAK = 1
+DEFAULT_LEAK = 8
 #: Most windows a long-lived splat is split into.
 MAX_PIECES = 7
 #: Radii are kept this much inside a cut, for the viewer's float32 maths.
@@ -152,18 +153,14 @@ def placements(durations, leak: int = DEFAULT_LEAK) -> list:
 def place(columns: dict, start: float, end: float) -> dict:
     """Map a scene's own [0, 1] onto [start, end] of a longer timeline: float64 columns.
 
-    t' = start + t (end - start): centres move, temporal scales and the motion
-    and angular-velocity terms rescale so that the scene at t' draws as it did at t.
+    t' = start + t (end - start), by trim's time map
+    (:func:`splatconv.ops.time.remap_columns`): centres move, temporal scales and
+    the motion and angular-velocity terms rescale so that the scene at t' draws as
+    it did at t.
     """
     d = end - start
-    out = {name: np.asarray(columns[name], np.float64) for name in COLUMNS}
-    out["trbf_center"] = start + out["trbf_center"] * d
-    out["trbf_scale"] = out["trbf_scale"] + math.log(d)
-    for k in range(3):
-        for name in MOTION[3 * k:3 * k + 3]:
-            out[name] = out[name] / d ** (k + 1)
-    for name in OMEGA:
-        out[name] = out[name] / d
+    out = {name: np.array(columns[name], dtype=np.float64) for name in COLUMNS}
+    remap_columns(out, -start / d, 1.0 / d)
     return out
 
 
@@ -206,33 +203,44 @@ def _peaks(alpha, w):
         return np.where(alpha >= 1.0, (w > 0) * 1.0, -np.expm1(w * np.log1p(-np.minimum(alpha, 1.0))))
 
 
-def _layout_cost(x, n, leak, left, right):
-    s = _radius_scale(x, n, leak, left, right)
+def _layout_costs(x, n, leak, left, right):
+    """Cost of each candidate layout ``x`` ``(B, m)`` (frame units); with their scales and weights.
+
+    Weights: a ridge least-squares partition of one over the frames, negatives
+    clipped (the search only ranks candidates; the kept layout's peaks are then
+    solved properly by :func:`_peak_table`).
+    """
+    s = _radius_scale(x, n, leak, left, right)                           # (B, m)
     t = np.arange(n, dtype=np.float64)
-    g = _window_values(x, s, t)
-    w = _nonnegative_lstsq(g, np.ones(n))
-    # The neighbours' pieces, assumed laid out alike (mirrored), still show in the
-    # leak frames: they fill in some of the fade, and cost a little as content.
-    mirror = []
-    if right:
-        mirror.append(2 * n - 1 - x)
-    if left:
-        mirror.append(-1 - x)
-    gn = [_window_values(m, s, t) for m in mirror]
-    cost = 0.0
+    g = _values(x, s, t)                                                 # (B, n, m)
+    gtg = np.einsum("bnj,bnk->bjk", g, g) + 1e-6 * np.eye(x.shape[1])[None]
+    w = np.clip(np.linalg.solve(gtg, g.sum(axis=1)[..., None])[..., 0], 0.0, None)   # (B, m)
+    # The neighbours' pieces, laid out alike (mirrored), still show in the leak
+    # frames: they fill in some of the fade, and cost a little as content.
+    mirrors = ([2 * n - 1 - x] if right else []) + ([-1 - x] if left else [])
+    gn = [_values(m, s, t) for m in mirrors]
+    cost = np.zeros(len(x))
     for alpha in _ALPHAS:
-        p = _peaks(alpha, w)
-        own = 1.0 - np.prod(1.0 - p[None, :] * g, axis=1)
-        other = np.zeros(n)
+        p = _peaks(alpha, w)[:, None, :]                                 # (B, 1, m)
+        own = 1.0 - np.prod(1.0 - p * g, axis=2)                        # (B, n)
+        other = np.zeros_like(own)
         for gm in gn:
-            other = 1.0 - (1.0 - other) * np.prod(1.0 - p[None, :] * gm, axis=1)
+            other = 1.0 - (1.0 - other) * np.prod(1.0 - p * gm, axis=2)
         both = 1.0 - (1.0 - own) * (1.0 - other)
         # Copies of a splat that share a moment blend with other splats' copies between
         # them (depth order interleaves them): prefer one piece carrying each frame.
-        lead = (p[None, :] * g).max(axis=1)
-        cost += (np.mean((both - alpha) ** 2) + _LEAK_COST * np.mean(other ** 2)
-                 + _SHARE_COST * np.mean((own - lead) ** 2))
+        lead = (p * g).max(axis=2)
+        cost += (np.mean((both - alpha) ** 2, axis=1) + _LEAK_COST * np.mean(other ** 2, axis=1)
+                 + _SHARE_COST * np.mean((own - lead) ** 2, axis=1))
     return cost / len(_ALPHAS), s, w
+
+
+def _values(x, s, t):
+    """Window values ``(B, n, m)`` of layouts ``x``, ``s`` ``(B, m)`` at times ``t`` ``(n,)``, cut as the viewer cuts."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        g = np.exp(-((t[None, :, None] - x[:, None, :]) / s[:, None, :]) ** 2)
+    g[~(g >= viewer.TEMPORAL_CUTOFF)] = 0.0
+    return g
 
 
 _LAYOUTS: dict = {}
@@ -254,17 +262,18 @@ def windows(n: int, pieces: int, leak: int, left: bool, right: bool):
     rng = np.random.default_rng(20260 + 7 * pieces + n)
     lo = -(leak + 1) + 0.01 if left else -2.0 * n
     hi = n - 1 + (leak + 1) - 0.01 if right else 3.0 * n
+    batch = 64
     best = None
-    tries = 300 + 100 * pieces
-    for it in range(tries):
-        if best is None or it < tries // 3:
-            x = np.sort(rng.uniform(lo, hi, pieces))
+    for rnd in range(12):
+        if best is None or rnd < 4:
+            x = np.sort(rng.uniform(lo, hi, (batch, pieces)), axis=1)
         else:
-            spread = (hi - lo) * (0.05 if it < 2 * tries // 3 else 0.01)
-            x = np.sort(np.clip(best[1] + rng.normal(0.0, spread, pieces), lo, hi))
-        cost, s, w = _layout_cost(x, n, leak, left, right)
-        if best is None or cost < best[0]:
-            best = (cost, x, s, w)
+            spread = (hi - lo) * (0.05 if rnd < 8 else 0.01)
+            x = np.sort(np.clip(best[1][None, :] + rng.normal(0.0, spread, (batch, pieces)), lo, hi), axis=1)
+        cost, s, w = _layout_costs(x, n, leak, left, right)
+        i = int(np.argmin(cost))
+        if best is None or cost[i] < best[0]:
+            best = (float(cost[i]), x[i], s[i], w[i])
     cost, x, s, w = best
     keep = w > 0
     x, s, w = x[keep], s[keep], w[keep]
@@ -274,7 +283,7 @@ def windows(n: int, pieces: int, leak: int, left: bool, right: bool):
 
 
 #: Opacities at which the peak table is solved (denser towards 1, where compositing bends most).
-PEAK_GRID = 1.0 - np.linspace(1.0, 0.0, 41) ** 2
+PEAK_GRID = 1.0 - np.linspace(1.0, 0.0, 25) ** 2
 
 
 def _peak_table(x, s, w, n, left, right) -> np.ndarray:
@@ -291,7 +300,7 @@ def _peak_table(x, s, w, n, left, right) -> np.ndarray:
     table = np.zeros((len(PEAK_GRID), len(x)))
     for a, alpha in enumerate(PEAK_GRID):
         p = np.clip(_peaks(alpha, w), 0.0, 1.0)
-        for _ in range(40):
+        for _ in range(25):
             keep = 1.0 - p[None, :] * g                        # (n, m)
             own = np.prod(keep, axis=1)
             other = np.ones(n)
@@ -441,6 +450,7 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         raise UsageError("the splat budget must be at least 1")
     places = placements(durations, leak)
     parts, report = [], SegmentReport(places, [], [], [], [], [], leak, budget)
+    overflow = 0
     with progress.stage("placing segments", len(scenes), "segment") as advance:
         for i, (scene, p) in enumerate(zip(scenes, places)):
             cols = place(scene.columns, p.start, p.end)
@@ -460,23 +470,24 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
                     m = allocate(impact(cols, rows), extra, costs)
                 extra_cols = [_pieces(cols, rows[m == k], p, int(k), leak, sides) for k in np.unique(m)]
                 kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
-            parts.append(kept)
+            with np.errstate(over="ignore", invalid="ignore"):
+                parts.append({name: kept[name].astype(np.float32) for name in COLUMNS})
+            overflow += sum(int((np.isinf(parts[-1][name]) & np.isfinite(kept[name])).sum()) for name in COLUMNS)
             report.counts_in.append(scene.count)
-            report.counts_out.append(len(kept["x"]))
+            report.counts_out.append(len(parts[-1]["x"]))
             report.long_lived.append(n_long)
             report.pieces.append({str(int(k)): int((m == k).sum()) for k in np.unique(m)})
             report.dropped.append(int(nan_time.sum()))
+            del kept, cols
             advance()
     total = sum(report.counts_out)
     _rows, out = lite_rows(total)
     at = 0
-    overflow = 0
-    for part in parts:
+    while parts:
+        part = parts.pop(0)  # each part freed once copied: the output is held once, not twice
         k = len(part["x"])
         for name in COLUMNS:
-            with np.errstate(over="ignore", invalid="ignore"):
-                out[name][at:at + k] = part[name]
-            overflow += int((np.isinf(out[name][at:at + k]) & np.isfinite(part[name])).sum())
+            out[name][at:at + k] = part[name]
         at += k
     if sum(report.dropped):
         report.notes.append(f"{sum(report.dropped):,} splat(s) with a NaN temporal centre or scale dropped "
