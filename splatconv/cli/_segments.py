@@ -10,6 +10,10 @@ from ..report import segments_text, to_json
 from ._base import Failure, notes, progress
 
 
+#: The first key of ``merge --segments --json`` (specs/segments.md).
+SCHEMA = "splatconv.merge-segments/1"
+
+
 class _Counts(click.ParamType):
     """A comma-separated list of whole numbers >= 2."""
 
@@ -67,7 +71,7 @@ def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, le
     notes(merged.notes)
     notes(report.notes)
     notes(written.notes)
-    data = report.as_dict()
+    data = {"schema": SCHEMA, **report.as_dict()}
     data["output"] = {"path": str(output_path), "splats": written.count}
     data["frames"] = rows
     data["fidelity"] = fidelity_summary(rows)

@@ -388,6 +388,15 @@ def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first
     return out
 
 
+def _best_layout(n: int, m: int, leak: int, sides) -> int:
+    """The number of windows k <= m whose layout composites best (a search may find m worse than fewer)."""
+    return min(range(1, m + 1), key=lambda k: (windows(n, k, leak, *sides)[3], k))
+
+
+def _best_costs(n: int, leak: int, sides) -> dict:
+    return {m: windows(n, _best_layout(n, m, leak, sides), leak, *sides)[3] for m in range(1, MAX_PIECES + 1)}
+
+
 def impact(cols: dict, rows: np.ndarray) -> np.ndarray:
     """How much a splat can matter in an image: peak opacity x its two largest axes' area: ``(M,) float64``."""
     s = np.sort(viewer.scales(cols)[rows], axis=1)
@@ -400,17 +409,14 @@ def allocate(weights: np.ndarray, extra: int, costs: dict) -> np.ndarray:
     """Pieces per long-lived splat (1 .. MAX_PIECES) given ``extra`` pieces beyond one each.
 
     Greedy on marginal gains: each extra piece goes where weight x (cost(m) -
-    cost(m + 1)) is largest, ``costs[m]`` being the windows' composited error with
-    m pieces. Ties and order are deterministic (stable sort).
+    cost(m + 1)) is largest, ``costs[m]`` being the best composited error with at
+    most m pieces (non-increasing). Ties and order are deterministic (stable sort).
     """
     n = len(weights)
     m = np.ones(n, dtype=np.int64)
     if n == 0 or extra <= 0:
         return m
     steps = [max(costs[k] - costs[k + 1], 0.0) for k in range(1, MAX_PIECES)]
-    # Keep the gains decreasing (a lower hull): a later step never outranks an earlier one.
-    for k in range(1, len(steps)):
-        steps[k] = min(steps[k], steps[k - 1])
     gains = (weights[:, None] * np.array(steps)[None, :]).ravel()
     take = min(extra, len(gains))
     order = np.argsort(-gains, kind="stable")[:take]
@@ -465,10 +471,11 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
                 if pieces is not None:
                     m = np.full(n_long, pieces, np.int64)
                 else:
-                    costs = {k: windows(p.frames, k, leak, *sides)[3] for k in range(1, MAX_PIECES + 1)}
+                    costs = _best_costs(p.frames, leak, sides)
                     extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - n_long
                     m = allocate(impact(cols, rows), extra, costs)
-                extra_cols = [_pieces(cols, rows[m == k], p, int(k), leak, sides) for k in np.unique(m)]
+                extra_cols = [_pieces(cols, rows[m == k], p, _best_layout(p.frames, int(k), leak, sides), leak, sides)
+                              for k in np.unique(m)]
                 kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
             with np.errstate(over="ignore", invalid="ignore"):
                 parts.append({name: kept[name].astype(np.float32) for name in COLUMNS})
