@@ -47,7 +47,7 @@ DEFAULT_FRAMES = 50
 #: Output splats at most this many times the segments' splats together.
 DEFAULT_BUDGET = 2.0
 #: Frames of the neighbouring segment through which a segment's long-lived splats may still fade.
-DEFAULT_LEAK = 8
+DEFAULT_LEAK = 12
 #: Most windows a long-lived splat is split into.
 MAX_PIECES = 7
 #: Radii are kept this much inside a cut, for the viewer's float32 maths.
