@@ -316,18 +316,21 @@ class AtomicGroup:
     def __init__(self, replace: bool = True):
         self.replace = replace
         self._staged = []  # (temporary path, output path)
+        self._locks = []  # descriptors holding the part files' locks
 
     @contextlib.contextmanager
     def open(self, output: str | os.PathLike):
         """A binary file to write ``output``'s content to: a temporary file beside it until the group ends."""
         output = os.fspath(output)
         parent = os.path.dirname(os.path.abspath(output))
+        remove_stale_parts(output)
         held = hold_signals()  # a signal between creating the part and recording it would leave it behind
         try:
-            fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + os.path.basename(output) + ".", suffix=".part")
-        except OSError as e:
+            fd, tmp = _locked_part(output, parent)
+            # Held (locked) until the group ends, so no other run takes it for a dead one's.
+            self._locks.append(os.dup(fd))
+        except BaseException:
             release_signals(held)
-            e.filename, e.filename2 = output, None
             raise
         self._staged.append((tmp, output))
         release_signals(held)
@@ -382,6 +385,9 @@ def atomic_group(replace: bool = True):
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
         raise
+    finally:
+        for lock in group._locks:
+            os.close(lock)
 
 
 #: madvise(2) MADV_POPULATE_READ (Linux 5.14+): map every page of a file mapping now.

@@ -100,6 +100,12 @@ HOSTILE_CASES = [
     ("varlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
      b"property list uchar float l\nend_header\n" + struct.pack("<fB2f", 1, 2, 0, 0) + struct.pack("<fB", 1, 9),
      "element 'vertex': row 1: unexpected end of file"),
+    ("floatlen.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+     b"property list double float l\nend_header\n" + struct.pack("<fd", 1, 1.5) + b"\0" * 8,
+     "element 'vertex': property 'l': list length type 'double' is not an integer type"),
+    ("floatlenascii.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+     b"property list float float l\nend_header\n1 1.5 2\n",
+     "element 'vertex': property 'l': list length type 'float' is not an integer type"),
 ]
 
 
@@ -526,3 +532,32 @@ def test_list_properties_are_skipped_in_bulk(tmp_path, lengths, before, bo):
     assert scene.count == 300 and scene.notes == []
     for name in scene.columns:
         np.testing.assert_array_equal(scene.columns[name], want[name])
+
+
+def test_doubles_past_float32_are_noted_not_warned(tmp_path):
+    rng = np.random.default_rng(1)
+    cols = {name: rng.normal(0, 1, 10) for name in ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                                                     "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2",
+                                                     "rot_3")}
+    cols["x"][:2] = [1e300, -1e300]
+    cols["opacity"][1] = np.inf  # already infinite: not counted
+    path = write_ply(tmp_path / "d.ply", cols, dtype="f8")
+    scene = splatconv.read(path)  # RuntimeWarnings are errors under pytest
+    assert list(scene.columns["x"][:2]) == [np.inf, -np.inf]
+    assert "x: 2 finite double values past the float32 range became infinite" in scene.notes
+    assert not any(n.startswith("opacity") for n in scene.notes)
+
+
+def test_bytes_after_a_list_element_after_the_vertices_are_noted(tmp_path):
+    cols = lite_columns_with_normals(random_columns(5))
+    body = np.zeros(5, ply.LITE_DTYPE)
+    for name in ply.LITE_LAYOUT:
+        body[name] = cols[name]
+    head = ply.header_bytes(5, None).replace(b"end_header\n", b"element face 2\nproperty list uchar int v\n"
+                                                                  b"end_header\n")
+    faces = struct.pack("<B3i", 3, 0, 1, 2) * 2
+    path = tmp_path / "faces.ply"
+    path.write_bytes(head + body.tobytes() + faces + b"\x03junk")
+    assert splatconv.read(path).notes == ["5 bytes after the last element ignored"]
+    path.write_bytes(head + body.tobytes() + faces[:13] + struct.pack("<B4i", 4, 0, 1, 2, 3) + b"\x03junk")
+    assert splatconv.read(path).notes == []  # face lists vary: not walked, the tail not checked

@@ -212,6 +212,7 @@ def _open(path: str) -> _PlyFile:
         with _plyfile_errors(path):
             header = plyfile.PlyData.read(io.BytesIO(zeroed))
         counts = {e[0]: e[1] for e in layout.elements}
+        _check_list_types(header, path)
         if len(header.elements) != len(layout.elements):  # pragma: no cover - both parse the same lines
             raise FormatError("bad header: element lines not understood", path)
         if "vertex" not in header:
@@ -219,6 +220,18 @@ def _open(path: str) -> _PlyFile:
         if header.text:
             return _read_ascii(f, path, header, layout, counts)
         return _read_binary(f, path, header, layout, counts)
+
+
+def _check_list_types(header, path: str) -> None:
+    """A list's length must be an integer type (plyfile takes ``property list float int x``)."""
+    for element in header.elements:
+        for prop in element.properties:
+            if isinstance(prop, plyfile.PlyListProperty):
+                len_t = np.dtype(prop.list_dtype("<")[0])
+                if len_t.kind not in "iu":
+                    name = {4: "float", 8: "double"}.get(len_t.itemsize, len_t.name)
+                    raise FormatError(f"list length type '{name}' is not an integer type", path,
+                                      (f"element '{element.name}'", f"property '{prop.name}'"))
 
 
 def _element_dtype(element, byte_order: str, list_lengths=None) -> np.dtype:
@@ -254,7 +267,7 @@ def _list_lengths_at(buf: np.ndarray, start: int, element, byte_order: str):
 
 
 def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: str, path: str,
-                 need_rows: bool = True):
+                 need_rows: bool = True, walk: bool = True):
     """Read ``count`` rows of ``element`` at ``offset``: ``(rows, bytes)``.
 
     Fixed-size rows are a view of ``buf``. With list properties every row is
@@ -280,6 +293,8 @@ def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: 
     elif not has_list:
         available = (len(buf) - offset) // dtype.itemsize
         raise FormatError(f"row {available}: unexpected end of file", path, where)
+    if not walk:
+        return None, None  # lists of varying lengths, and the caller would rather not walk them
     return _walk_rows(buf, offset, element, count, byte_order, path, need_rows)
 
 
@@ -294,29 +309,55 @@ def _walk_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: st
         else:
             steps.append((None, np.dtype(prop.dtype(byte_order)).itemsize))
     list_index = [i for i, (st, _size) in enumerate(steps) if st is not None]
-    starts = np.empty(count, np.int64)
-    lengths = np.empty((count, len(list_index)), np.int64)
+    # The walk steps over runs of fixed-size properties at once: per list, the
+    # bytes before its length field, the length's struct and the value size.
+    segments, fixed = [], 0
+    for st, size in steps:
+        if st is None:
+            fixed += size
+        else:
+            segments.append((fixed, st.unpack_from, st.size, size))
+            fixed = 0
+    tail = fixed
+    starts, found = [], []  # Python lists: appending beats numpy item assignment in this loop
     raw = memoryview(buf)
     end = len(buf)
     pos = offset
-    for row in range(count):
-        starts[row] = pos
-        k = 0
-        for st, size in steps:
-            if st is None:
-                pos += size
-                continue
-            if pos + st.size > end:
-                raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
-            n = st.unpack_from(raw, pos)[0]
-            if n < 0:
-                raise FormatError(f"row {row}: negative list length {n}", path,
-                                  (f"element '{element.name}'", f"property '{props[list_index[k]].name}'"))
-            lengths[row, k] = n
-            k += 1
-            pos += st.size + n * size
-        if pos > end:
-            raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
+    row = 0
+    try:
+        if len(segments) == 1:  # the usual case, in the tightest loop Python has
+            before, unpack, len_size, size = segments[0]
+            step = before + len_size + tail
+            add_start, add_length = starts.append, found.append
+            for row in range(count):
+                add_start(pos)
+                n = unpack(raw, pos + before)[0]
+                add_length(n)
+                pos += step + n * size
+            if found and min(found) < 0:
+                row = next(i for i, n in enumerate(found) if n < 0)
+                raise FormatError(f"row {row}: negative list length {found[row]}", path,
+                                  (f"element '{element.name}'", f"property '{props[list_index[0]].name}'"))
+            if pos > end:
+                row = count - 1
+                raise struct.error("past the end")
+        for row in range(count if len(segments) > 1 else 0):
+            starts.append(pos)
+            for k, (before, unpack, len_size, size) in enumerate(segments):
+                pos += before
+                n = unpack(raw, pos)[0]  # struct.error past the end
+                if n < 0:
+                    raise FormatError(f"row {row}: negative list length {n}", path,
+                                      (f"element '{element.name}'", f"property '{props[list_index[k]].name}'"))
+                found.append(n)
+                pos += len_size + n * size
+            pos += tail
+            if pos > end:
+                raise struct.error("past the end")
+    except struct.error:
+        raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",)) from None
+    starts = np.array(starts, np.int64)
+    lengths = np.array(found, np.int64).reshape(count, len(list_index))
     if not need_rows:
         return None, pos - offset
     fields = [(p.name, p.dtype(byte_order)) for p in props if not isinstance(p, plyfile.PlyListProperty)]
@@ -342,11 +383,13 @@ def _read_binary(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFil
     vertex = None
     for element in header.elements:
         count = counts[element.name]
-        if element.name != "vertex" and vertex is not None and any(
-                isinstance(p, plyfile.PlyListProperty) for p in element.properties):
-            # Not needed, and its extent costs a walk when its lists vary: stop here.
+        after = vertex is not None and element.name != "vertex"
+        rows, nbytes = _binary_rows(buf, offset, element, count, byte_order, path, element.name == "vertex",
+                                    walk=not after)
+        if nbytes is None:
+            # Rows after the vertex element, not needed, whose lists vary: their extent
+            # would cost a walk, only to check for bytes after them. Stop here.
             return _PlyFile(header, vertex, notes)
-        rows, nbytes = _binary_rows(buf, offset, element, count, byte_order, path, element.name == "vertex")
         if element.name == "vertex":
             vertex = rows
         offset += nbytes
@@ -403,7 +446,8 @@ def _read_ascii(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFile
 def _read_ascii_plyfile(f, path: str) -> _PlyFile:
     f.seek(0)
     with _plyfile_errors(path):
-        ply = plyfile.PlyData.read(f)
+        # From memory: plyfile wraps a file in a text reader it never closes (a ResourceWarning).
+        ply = plyfile.PlyData.read(io.BytesIO(f.read()))
     return _PlyFile(ply, ply["vertex"].data, [])
 
 
@@ -431,11 +475,18 @@ def detect_variant(names) -> str:
     return model.VARIANT_LITE if temporal else model.VARIANT_3DGS
 
 
-def _column(data: np.ndarray, name: str) -> np.ndarray:
+def _column(data: np.ndarray, name: str, notes: list) -> np.ndarray:
     col = data[name]
     if col.dtype == np.dtype("<f4") or (col.dtype == np.float32 and col.dtype.isnative):
         return col  # a view into the mapped file: no copy
-    return col.astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):  # reported below
+        out = col.astype(np.float32)
+    if col.dtype.kind == "f" and col.dtype.itemsize > 4:
+        overflowed = int(np.count_nonzero(np.isinf(out) & np.isfinite(col)))
+        if overflowed:
+            notes.append(f"{name}: {overflowed:,} finite double value{'s' if overflowed != 1 else ''} past the "
+                         "float32 range became infinite")
+    return out
 
 
 def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
@@ -480,10 +531,10 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
     columns = {}
     if variant == model.VARIANT_LITE:
         for name in COLUMNS:
-            columns[name] = _column(data, name)
+            columns[name] = _column(data, name, notes)
     else:
         for name in GS_REQUIRED:
-            columns[name] = _column(data, name)
+            columns[name] = _column(data, name, notes)
         columns["trbf_center"] = constant_column(model.STATIC_TRBF_CENTER, n)
         columns["trbf_scale"] = constant_column(model.STATIC_TRBF_SCALE, n)
         for name in model.MOTION + model.OMEGA:
