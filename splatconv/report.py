@@ -319,7 +319,8 @@ def segments_text(data: dict) -> str:
              f"{data['splats_out']:,} ({data['ratio']:.2f}x; budget {data['budget']:g}x), "
              f"long-lived splats fade over {data['leak_frames']} frame(s) of the neighbours"]
     for i, s in enumerate(data["segments"]):
-        pieces = ", ".join(f"{n:,} x {k}" for k, n in sorted(s["pieces_per_long_lived"].items(), key=lambda kv: int(kv[0])))
+        given = sorted(s["pieces_per_long_lived"].items(), key=lambda kv: int(kv[0]))
+        pieces = ", ".join(f"{n:,} x {k}" for k, n in given)
         lines.append(f"  segment {i}: frames {s['first_frame']}..{s['first_frame'] + s['frames'] - 1} "
                      f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {s['splats_out']:,} splats, "
                      f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else ""))

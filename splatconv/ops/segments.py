@@ -182,20 +182,6 @@ def _window_values(x, s, t):
     return g
 
 
-def _nonnegative_lstsq(A, b):
-    active = np.ones(A.shape[1], bool)
-    w = np.zeros(A.shape[1])
-    for _ in range(A.shape[1] + 1):
-        w = np.zeros(A.shape[1])
-        if not active.any():
-            return w
-        w[active] = np.linalg.lstsq(A[:, active], b, rcond=None)[0]
-        if (w >= 0).all():
-            return w
-        active &= w > 0
-    return np.clip(w, 0.0, None)
-
-
 def _peaks(alpha, w):
     """Piece peak opacities 1 - (1 - alpha)^w (alpha 1: 1 where w > 0)."""
     alpha = np.asarray(alpha, np.float64)
@@ -236,7 +222,7 @@ def _layout_costs(x, n, leak, left, right):
 
 
 def _values(x, s, t):
-    """Window values ``(B, n, m)`` of layouts ``x``, ``s`` ``(B, m)`` at times ``t`` ``(n,)``, cut as the viewer cuts."""
+    """Window values ``(B, n, m)`` of layouts ``x``, ``s`` ``(B, m)`` at times ``t`` ``(n,)``, cut as the viewer."""
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         g = np.exp(-((t[None, :, None] - x[:, None, :]) / s[:, None, :]) ** 2)
     g[~(g >= viewer.TEMPORAL_CUTOFF)] = 0.0
