@@ -41,7 +41,8 @@ TIME_RANGE = (0.0, 1.0)
 
 def _f64(cols: dict, names) -> np.ndarray:
     """Columns ``names`` stacked as ``(N, k) float64``."""
-    return np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
+    with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
+        return np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
 
 
 def sigmoid(x: np.ndarray) -> np.ndarray:

@@ -119,7 +119,8 @@ def convert(input_paths, output_path, compat, sort, cameras, layout, color, zstd
 @click.argument("paths", metavar="FILE...", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @options(
     click.option("--json", "as_json", is_flag=True,
-                 help="Print the facts as JSON (one object per file, in a list when there are several)."),
+                 help="Print the facts as JSON (keys in specs/json.md): one object per file, in a list when "
+                      "there are several."),
     color_option(),
 )
 @library_errors
@@ -143,7 +144,7 @@ def info(paths, as_json, color):
 @click.argument("source", type=click.Path(dir_okay=False))
 @click.argument("converted", required=False, type=click.Path(dir_okay=False))
 @options(
-    click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (keys in specs/stats.md)."),
+    click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (keys in specs/json.md)."),
     click.option("--markdown", is_flag=True, help="Print the report as Markdown tables."),
     _zstd_option("the transport sizes"),
     color_option(),
@@ -153,8 +154,9 @@ def info(paths, as_json, color):
 def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
     """Report sizes, zstd transport size and what a conversion loses.
 
-    With CONVERTED, compares it against SOURCE attribute by attribute; with SOURCE
-    alone, reports what converting it to .splatv would give.
+    With CONVERTED, compares it against SOURCE attribute by attribute. With SOURCE
+    alone, reports what converting it to .splatv would give; a file the viewer
+    loads as it is (.splatv) is reported as stored, with nothing compared.
 
     \b
     Example:
@@ -163,5 +165,5 @@ def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
     """
     if as_json and markdown:
         raise Failure("--json and --markdown cannot be used together", 2)
-    data = stats_report(source, converted, zstd_level=zstd_level, color=color)
+    data = stats_report(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
     click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))
