@@ -81,15 +81,15 @@ def test_trimmed_halves_merge_back_to_the_original_at_frame_times(source):
     ours = render_scene(merged, CAMERAS[0], times, size=SIZE)
     original = render_scene(source, CAMERAS[0], times, size=SIZE)
     psnr = np.array([compare(a, b).psnr for a, b in zip(original, ours)])
-    # Measured on this scene (specs/segments.md): 40+ dB in the middle of each half, lowest
-    # at the hand-over between the halves, where both grounds fade.
+    # The aim: median >= 40 dB, no frame below 30 dB (measured here: 46.4 and 37.6,
+    # lowest at the hand-over between the halves, where both grounds fade).
     assert np.median(psnr) >= 40, psnr.round(1)
-    assert psnr.min() >= 25, psnr.round(1)
+    assert psnr.min() >= 30, psnr.round(1)
     # The library's own per-frame measure (segment alone as reference) says the same.
     rows = sg.fidelity(merged, segments, report, width=SIZE[0])
     assert [r["frame"] for r in rows] == list(range(2 * per))
     summary = sg.fidelity_summary(rows)
-    assert summary["median_psnr"] >= 40 and summary["min_psnr"] >= 25
+    assert summary["median_psnr"] >= 40 and summary["min_psnr"] >= 30
 
 
 def test_each_segment_is_cut_before_the_neighbours_frames_after_the_leak(source):
