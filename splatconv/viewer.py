@@ -106,6 +106,27 @@ def importance(cols: dict) -> np.ndarray:
         return size * opacity(cols)
 
 
+def temporal_basis(dt, scale) -> np.ndarray:
+    """The viewer's temporal radial basis exp(-(dt / scale)^2), broadcast: float64.
+
+    ``scale`` is linear (exp(trbf_scale)). Time tools evaluate it over grids of
+    times and splats; :func:`temporal_opacity` is it at one time for a scene.
+    No cut is applied; an infinite scale gives 1, NaN stays NaN.
+    """
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        u = np.asarray(dt, dtype=np.float64) / np.asarray(scale, dtype=np.float64)
+        return np.exp(-(u * u))
+
+
+def apply_cut(values: np.ndarray) -> np.ndarray:
+    """Temporal opacities as the viewer uses them: values below :data:`TEMPORAL_CUTOFF` become 0 (in place).
+
+    NaN compares false with the cutoff, so it is kept, as the shader keeps it.
+    """
+    values[values < TEMPORAL_CUTOFF] = 0.0
+    return values
+
+
 def temporal_opacity(cols: dict, t: float, *, cut: bool = True) -> np.ndarray:
     """Temporal opacity exp(-(dt / exp(trbf_scale))^2) at time ``t``: ``(N,) float64``.
 
@@ -114,10 +135,7 @@ def temporal_opacity(cols: dict, t: float, *, cut: bool = True) -> np.ndarray:
     A NaN result (NaN centre or scale, or a zero scale at dt = 0) compares false
     with the cutoff, so the viewer does not hide it: it stays NaN here.
     """
-    dt = float(t) - wide(cols["trbf_center"])
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        u = dt / trbf_scale(cols)
-        value = np.exp(-(u * u))
+    value = temporal_basis(float(t) - wide(cols["trbf_center"]), trbf_scale(cols))
     if cut:
         value[value < TEMPORAL_CUTOFF] = 0.0
     return value

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from splatconv.render.fidelity import fidelity, fidelity_summary
 from splatconv import io, viewer
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
@@ -86,9 +87,9 @@ def test_trimmed_halves_merge_back_to_the_original_at_frame_times(source):
     assert np.median(psnr) >= 40, psnr.round(1)
     assert psnr.min() >= 30, psnr.round(1)
     # The library's own per-frame measure (segment alone as reference) says the same.
-    rows = sg.fidelity(merged, segments, report, width=SIZE[0])
+    rows = fidelity(merged, segments, report, width=SIZE[0])
     assert [r["frame"] for r in rows] == list(range(2 * per))
-    summary = sg.fidelity_summary(rows)
+    summary = fidelity_summary(rows)
     assert summary["median_psnr"] >= 40 and summary["min_psnr"] >= 30
 
 
@@ -114,14 +115,14 @@ def test_a_segment_does_not_show_during_another(source):
     other = Scene(columns=moved, cameras=CAMERAS)
     per = 10
     merged, report = sg.merge_segments([source, other], [per, per], leak=2)
-    rows = sg.fidelity(merged, [source, other], report, width=SIZE[0])
+    rows = fidelity(merged, [source, other], report, width=SIZE[0])
     far = [r["psnr"] for r in rows if abs(r["frame"] - (per - 0.5)) > 3]
     assert min(far) >= 30, far
     # Placed naively, each segment's wide splats would show in the other's frames.
     naive = Scene(columns={k: np.concatenate([sg.place(s.columns, p.start, p.end)[k] for s, p in
                                               zip([source, other], report.placements)]).astype(np.float32)
                            for k in COLUMNS}, cameras=CAMERAS)
-    bad = sg.fidelity(naive, [source, other], report, width=SIZE[0])
+    bad = fidelity(naive, [source, other], report, width=SIZE[0])
     assert max(r["psnr"] for r in bad) < 25
 
 

@@ -5,7 +5,8 @@ from __future__ import annotations
 import click
 
 from .. import clips
-from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, fidelity_summary
+from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK
+from ..render.fidelity import fidelity_summary
 from ..report import segments_text, to_json
 from ._base import Failure, notes, progress
 

@@ -579,8 +579,7 @@ def _piece_peak(alpha: np.ndarray) -> np.ndarray:
     phase = np.linspace(-0.5, 0.5, 33)
     j = np.arange(-6, 7)
     d = (phase[:, None] - j[None, :])  # distance to piece centres, in piece widths
-    g = np.exp(-(d / (0.5 / math.sqrt(-math.log(PIECE_EDGE)))) ** 2)
-    g[g < viewer.TEMPORAL_CUTOFF] = 0.0
+    g = viewer.apply_cut(viewer.temporal_basis(d, 0.5 / math.sqrt(-math.log(PIECE_EDGE))))
     comp = 1.0 - np.prod(1.0 - P[:, None, None] * g[None], axis=2)
     mean = comp.mean(axis=1)
     return np.interp(np.clip(alpha, 0.0, mean[-1]), mean, P)
@@ -616,7 +615,7 @@ def _fit_pieces(read_frame, t, rows, cols, level, progress):
     sw = _window_scale(width)
     reach = viewer.VISIBLE_RADIUS * sw
     u = (t[:, None] - centres[None, :]) / width                        # frame time around each piece
-    g = np.exp(-((t[:, None] - centres[None, :]) / sw) ** 2)
+    g = viewer.temporal_basis(t[:, None] - centres[None, :], sw)
     g[np.abs(t[:, None] - centres[None, :]) > reach] = 0.0
     G = np.zeros((m, J, 4, 4))
     b = np.zeros((m, J, 4, 3))
@@ -662,7 +661,7 @@ def _opacity_at(sub, src, times) -> np.ndarray:
     centre = np.asarray(sub["trbf_center"], np.float64)[src]
     with np.errstate(over="ignore", invalid="ignore"):
         s = viewer.trbf_scale(sub)[src]
-        g = np.exp(-((times - centre) / s) ** 2)
+        g = viewer.temporal_basis(times - centre, s)
     return viewer.opacity(sub)[src] * g
 
 
