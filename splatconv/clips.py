@@ -18,7 +18,8 @@ from .errors import UnsupportedError, UsageError
 from .formats import REGISTRY, format_for
 from .fsutil import check_output
 from .io import check_write_options, read, write
-from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, fidelity, merge_segments
+from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, merge_segments
+from .render.fidelity import fidelity
 from .ops.sequence import fit_sequence
 from .progress import SILENT
 from .transport import inner_name
@@ -135,7 +136,7 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
     Parameters
     ----------
     check : bool
-        Measure each output frame against its segment (:func:`splatconv.ops.segments.fidelity`).
+        Measure each output frame against its segment (:func:`splatconv.render.fidelity.fidelity`).
 
     Returns
     -------

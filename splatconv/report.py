@@ -348,3 +348,33 @@ def sequence_text(data: dict) -> str:
     if data["split_splats"]:
         lines.append(f"  split into pieces: {data['split_splats']:,} splats, {data['pieces_added']:+,} splats")
     return "\n".join(lines)
+
+
+def _db(v) -> str:
+    return "identical" if v is None else f"{v:.2f} dB"
+
+
+def segments_text(data: dict) -> str:
+    """``merge --segments``'s report (:meth:`SegmentReport.as_dict` + frames + fidelity) as text."""
+    lines = [f"{len(data['segments'])} segments on one timeline: {data['splats_in']:,} splats -> "
+             f"{data['splats_out']:,} ({data['ratio']:.2f}x; budget {data['budget']:g}x), "
+             f"long-lived splats fade over {data['leak_frames']} frame(s) of the neighbours"]
+    for i, s in enumerate(data["segments"]):
+        given = sorted(s["pieces_per_long_lived"].items(), key=lambda kv: int(kv[0]))
+        pieces = ", ".join(f"{n:,} x {k}" for k, n in given)
+        lines.append(f"  segment {i}: frames {s['first_frame']}..{s['first_frame'] + s['frames'] - 1} "
+                     f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {s['splats_out']:,} splats, "
+                     f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else ""))
+    frames = data.get("frames") or []
+    if frames:
+        lines.append("frame  time      segment  local    PSNR vs the segment alone")
+        for f in frames:
+            lines.append(f"{f['frame']:5d}  {f['time']:.5f}  {f['segment']:7d}  {f['local_time']:.4f}  "
+                         f"{_db(f['psnr'])}")
+        s = data["fidelity"]
+        lines.append(f"fidelity over {s['frames']} frame(s): median {_db(s['median_psnr'])}, "
+                     f"min {_db(s['min_psnr'])}; {s['below_40']} below 40 dB, {s['below_30']} below 30 dB")
+    out = data.get("output")
+    if out:
+        lines.append(f"wrote {out['path']}: {out['splats']:,} splats")
+    return "\n".join(lines)

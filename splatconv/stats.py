@@ -60,7 +60,7 @@ def describe(scene: Scene, path: str, module) -> dict:
     pos = pos[np.isfinite(pos).all(axis=1)]
     if len(pos):
         bounds = {"min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()}
-    centre = np.asarray(cols["trbf_center"], dtype=np.float64)
+    centre = viewer.wide(cols["trbf_center"])
     lo, hi = viewer.visible_interval(cols)
     # A splat with an infinite or NaN centre, or a NaN scale, has no interval
     # on the time axis (counted under ``nonfinite``).

@@ -56,9 +56,9 @@ def background(actor):
 def test_two_actors_side_by_side_match_their_parts(actor):
     """Actors whose pictures do not overlap: the composed picture is the sum of the two, at every time.
 
-    Not to the bit: the draw order comes from the viewer's 16-bit depth sort
-    over the scene's depth range, which the other actor widens, so a few
-    nearly equal depths swap (7 pixels of 20,736 here).
+    To one 8-bit step: the draw order comes from the viewer's 16-bit depth sort
+    over the scene's depth range, which the other actor widens, so nearly equal
+    depths may swap (one pixel's alpha here).
     """
     left, right = moved(shrunk(actor, 0.45), dx=-1.0), moved(shrunk(actor, 0.45), dx=1.0, dy=0.1)
     merged, report = overlay([left, right])
@@ -68,8 +68,8 @@ def test_two_actors_side_by_side_match_their_parts(actor):
         assert a[..., 3].any() and b[..., 3].any()
         assert not ((a[..., 3] > 0) & (b[..., 3] > 0)).any()  # disjoint, so the sum is the answer
         both = draw(merged, t)
-        assert psnr(both, a + b) >= 45
-        assert (np.abs(both.astype(int) - (a.astype(int) + b.astype(int))).max(axis=2) > 2).mean() < 0.001
+        off = np.abs(both.astype(int) - (a.astype(int) + b.astype(int))).max(axis=2)
+        assert off.max() <= 1 and (off > 0).mean() < 0.001
 
 
 def test_static_background_stays_at_full_opacity(actor, background):

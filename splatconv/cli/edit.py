@@ -16,6 +16,9 @@ from ..ops import merge as merge_ops
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
                     quiet_option)
 from ._edit import FloatList, Rotation
+from ._segments import given as segments_given
+from ._segments import run as run_segments
+from ._segments import segment_options
 
 
 class Moment(click.ParamType):
@@ -191,11 +194,13 @@ def _report_each(frames, names):
     _sort_option(),
     color_option(),
     _drop_option("every INPUT"),
+    *segment_options(),
     force_option(),
     quiet_option(),
 )
 @library_errors
-def merge(paths, mode, translate, rotate, scale, layout, sort, color, drop_nonfinite, force, quiet):
+def merge(paths, mode, translate, rotate, scale, layout, sort, color, drop_nonfinite, force, quiet, segments,
+          **segment):
     """Put several scenes in one file on the same timeline.
 
     A static 3DGS background under a dynamic actor, two actors side by side:
@@ -206,14 +211,30 @@ def merge(paths, mode, translate, rotate, scale, layout, sort, color, drop_nonfi
     over the whole clip. The output keeps the cameras of the first input that
     has any (moved with it).
 
+    With --segments the inputs are laid end to end instead (Spacetime
+    Gaussians segments of one long clip): segment i plays in its own interval
+    of the timeline, its long-lived splats split into pieces that fade out at
+    its ends, and each output frame is measured against its segment alone
+    (see README "Joining segments" and specs/segments.md).
+
     \b
     Example:
       splatconv merge background.ply actor.splatv scene.splatv
       splatconv merge stage.ply dancer.splatv dancer.splatv duet.splatv --translate 2:-1,0,0 --translate 3:1,0,0
+      splatconv merge seg0.ply seg1.ply seg2.ply clip.splatv --segments --durations 50,50,50
     """
     if len(paths) < 3:
         raise Failure("merge needs at least two INPUT files and an OUTPUT", 2)
     inputs, output_path = list(paths[:-1]), paths[-1]
+    if segments:
+        if translate or rotate or scale or drop_nonfinite:
+            raise Failure("--translate, --rotate, --scale and --drop-nonfinite apply to merges on one timeline, "
+                          "not to --segments", 2)
+        return run_segments(inputs, output_path, layout=layout, sort=sort, color=color, force=force, quiet=quiet,
+                            **segment)
+    if segments_given(segment):
+        raise Failure("--durations, --leak, --budget, --check-every, --no-check, --camera and --json apply to "
+                      "--segments only", 2)
     placements = _placements(len(inputs), {"translate": translate, "rotate": rotate, "scale": scale})
     io.check_write_options(output_path, sort=sort, layout=layout)
     check_output(output_path, inputs, force)

@@ -33,20 +33,16 @@ import numpy as np
 from .. import viewer
 from ..errors import UsageError
 from ..model import COLUMNS, MOTION, OMEGA, POSITION, ROTATION, VARIANT_LITE, Scene, lite_rows
-from ..cameras import framing_camera
 from ..progress import SILENT
-from ..render import camera as cam
-from ..render.diff import compare
-from ..render.layout import float_attributes
-from ..render.preview import Renderer, View
 from .sequence import _shift_poly
+from .time import remap_columns
 
 #: Frames per segment when no durations are given (Spacetime Gaussians trains 50).
 DEFAULT_FRAMES = 50
 #: Output splats at most this many times the segments' splats together.
 DEFAULT_BUDGET = 2.0
 #: Frames of the neighbouring segment through which a segment's long-lived splats may still fade.
-DEFAULT_LEAK = 1
+DEFAULT_LEAK = 12
 #: Most windows a long-lived splat is split into.
 MAX_PIECES = 7
 #: Radii are kept this much inside a cut, for the viewer's float32 maths.
@@ -152,18 +148,14 @@ def placements(durations, leak: int = DEFAULT_LEAK) -> list:
 def place(columns: dict, start: float, end: float) -> dict:
     """Map a scene's own [0, 1] onto [start, end] of a longer timeline: float64 columns.
 
-    t' = start + t (end - start): centres move, temporal scales and the motion
-    and angular-velocity terms rescale so that the scene at t' draws as it did at t.
+    t' = start + t (end - start), by trim's time map
+    (:func:`splatconv.ops.time.remap_columns`): centres move, temporal scales and
+    the motion and angular-velocity terms rescale so that the scene at t' draws as
+    it did at t.
     """
     d = end - start
-    out = {name: np.asarray(columns[name], np.float64) for name in COLUMNS}
-    out["trbf_center"] = start + out["trbf_center"] * d
-    out["trbf_scale"] = out["trbf_scale"] + math.log(d)
-    for k in range(3):
-        for name in MOTION[3 * k:3 * k + 3]:
-            out[name] = out[name] / d ** (k + 1)
-    for name in OMEGA:
-        out[name] = out[name] / d
+    out = {name: np.array(columns[name], dtype=np.float64) for name in COLUMNS}
+    remap_columns(out, -start / d, 1.0 / d)
     return out
 
 
@@ -179,24 +171,9 @@ def _radius_scale(x, n, leak, left, right):
 
 
 def _window_values(x, s, t):
-    with np.errstate(invalid="ignore", divide="ignore"):
-        g = np.exp(-((t[:, None] - x[None, :]) / s[None, :]) ** 2)
+    g = viewer.temporal_basis(t[:, None] - x[None, :], s[None, :])
     g[~(g >= viewer.TEMPORAL_CUTOFF)] = 0.0
     return g
-
-
-def _nonnegative_lstsq(A, b):
-    active = np.ones(A.shape[1], bool)
-    w = np.zeros(A.shape[1])
-    for _ in range(A.shape[1] + 1):
-        w = np.zeros(A.shape[1])
-        if not active.any():
-            return w
-        w[active] = np.linalg.lstsq(A[:, active], b, rcond=None)[0]
-        if (w >= 0).all():
-            return w
-        active &= w > 0
-    return np.clip(w, 0.0, None)
 
 
 def _peaks(alpha, w):
@@ -206,33 +183,43 @@ def _peaks(alpha, w):
         return np.where(alpha >= 1.0, (w > 0) * 1.0, -np.expm1(w * np.log1p(-np.minimum(alpha, 1.0))))
 
 
-def _layout_cost(x, n, leak, left, right):
-    s = _radius_scale(x, n, leak, left, right)
+def _layout_costs(x, n, leak, left, right):
+    """Cost of each candidate layout ``x`` ``(B, m)`` (frame units); with their scales and weights.
+
+    Weights: a ridge least-squares partition of one over the frames, negatives
+    clipped (the search only ranks candidates; the kept layout's peaks are then
+    solved properly by :func:`_peak_table`).
+    """
+    s = _radius_scale(x, n, leak, left, right)                           # (B, m)
     t = np.arange(n, dtype=np.float64)
-    g = _window_values(x, s, t)
-    w = _nonnegative_lstsq(g, np.ones(n))
-    # The neighbours' pieces, assumed laid out alike (mirrored), still show in the
-    # leak frames: they fill in some of the fade, and cost a little as content.
-    mirror = []
-    if right:
-        mirror.append(2 * n - 1 - x)
-    if left:
-        mirror.append(-1 - x)
-    gn = [_window_values(m, s, t) for m in mirror]
-    cost = 0.0
+    g = _values(x, s, t)                                                 # (B, n, m)
+    gtg = np.einsum("bnj,bnk->bjk", g, g) + 1e-6 * np.eye(x.shape[1])[None]
+    w = np.clip(np.linalg.solve(gtg, g.sum(axis=1)[..., None])[..., 0], 0.0, None)   # (B, m)
+    # The neighbours' pieces, laid out alike (mirrored), still show in the leak
+    # frames: they fill in some of the fade, and cost a little as content.
+    mirrors = ([2 * n - 1 - x] if right else []) + ([-1 - x] if left else [])
+    gn = [_values(m, s, t) for m in mirrors]
+    cost = np.zeros(len(x))
     for alpha in _ALPHAS:
-        p = _peaks(alpha, w)
-        own = 1.0 - np.prod(1.0 - p[None, :] * g, axis=1)
-        other = np.zeros(n)
+        p = _peaks(alpha, w)[:, None, :]                                 # (B, 1, m)
+        own = 1.0 - np.prod(1.0 - p * g, axis=2)                        # (B, n)
+        other = np.zeros_like(own)
         for gm in gn:
-            other = 1.0 - (1.0 - other) * np.prod(1.0 - p[None, :] * gm, axis=1)
+            other = 1.0 - (1.0 - other) * np.prod(1.0 - p * gm, axis=2)
         both = 1.0 - (1.0 - own) * (1.0 - other)
         # Copies of a splat that share a moment blend with other splats' copies between
         # them (depth order interleaves them): prefer one piece carrying each frame.
-        lead = (p[None, :] * g).max(axis=1)
-        cost += (np.mean((both - alpha) ** 2) + _LEAK_COST * np.mean(other ** 2)
-                 + _SHARE_COST * np.mean((own - lead) ** 2))
+        lead = (p * g).max(axis=2)
+        cost += (np.mean((both - alpha) ** 2, axis=1) + _LEAK_COST * np.mean(other ** 2, axis=1)
+                 + _SHARE_COST * np.mean((own - lead) ** 2, axis=1))
     return cost / len(_ALPHAS), s, w
+
+
+def _values(x, s, t):
+    """Window values ``(B, n, m)`` of layouts ``x``, ``s`` ``(B, m)`` at times ``t`` ``(n,)``, cut as the viewer."""
+    g = viewer.temporal_basis(t[None, :, None] - x[:, None, :], s[:, None, :])
+    g[~(g >= viewer.TEMPORAL_CUTOFF)] = 0.0
+    return g
 
 
 _LAYOUTS: dict = {}
@@ -254,17 +241,18 @@ def windows(n: int, pieces: int, leak: int, left: bool, right: bool):
     rng = np.random.default_rng(20260 + 7 * pieces + n)
     lo = -(leak + 1) + 0.01 if left else -2.0 * n
     hi = n - 1 + (leak + 1) - 0.01 if right else 3.0 * n
+    batch = 64
     best = None
-    tries = 300 + 100 * pieces
-    for it in range(tries):
-        if best is None or it < tries // 3:
-            x = np.sort(rng.uniform(lo, hi, pieces))
+    for rnd in range(12):
+        if best is None or rnd < 4:
+            x = np.sort(rng.uniform(lo, hi, (batch, pieces)), axis=1)
         else:
-            spread = (hi - lo) * (0.05 if it < 2 * tries // 3 else 0.01)
-            x = np.sort(np.clip(best[1] + rng.normal(0.0, spread, pieces), lo, hi))
-        cost, s, w = _layout_cost(x, n, leak, left, right)
-        if best is None or cost < best[0]:
-            best = (cost, x, s, w)
+            spread = (hi - lo) * (0.05 if rnd < 8 else 0.01)
+            x = np.sort(np.clip(best[1][None, :] + rng.normal(0.0, spread, (batch, pieces)), lo, hi), axis=1)
+        cost, s, w = _layout_costs(x, n, leak, left, right)
+        i = int(np.argmin(cost))
+        if best is None or cost[i] < best[0]:
+            best = (float(cost[i]), x[i], s[i], w[i])
     cost, x, s, w = best
     keep = w > 0
     x, s, w = x[keep], s[keep], w[keep]
@@ -274,7 +262,7 @@ def windows(n: int, pieces: int, leak: int, left: bool, right: bool):
 
 
 #: Opacities at which the peak table is solved (denser towards 1, where compositing bends most).
-PEAK_GRID = 1.0 - np.linspace(1.0, 0.0, 41) ** 2
+PEAK_GRID = 1.0 - np.linspace(1.0, 0.0, 25) ** 2
 
 
 def _peak_table(x, s, w, n, left, right) -> np.ndarray:
@@ -291,7 +279,7 @@ def _peak_table(x, s, w, n, left, right) -> np.ndarray:
     table = np.zeros((len(PEAK_GRID), len(x)))
     for a, alpha in enumerate(PEAK_GRID):
         p = np.clip(_peaks(alpha, w), 0.0, 1.0)
-        for _ in range(40):
+        for _ in range(25):
             keep = 1.0 - p[None, :] * g                        # (n, m)
             own = np.prod(keep, axis=1)
             other = np.ones(n)
@@ -379,6 +367,15 @@ def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first
     return out
 
 
+def _best_layout(n: int, m: int, leak: int, sides) -> int:
+    """The number of windows k <= m whose layout composites best (a search may find m worse than fewer)."""
+    return min(range(1, m + 1), key=lambda k: (windows(n, k, leak, *sides)[3], k))
+
+
+def _best_costs(n: int, leak: int, sides) -> dict:
+    return {m: windows(n, _best_layout(n, m, leak, sides), leak, *sides)[3] for m in range(1, MAX_PIECES + 1)}
+
+
 def impact(cols: dict, rows: np.ndarray) -> np.ndarray:
     """How much a splat can matter in an image: peak opacity x its two largest axes' area: ``(M,) float64``."""
     s = np.sort(viewer.scales(cols)[rows], axis=1)
@@ -391,17 +388,14 @@ def allocate(weights: np.ndarray, extra: int, costs: dict) -> np.ndarray:
     """Pieces per long-lived splat (1 .. MAX_PIECES) given ``extra`` pieces beyond one each.
 
     Greedy on marginal gains: each extra piece goes where weight x (cost(m) -
-    cost(m + 1)) is largest, ``costs[m]`` being the windows' composited error with
-    m pieces. Ties and order are deterministic (stable sort).
+    cost(m + 1)) is largest, ``costs[m]`` being the best composited error with at
+    most m pieces (non-increasing). Ties and order are deterministic (stable sort).
     """
     n = len(weights)
     m = np.ones(n, dtype=np.int64)
     if n == 0 or extra <= 0:
         return m
     steps = [max(costs[k] - costs[k + 1], 0.0) for k in range(1, MAX_PIECES)]
-    # Keep the gains decreasing (a lower hull): a later step never outranks an earlier one.
-    for k in range(1, len(steps)):
-        steps[k] = min(steps[k], steps[k - 1])
     gains = (weights[:, None] * np.array(steps)[None, :]).ravel()
     take = min(extra, len(gains))
     order = np.argsort(-gains, kind="stable")[:take]
@@ -441,6 +435,7 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         raise UsageError("the splat budget must be at least 1")
     places = placements(durations, leak)
     parts, report = [], SegmentReport(places, [], [], [], [], [], leak, budget)
+    overflow = 0
     with progress.stage("placing segments", len(scenes), "segment") as advance:
         for i, (scene, p) in enumerate(zip(scenes, places)):
             cols = place(scene.columns, p.start, p.end)
@@ -455,28 +450,30 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
                 if pieces is not None:
                     m = np.full(n_long, pieces, np.int64)
                 else:
-                    costs = {k: windows(p.frames, k, leak, *sides)[3] for k in range(1, MAX_PIECES + 1)}
+                    costs = _best_costs(p.frames, leak, sides)
                     extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - n_long
                     m = allocate(impact(cols, rows), extra, costs)
-                extra_cols = [_pieces(cols, rows[m == k], p, int(k), leak, sides) for k in np.unique(m)]
+                extra_cols = [_pieces(cols, rows[m == k], p, _best_layout(p.frames, int(k), leak, sides), leak, sides)
+                              for k in np.unique(m)]
                 kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
-            parts.append(kept)
+            with np.errstate(over="ignore", invalid="ignore"):
+                parts.append({name: kept[name].astype(np.float32) for name in COLUMNS})
+            overflow += sum(int((np.isinf(parts[-1][name]) & np.isfinite(kept[name])).sum()) for name in COLUMNS)
             report.counts_in.append(scene.count)
-            report.counts_out.append(len(kept["x"]))
+            report.counts_out.append(len(parts[-1]["x"]))
             report.long_lived.append(n_long)
             report.pieces.append({str(int(k)): int((m == k).sum()) for k in np.unique(m)})
             report.dropped.append(int(nan_time.sum()))
+            del kept, cols
             advance()
     total = sum(report.counts_out)
     _rows, out = lite_rows(total)
     at = 0
-    overflow = 0
-    for part in parts:
+    while parts:
+        part = parts.pop(0)  # each part freed once copied: the output is held once, not twice
         k = len(part["x"])
         for name in COLUMNS:
-            with np.errstate(over="ignore", invalid="ignore"):
-                out[name][at:at + k] = part[name]
-            overflow += int((np.isinf(out[name][at:at + k]) & np.isfinite(part[name])).sum())
+            out[name][at:at + k] = part[name]
         at += k
     if sum(report.dropped):
         report.notes.append(f"{sum(report.dropped):,} splat(s) with a NaN temporal centre or scale dropped "
@@ -490,79 +487,3 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         f"{report.count_in:,} -> {report.count_out:,} splats ({report.count_out / max(report.count_in, 1):.2f}x)")
     cameras = next((s.cameras for s in scenes if s.cameras), None)
     return Scene(columns=out, cameras=cameras, variant=VARIANT_LITE, meta={}), report
-
-
-# --------------------------------------------------------------------------
-# Fidelity: the merged scene against each segment alone, frame by frame.
-
-#: Width of the fidelity renders (the camera's size scaled down to it).
-FIDELITY_WIDTH = 320
-#: Splats drawn per frame are those at or above this temporal opacity (below the viewer's
-#: 0.02 so that the shader, not this pre-selection, makes the cut).
-_PRESELECT = 0.019
-
-
-def _view(cameras, index: int, columns: dict, width: int) -> View:
-    cams = cameras or [framing_camera(columns["x"], columns["y"], columns["z"])]
-    if not 0 <= index < len(cams):
-        raise UsageError(f"--camera {index}: the segments have {len(cams)} camera(s), 0..{len(cams) - 1}")
-    w, h, fx, fy = cam.fit(cams[index], None, width)
-    return View(cam.view_matrix(cams[index]), fx, fy, w, h)
-
-
-def _visible_rows(columns: dict, t: float) -> np.ndarray:
-    return np.flatnonzero(~(viewer.temporal_opacity(columns, t, cut=False) < _PRESELECT))
-
-
-def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: int = 0, every: int = 1,
-             width: int = FIDELITY_WIDTH, progress=SILENT) -> list:
-    """PSNR of the merged scene at each output frame time against its segment at the local time.
-
-    Both are drawn with the float reference renderer (unquantized attributes,
-    the viewer's shader maths) from the stored camera ``camera`` (the first
-    segment's cameras; a framing camera when none has any), ``width`` pixels wide.
-    Only splats that pass the temporal cut at the frame's time are uploaded
-    (the others draw nothing).
-
-    Parameters
-    ----------
-    every : int
-        Check every ``every``-th output frame (1: all).
-
-    Returns
-    -------
-    list of dict
-        ``frame``, ``time``, ``segment``, ``local_time``, ``psnr`` (None when identical).
-    """
-    frames = report.frame_times()[::max(1, int(every))]
-    view = _view(merged.cameras or next((s.cameras for s in segments if s.cameras), None), camera,
-                 merged.columns, width)
-    a = Renderer(view.width, view.height)
-    b = Renderer(view.width, view.height, ctx=a.ctx)
-    out = []
-    try:
-        with progress.stage("checking frames", len(frames), "frame") as advance:
-            for f, t, i, local in frames:
-                images = []
-                for r, scene, when in ((a, merged, t), (b, segments[i], local)):
-                    rows = _visible_rows(scene.columns, when)
-                    r.load_float(float_attributes(scene, rows))
-                    images.append(r.draw(view, float(when)))
-                psnr = compare(images[1], images[0]).psnr
-                out.append({"frame": f, "time": round(t, 9), "segment": i, "local_time": round(local, 9),
-                            "psnr": None if math.isinf(psnr) else round(psnr, 3)})
-                advance()
-    finally:
-        b.release()
-        a.release()
-    return out
-
-
-def fidelity_summary(rows: list) -> dict:
-    """Median, minimum and frames below 30 and 40 dB of :func:`fidelity` rows (identical frames count as inf)."""
-    v = np.array([math.inf if r["psnr"] is None else r["psnr"] for r in rows])
-    if len(v) == 0:
-        return {"frames": 0}
-    return {"frames": len(v), "median_psnr": float(np.median(v)) if np.isfinite(np.median(v)) else None,
-            "min_psnr": float(v.min()) if np.isfinite(v.min()) else None,
-            "below_40": int((v < 40).sum()), "below_30": int((v < 30).sum())}

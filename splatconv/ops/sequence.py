@@ -247,6 +247,11 @@ def _frame_state(cols: dict):
     return pos, q, alpha, logscale, color, seen
 
 
+def _rows_state(frame: Scene, rows: np.ndarray):
+    """:func:`_frame_state` of rows ``rows`` of a frame only (the piece passes follow few splats)."""
+    return _frame_state(frame.take(rows))
+
+
 def _powers(u, degree: int = 3) -> np.ndarray:
     """``u ** [0..degree]`` along a new last axis."""
     u = np.asarray(u, np.float64)
@@ -574,8 +579,7 @@ def _piece_peak(alpha: np.ndarray) -> np.ndarray:
     phase = np.linspace(-0.5, 0.5, 33)
     j = np.arange(-6, 7)
     d = (phase[:, None] - j[None, :])  # distance to piece centres, in piece widths
-    g = np.exp(-(d / (0.5 / math.sqrt(-math.log(PIECE_EDGE)))) ** 2)
-    g[g < viewer.TEMPORAL_CUTOFF] = 0.0
+    g = viewer.apply_cut(viewer.temporal_basis(d, 0.5 / math.sqrt(-math.log(PIECE_EDGE))))
     comp = 1.0 - np.prod(1.0 - P[:, None, None] * g[None], axis=2)
     mean = comp.mean(axis=1)
     return np.interp(np.clip(alpha, 0.0, mean[-1]), mean, P)
@@ -611,7 +615,7 @@ def _fit_pieces(read_frame, t, rows, cols, level, progress):
     sw = _window_scale(width)
     reach = viewer.VISIBLE_RADIUS * sw
     u = (t[:, None] - centres[None, :]) / width                        # frame time around each piece
-    g = np.exp(-((t[:, None] - centres[None, :]) / sw) ** 2)
+    g = viewer.temporal_basis(t[:, None] - centres[None, :], sw)
     g[np.abs(t[:, None] - centres[None, :]) > reach] = 0.0
     G = np.zeros((m, J, 4, 4))
     b = np.zeros((m, J, 4, 3))
@@ -620,12 +624,12 @@ def _fit_pieces(read_frame, t, rows, cols, level, progress):
     n = len(np.asarray(cols["x"]))
     with progress.stage(f"fitting pieces ({parts})", len(t), "frame") as advance:
         for k in range(len(t)):
-            pos, _, _, _, _, seen = _frame_state(_checked(read_frame, k, n).columns)
+            pos, _, _, _, _, seen = _rows_state(_checked(read_frame, k, n), rows)
             live = np.flatnonzero(g[k] > 0)
-            w = seen[rows].astype(np.float64)[:, None] * g[k, live][None, :]   # (m, L)
+            w = seen.astype(np.float64)[:, None] * g[k, live][None, :]         # (m, L)
             x = _powers(u[k, live])                                             # (L, 4)
             G[:, live] += w[:, :, None, None] * (x[:, :, None] * x[:, None, :])[None]
-            b[:, live] += w[:, :, None, None] * x[None, :, :, None] * pos[rows][:, None, None, :]
+            b[:, live] += w[:, :, None, None] * x[None, :, :, None] * pos[:, None, None, :]
             cnt[:, live] += w
             advance()
     a = _solve_cubic(G.reshape(m * J, 4, 4), b.reshape(m * J, 4, 3), cnt.reshape(-1))
@@ -657,7 +661,7 @@ def _opacity_at(sub, src, times) -> np.ndarray:
     centre = np.asarray(sub["trbf_center"], np.float64)[src]
     with np.errstate(over="ignore", invalid="ignore"):
         s = viewer.trbf_scale(sub)[src]
-        g = np.exp(-((times - centre) / s) ** 2)
+        g = viewer.temporal_basis(times - centre, s)
     return viewer.opacity(sub)[src] * g
 
 
@@ -666,10 +670,10 @@ def _piece_errors(read_frame, t, rows, n, pieces, g, J, progress):
     err = np.zeros(m)
     with progress.stage("measuring pieces", len(t), "frame") as advance:
         for k in range(len(t)):
-            pos, _, _, _, _, seen = _frame_state(_checked(read_frame, k, n).columns)
+            pos, _, _, _, _, seen = _rows_state(_checked(read_frame, k, n), rows)
             fit = viewer.position_at(pieces, t[k]).reshape(m, J, 3)
-            d = np.sqrt(((fit - pos[rows][:, None, :]) ** 2).sum(axis=2))
-            counts = (g[k] >= _PIECE_ERROR_WINDOW)[None, :] & seen[rows][:, None]
+            d = np.sqrt(((fit - pos[:, None, :]) ** 2).sum(axis=2))
+            counts = (g[k] >= _PIECE_ERROR_WINDOW)[None, :] & seen[:, None]
             np.maximum(err, np.where(counts, d, 0.0).max(axis=1), out=err)
             advance()
     return err
