@@ -83,8 +83,11 @@ def main():
 
 
 @main.command()
-@click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
+@click.argument("input_path", metavar="INPUT", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
+@click.option("--external", is_flag=True,
+              help="For an .html OUTPUT: write the scene beside the page (OUT.splatv) instead of "
+                   "embedding it, for scenes too large to embed; the page must then be served over HTTP.")
 @click.option("--compat", type=click.Choice(splatconv.COMPAT_MODES),
               help="splatv-js: texture bytes identical to splaTV's in-browser converter "
                    "(truncating halves). Default: accurate rounding.")
@@ -100,13 +103,29 @@ def main():
 @click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
               help="zstd level for a .zst OUTPUT, e.g. scene.splatv.zst [default: 19].")
 @_library_errors
-def convert(input_path, output_path, compat, sort, cameras, color, force, zstd_level):
-    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, either + .zst).
+def convert(input_path, output_path, external, compat, sort, cameras, color, force, zstd_level):
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, either + .zst; .html writes a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
     reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
-    compressed while it is written.
+    compressed while it is written. Several INPUTs make one .html page that plays
+    them as the segments of one clip.
+
+    Example: splatconv convert scene.ply scene.html
     """
+    # Player pages for segment lists and --external: see splatconv.web.publish.
+    if external or len(input_path) > 1:
+        from splatconv.web.publish import publish
+
+        if compat or sort or cameras or zstd_level:
+            raise _Failure("--compat, --sort, --cameras and --zstd-level do not apply with --external "
+                           "or several inputs", 2)
+        report = publish(input_path, output_path, external=external, force=force)
+        _notes(report.notes)
+        for path, size in report.written:
+            click.echo(f"wrote {path}: {size:,} bytes")
+        return
+    input_path = input_path[0]
     scene, report = splatconv.convert(input_path, output_path, compat=compat, sort=sort,
                                       cameras=cameras, color=color, force=force, zstd_level=zstd_level)
     _notes(scene.notes)
@@ -286,6 +305,27 @@ def diff(a, b, size, cameras, times, min_psnr, as_json, color, out, reference, f
     images = bool(outcome.frames) and bool(outcome.frames[0].names)
     parts = (images_text, images_verdict_text) if images else (frames_text, verdict_text)
     _finish(outcome.as_dict(), as_json, parts)
+
+
+@main.command()
+@click.argument("files", metavar="FILE...", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--port", type=click.IntRange(0, 65535), default=0, help="Port on 127.0.0.1 [default: a free one].")
+@click.option("--no-open", is_flag=True, help="Do not open a browser; just print the address.")
+@_library_errors
+def view(files, port, no_open):
+    """Play FILE in the browser: serves the player page and the scene on 127.0.0.1 only.
+
+    Several FILEs play as the segments of one clip. A PLY or .zst input is
+    converted in memory first. Stop with Ctrl-C.
+
+    Example: splatconv view scene.splatv --no-open
+    """
+    from splatconv.web.server import ViewServer
+
+    server = ViewServer(files, port=port)
+    _notes(server.notes)
+    click.echo(f"serving {', '.join(files)} at {server.url} (Ctrl-C to stop)")
+    server.serve(open_browser=not no_open)
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -11,9 +11,9 @@ from __future__ import annotations
 import os
 
 from ..errors import UsageError
-from . import ply, splatv
+from . import html, ply, splatv
 
-_MODULES = (ply, splatv)
+_MODULES = (ply, splatv, html)
 REGISTRY = {suffix: module for module in _MODULES for suffix in module.SUFFIXES}
 
 

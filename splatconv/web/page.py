@@ -1,0 +1,97 @@
+"""Build the player page: one HTML file holding the player, its shaders and its scenes.
+
+The page is the same whether ``splatconv view`` serves it or ``convert OUT.html``
+writes it: the CSS, the player, the sort worker, the shader sources of
+:mod:`splatconv.render` and a JSON configuration are inlined, so the page makes no
+request except for a scene that is not embedded.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import re
+from dataclasses import dataclass
+from importlib import resources
+
+#: The vertex shader is these three files joined, as ``render.preview.vertex_source("splatv")``.
+SHADERS = ("splat_head.glsl", "fetch_splatv.glsl", "splat_main.glsl", "splat.frag")
+_TEMPLATE_FIELD = re.compile(r"\{\{([A-Z]+)\}\}")
+
+
+@dataclass
+class SceneRef:
+    """One segment of the clip the page plays.
+
+    Exactly one of ``url`` (fetched, relative to the page) and ``data`` (the
+    ``.splatv`` bytes, embedded as base64) is set. ``duration`` (seconds, optional)
+    sets the segment's share of the timeline; without durations every segment
+    gets an equal share.
+    """
+
+    name: str
+    url: str | None = None
+    data: bytes | None = None
+    duration: float | None = None
+
+
+def _asset(name: str) -> str:
+    return resources.files(__package__).joinpath("assets", name).read_text(encoding="utf-8")
+
+
+def _shader(name: str) -> str:
+    return resources.files("splatconv.render").joinpath("shaders", name).read_text(encoding="utf-8")
+
+
+def _script_text(text: str) -> str:
+    """Text safe inside a <script> element: no ``</`` can end it early."""
+    return text.replace("</", "<\\/")
+
+
+def _text_block(name: str, text: str, kind: str = "text/plain") -> str:
+    if "</script" in text.lower():  # shader and worker sources never hold it; refuse rather than mangle
+        raise ValueError(f"{name} contains '</script'")
+    return f'<script type="{kind}" data-asset="{html.escape(name)}">{text}</script>'
+
+
+def build_page(scenes: list, title: str = "splatconv player") -> bytes:
+    """The player page for ``scenes``, as UTF-8 HTML bytes.
+
+    Parameters
+    ----------
+    scenes : list of SceneRef
+        The clip's segments in playing order (one for a single scene).
+    title : str
+        Shown in the page's title and panel.
+
+    Returns
+    -------
+    bytes
+    """
+    blocks = [_text_block(name, _shader(name)) for name in SHADERS]
+    blocks.append(_text_block("sort_worker.js", _asset("sort_worker.js")))
+    entries = []
+    for i, scene in enumerate(scenes):
+        entry = {"name": scene.name}
+        if scene.duration is not None:
+            entry["duration"] = scene.duration
+        if scene.data is not None:
+            entry["embedded"] = f"scene-{i}"
+            encoded = base64.b64encode(scene.data).decode("ascii")
+            # Lines of 76 characters keep editors and diff tools responsive.
+            lines = "\n".join(encoded[k:k + 76] for k in range(0, len(encoded), 76))
+            blocks.append(f'<script type="application/octet-stream" data-asset="scene-{i}">\n{lines}\n</script>')
+        else:
+            entry["url"] = scene.url
+        entries.append(entry)
+    config = json.dumps({"scenes": entries}, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    fields = {
+        "TITLE": html.escape(title),
+        "CSS": _asset("player.css"),
+        "CONFIG": _script_text(config),
+        "ASSETS": "\n".join(blocks),
+        "PLAYER": _script_text(_asset("player.js")),
+    }
+    page = _TEMPLATE_FIELD.sub(lambda m: fields[m.group(1)], _asset("player.html"))
+    return page.encode("utf-8")
