@@ -325,7 +325,7 @@
       }
       if (offset === null) {
         parseHeader(head); // throws for a file that is not .splatv at all
-        throw new Error("the file ends inside its header.");
+        throw new Error("the file ends inside its header (too short to be a .splatv scene).");
       }
     } catch (e) {
       describeFailure(seg, e.message || String(e));
@@ -645,7 +645,7 @@
     }
     // What this frame showed; a test waits until it is the whole segment, sorted for this view.
     state.drawnKey = {
-      segment: where.index, time: where.time, count: drawn,
+      segment: where.index, time: where.time, clipTime: state.time, count: drawn, vp: vpKey,
       complete: !!(seg && seg.done && drawn === seg.total && seg.sorted.vp === vpKey),
     };
     if (drawn && state.firstFrameAt === null) state.firstFrameAt = performance.now();
@@ -699,7 +699,12 @@
   // ---------------------------------------------------------------- test and scripting hooks
 
   function status() {
+    const d = state.drawnKey;
+    const vpNow = state.view ? multiply(projectionMatrix(state.fx * (window.devicePixelRatio || 1),
+      state.fy * (window.devicePixelRatio || 1), canvas.width, canvas.height), state.view).join(",") : null;
     return {
+      // The last frame showed the whole scene sorted for the current view, at the current time.
+      settled: !!(d && d.complete && d.vp === vpNow && (state.playing || d.clipTime === state.time)),
       error: state.error,
       loaded: state.segments.length > 0 && state.segments.every((s) => s.done),
       drawn: state.drawnKey,
