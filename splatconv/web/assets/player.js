@@ -85,6 +85,9 @@
     frameMs: 0,
     lastFrame: 0,
     drawnKey: null,     // what the last frame showed, for tests: see status()
+    version: 0,         // bumped when what a frame would draw changes (a sort arrived, new files)
+    lastDrawKey: null,
+    drewLast: false,
     firstMegabyteAt: null,
     firstFrameAt: null,
     sortMs: null,
@@ -145,6 +148,7 @@
     gl.bufferData(gl.ARRAY_BUFFER, msg.index, gl.DYNAMIC_DRAW);
     seg.sorted = {count: msg.count, vp: msg.key.vp};
     state.sortMs = msg.ms;
+    state.version++;
   };
 
   function requestSort(seg, vp) {
@@ -385,6 +389,7 @@
       gl.deleteBuffer(seg.indexBuffer);
     }
     state.segments = sources.map((s, i) => newSegment(s, i, s.duration));
+    state.version++;
     state.firstMegabyteAt = state.firstFrameAt = null;
     $("message").hidden = true;
     state.error = null;
@@ -652,14 +657,34 @@
     return {seg, vp, vpKey, where};
   }
 
+  function geometry() {
+    const ratio = window.devicePixelRatio || 1;
+    const vp = multiply(projectionMatrix(state.fx * ratio, state.fy * ratio, canvas.width, canvas.height), state.view);
+    const where = locate(state.time);
+    return {seg: state.segments[where.index], vp, vpKey: vp.join(","), where};
+  }
+
   function frame(now) {
     const seconds = state.lastFrame ? Math.min(0.25, (now - state.lastFrame) / 1000) : 0;
-    if (state.lastFrame) state.frameMs = state.frameMs ? state.frameMs * 0.9 + (now - state.lastFrame) * 0.1 : now - state.lastFrame;
-    state.lastFrame = now;
     advance(seconds);
     for (const seg of state.segments) pump(seg);
     if (state.view) {
-      const {seg, vp, vpKey, where} = draw();
+      // Redraw only when something visible changed: a paused, settled page costs nothing.
+      const key = JSON.stringify([state.view, state.fx, state.fy, canvas.clientWidth, canvas.clientHeight,
+                                  window.devicePixelRatio, state.time, state.version]);
+      if (key !== state.lastDrawKey) {
+        draw();
+        state.lastDrawKey = key;
+        // Frame time: the interval between consecutive drawn frames.
+        if (state.drewLast) {
+          const ms = now - state.lastFrame;
+          state.frameMs = state.frameMs ? state.frameMs * 0.8 + ms * 0.2 : ms;
+        }
+        state.drewLast = true;
+      } else {
+        state.drewLast = false;
+      }
+      const {seg, vp, vpKey, where} = geometry();
       // Sort what plays now; when it is current, the segment that plays next.
       if (seg && seg.sortable && (!seg.sorted || seg.sorted.vp !== vpKey || seg.sorted.count !== seg.sortable)) {
         requestSort(seg, vp);
@@ -671,6 +696,7 @@
       }
     }
     state.frames++;
+    state.lastFrame = now;
     updatePanel();
     requestAnimationFrame(frame);
   }
