@@ -5,9 +5,16 @@ viewpoints and times, and prints per-frame seconds split into the viewer-style
 depth sort (numpy), the index upload and the draw (including readback) on
 whatever OpenGL the machine has (Mesa llvmpipe on a CPU-only machine).
 
+With ``--huge`` every splat is large (linear scales 1 to 3 at about 6 units
+from the camera: screen axes near the viewer's 1,024-pixel cap), the case where
+fill, not the vertex stage, sets the cost; it prints the bound of
+``specs/render.md`` (records x min(W*H, 4 * 1024^2) fragments) and the seconds per
+million fragments of that bound, so the minutes a 1M-splat scene of huge splats
+takes can be read off. Use fewer splats there (e.g. ``--splats 20000``).
+
 Run::
 
-    python bench/bench_render.py [--splats N] [--frames K] [--size WxH]
+    python bench/bench_render.py [--splats N] [--frames K] [--size WxH] [--huge]
 """
 
 from __future__ import annotations
@@ -25,8 +32,12 @@ from splatconv.render import camera as cam
 from splatconv.render.preview import FrameTimes, Renderer, View
 
 
-def make_scene(n: int) -> Scene:
-    """A random but plausible lite scene: N splats in a 4-unit box, all visible at t=0.5."""
+#: Largest screen axis of a splat, pixels (splat_main.glsl's min(..., 1024.0)).
+AXIS_CAP = 1024
+
+
+def make_scene(n: int, huge: bool = False) -> Scene:
+    """A random but plausible lite scene: N splats in a 4-unit box, all visible at t=0.5 (``huge``: big splats)."""
     rng = np.random.default_rng(0)
     cols = {name: np.zeros(n, np.float32) for name in COLUMNS}
     for i, c in enumerate("xyz"):
@@ -37,7 +48,8 @@ def make_scene(n: int) -> Scene:
         cols[f"motion_{i}"] = rng.normal(0, 0.05, n).astype(np.float32)
     for i in range(3):
         cols[f"f_dc_{i}"] = rng.uniform(0, 1, n).astype(np.float32)
-        cols[f"scale_{i}"] = np.log(rng.uniform(0.003, 0.03, n)).astype(np.float32)
+        low, high = (1.0, 3.0) if huge else (0.003, 0.03)
+        cols[f"scale_{i}"] = np.log(rng.uniform(low, high, n)).astype(np.float32)
     for i in range(4):
         cols[f"rot_{i}"] = rng.normal(0, 1, n).astype(np.float32)
         cols[f"omega_{i}"] = rng.normal(0, 0.1, n).astype(np.float32)
@@ -50,11 +62,12 @@ def main() -> None:
     ap.add_argument("--splats", type=int, default=1_000_000)
     ap.add_argument("--frames", type=int, default=3)
     ap.add_argument("--size", default="1280x720")
+    ap.add_argument("--huge", action="store_true", help="Splats with screen axes near the 1,024-pixel cap.")
     args = ap.parse_args()
     width, height = cam.parse_size(args.size)
 
     t0 = time.perf_counter()
-    scene = make_scene(args.splats)
+    scene = make_scene(args.splats, args.huge)
     records, _ = splatv.encode(scene)
     prep = time.perf_counter() - t0
 
@@ -83,6 +96,11 @@ def main() -> None:
     med = [statistics.median(c) for c in zip(*rows)]
     print(f"median per frame: sort {med[0]:.3f} s, upload {med[1]:.3f} s, draw {med[2]:.3f} s, "
           f"total {med[3]:.3f} s")
+    records = len(records)
+    bound = records * min(width * height, 4 * AXIS_CAP**2)
+    print(f"fill bound: {records:,} records x min({width}x{height}, 4 x {AXIS_CAP}^2) = {bound / 1e9:.2f} G fragments "
+          f"a frame; {med[2] / (bound / 1e6) * 1e3:.3f} ms of draw per million of them"
+          + (f" (1M such splats: about {med[2] * 1e6 / records / 60:.0f} min a frame)" if args.huge else ""))
     share = (med[0] + med[1]) / med[3]
     print(f"sort + upload share of the frame: {100 * share:.0f}% "
           f"({'they do not dominate' if share < 0.5 else 'THEY DOMINATE'})")

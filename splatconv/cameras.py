@@ -10,13 +10,13 @@ list.
 
 from __future__ import annotations
 
-import math
 import os
 
 import numpy as np
 
 from .errors import FormatError
-from .jsonutil import loads_strict
+from .fsutil import open_input
+from .jsonutil import is_finite_number, loads_strict
 
 CAMERA_KEYS = ("id", "img_name", "width", "height", "position", "rotation", "fy", "fx")
 
@@ -24,10 +24,13 @@ CAMERA_KEYS = ("id", "img_name", "width", "height", "position", "rotation", "fy"
 DEFAULT_WIDTH = 1280
 DEFAULT_HEIGHT = 720
 DEFAULT_FOCAL = 1000.0
+#: Largest ``width`` / ``height`` of a camera: past any image anyone draws, and
+#: small enough that sizes scaled from it stay exact in a double.
+MAX_CAMERA_PIXELS = (1 << 31) - 1
+#: Largest cameras file read: a camera is about 300 bytes of JSON.
+MAX_CAMERAS_BYTES = 64 << 20
 
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+_is_number = is_finite_number
 
 
 def validate_cameras(cameras, source: str) -> list:
@@ -56,11 +59,12 @@ def validate_cameras(cameras, source: str) -> list:
             raise FormatError(f"missing {', '.join(missing)}", source, where)
         for key in ("width", "height"):
             v = cam[key]
-            if not (isinstance(v, int) and not isinstance(v, bool) and v > 0):
-                raise FormatError(f"'{key}' must be a positive integer, got {v!r}", source, where)
+            if not (isinstance(v, int) and not isinstance(v, bool) and 0 < v <= MAX_CAMERA_PIXELS):
+                raise FormatError(f"'{key}' must be a positive integer up to {MAX_CAMERA_PIXELS}, "
+                                  f"got {_shown(v)}", source, where)
         for key in ("fx", "fy"):
             if not (_is_number(cam[key]) and cam[key] > 0):
-                raise FormatError(f"'{key}' must be a positive number, got {cam[key]!r}", source, where)
+                raise FormatError(f"'{key}' must be a positive finite number, got {_shown(cam[key])}", source, where)
         pos = cam["position"]
         if not (isinstance(pos, list) and len(pos) == 3 and all(map(_is_number, pos))):
             raise FormatError("'position' must be a list of 3 finite numbers", source, where)
@@ -71,20 +75,29 @@ def validate_cameras(cameras, source: str) -> list:
     return cameras
 
 
+def _shown(value) -> str:
+    """``repr`` of a JSON value for a message, cut short (a hostile file can hold megabytes)."""
+    text = repr(value) if not isinstance(value, int) or abs(value) < 1 << 64 else "a number past 2**64"
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
 def load_cameras(path: str | os.PathLike) -> list:
-    """Read and validate a ``cameras.json`` file.
+    """Read and validate a ``cameras.json`` file (a regular file of at most :data:`MAX_CAMERAS_BYTES`).
 
     Raises
     ------
     FormatError
-        When the file is missing, is not strict JSON, or a camera is malformed.
+        When the file is missing, not a regular file, too large, not strict
+        JSON, or a camera is malformed.
     """
     path = os.fspath(path)
     try:
-        with open(path, "rb") as f:
-            raw = f.read()
+        with open_input(path, what="cameras") as f:
+            raw = f.read(MAX_CAMERAS_BYTES + 1)
     except OSError as e:
         raise FormatError(f"cannot read cameras: {e.strerror}", path) from None
+    if len(raw) > MAX_CAMERAS_BYTES:
+        raise FormatError(f"cameras file is larger than the {MAX_CAMERAS_BYTES} bytes allowed", path)
     cameras = loads_strict(raw, path, "invalid JSON")
     validate_cameras(cameras, path)
     if not cameras:

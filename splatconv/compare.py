@@ -10,11 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import packing, viewer
 from .errors import UnsupportedError
-from .formats import splatv
 from .model import GROUPS, Scene
 
-HALF_MAX = 65504.0
+HALF_MAX = packing.HALF_MAX
 #: One half-float ulp relative to the value (10 mantissa bits), the largest error
 #: of either writer (rounding gives half of it, splaTV's truncation all of it).
 HALF_REL = 2.0**-10
@@ -22,26 +22,6 @@ HALF_REL = 2.0**-10
 HALF_ABS = 2.0**-24
 #: One 8-bit step.
 BYTE = 1.0 / 255.0
-
-
-def viewer_values(cols: dict, group: str) -> np.ndarray:
-    """A group's columns as the viewer uses them: ``(N, k) float64``.
-
-    Scales and the temporal scale linear (exp), colour clamped to [0, 1], opacity
-    through the sigmoid; everything else as stored.
-    """
-    names = GROUPS[group]
-    with np.errstate(over="ignore", invalid="ignore"):
-        v = np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
-        if group == "scale":
-            v = np.exp(v)
-        elif group == "trbf":
-            v[:, 1] = np.exp(v[:, 1])
-        elif group == "color":
-            v = np.clip(v, 0.0, 1.0)
-        elif group == "opacity":
-            v = 1.0 / (1.0 + np.exp(-v))
-    return v
 
 
 def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
@@ -57,16 +37,27 @@ def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
 def _position_key(cols: dict) -> np.ndarray:
     """Position bits with every NaN made alike (a browser may quiet them)."""
     bits = np.stack([np.asarray(cols[c], dtype=np.float32).view(np.uint32) for c in ("x", "y", "z")], axis=1)
-    nan = (bits & 0x7F800000) == 0x7F800000
-    nan &= (bits & 0x007FFFFF) != 0
-    return np.where(nan, np.uint32(0x7FC00000), bits)
+    nan = (bits & packing.F32_EXP_MASK) == packing.F32_EXP_MASK
+    nan &= (bits & packing.F32_MANT_MASK) != 0
+    return np.where(nan, np.uint32(packing.F32_QUIET_NAN), bits)
+
+
+def _byte_key(cols: dict) -> np.ndarray:
+    """Opacity and colour as the bytes a writer stores, ``(N, 4) uint8`` (NaN as 0)."""
+    v = np.concatenate([viewer.opacity(cols)[:, None], viewer.colors(cols)], axis=1)
+    return np.nan_to_num(np.round(v * 255.0), nan=0.0).astype(np.uint8)
 
 
 def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED"):
     """Row order of ``source`` matching ``converted`` row by row.
 
-    Tries the orders a writer produces (importance, double or float32 key; input
-    order), then falls back to matching positions, which conversion keeps exact.
+    Tries the orders a writer produces (input order; importance, double or
+    float32 key). Conversion keeps positions exact, so an order whose positions
+    match is the writer's, unless splats share positions (or all are NaN): then
+    several orders match, and the one whose other attributes agree wins (fewest
+    values off by more than quantization explains; the first listed on a tie).
+    When none matches, rows are matched by sorting both sides by position, ties
+    broken by opacity and colour bytes.
 
     Returns
     -------
@@ -82,15 +73,20 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     if n != m:
         raise UnsupportedError(f"{source_name} has {n:,} splats but {converted_name} has {m:,}")
     a, b = _position_key(source.columns), _position_key(converted.columns)
-    key = splatv.importance(source.columns)
+    key = viewer.importance(source.columns)
     with np.errstate(invalid="ignore", over="ignore"):
-        candidates = (np.arange(n), np.argsort(-key, kind="stable"),
-                      np.argsort(-key.astype(np.float32), kind="stable"))
+        candidates = (np.arange(n), viewer.importance_order(key), viewer.importance_order(key.astype(np.float32)))
+    matching = []
     for order in candidates:
-        if np.array_equal(a[order], b):
-            return order
-    sa = np.lexsort(a.T[::-1])
-    sb = np.lexsort(b.T[::-1])
+        if np.array_equal(a[order], b) and not any(np.array_equal(order, other) for other in matching):
+            matching.append(order)
+    if len(matching) == 1:
+        return matching[0]
+    if matching:
+        return min(matching, key=lambda order: sum(
+            g.unexplained for g in compare_scenes(source, converted, order).values()))
+    sa = np.lexsort(np.concatenate([a, _byte_key(source.columns)], axis=1).T[::-1])
+    sb = np.lexsort(np.concatenate([b, _byte_key(converted.columns)], axis=1).T[::-1])
     order = np.empty(n, dtype=np.int64)
     order[sb] = sa
     return order
@@ -101,35 +97,76 @@ class GroupError:
     """Errors of one attribute group, converted against source, in viewer units."""
 
     group: str
-    max_abs_error: float
+    max_abs_error: float  # over pairs finite on both sides
     max_rel_error: float
     rmse: float
     unexplained: int  # values whose error exceeds what quantization explains
     worst_bound: float  # the bound at the worst unexplained value (or 0)
-    compared: int
+    compared: int  # pairs finite on both sides
+    values: int = 0  # values in the group: splats x components
+    became_infinite: int = 0  # finite source values stored as infinity (part of unexplained)
+    nonfinite_changed: int = 0  # NaN or infinite source values stored as something else (part of unexplained)
+    nan_stored: int = 0  # NaN source values stored as numbers by a byte that cannot hold NaN (explained)
 
 
 def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupError:
-    """Error statistics of one group over finite pairs; NaN must stay NaN."""
-    a = viewer_values(source_cols, group)
-    b = viewer_values(converted_cols, group)
+    """Error statistics of one group over finite pairs; NaN must stay NaN.
+
+    Colour and opacity are stored as bytes, which cannot hold NaN: a NaN there
+    stored as a number is explained (and counted in ``nan_stored``).
+    """
+    a = viewer.group_values(source_cols, group)
+    b = viewer.group_values(converted_cols, group)
     both = np.isfinite(a) & np.isfinite(b)
-    err = np.abs(np.where(both, a - b, 0.0))
-    with np.errstate(invalid="ignore", divide="ignore"):
+    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # inf - inf before the mask
+        err = np.abs(np.where(both, a - b, 0.0))
         rel = np.where(both & (a != 0), err / np.abs(a), 0.0)
     bound = quantization_bound(group, np.where(both, a, 0.0))
     # Finite values past the half range saturate (or become infinite in splaTV's
     # converter); NaN stays NaN. Both are lossy but expected, counted elsewhere.
     over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) if group != "position" else False
     same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
-    bad = ~(both & (err <= bound)) & ~over & ~same_special
+    nan_stored = np.isnan(a) & np.isfinite(b) if group in ("color", "opacity") else np.zeros(a.shape, bool)
+    bad = ~(both & (err <= bound)) & ~over & ~same_special & ~nan_stored
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
     return GroupError(group, float(err.max()) if err.size else 0.0, float(rel.max()) if rel.size else 0.0,
-                      float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n)
+                      float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n,
+                      values=int(a.size), became_infinite=int((bad & np.isfinite(a) & np.isinf(b)).sum()),
+                      nonfinite_changed=int((bad & ~np.isfinite(a)).sum()), nan_stored=int(nan_stored.sum()))
+
+
+#: Rows compared per step: bounds the float64 temporaries of group_errors (a few MB a column).
+_ROWS = 1 << 17
 
 
 def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None) -> dict:
-    """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``."""
-    src = source.columns if order is None else source.take(order)
-    return {g: group_errors(src, converted.columns, g) for g in GROUPS}
+    """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``.
+
+    Computed :data:`_ROWS` rows at a time and merged, so that memory stays
+    bounded whatever the scene's size.
+    """
+    n = converted.count
+    parts = {g: [] for g in GROUPS}
+    for start in range(0, max(n, 1), _ROWS):
+        rows = slice(start, min(start + _ROWS, n))
+        pick = rows if order is None else order[rows]
+        src = {k: v[pick] for k, v in source.columns.items()}
+        conv = {k: v[rows] for k, v in converted.columns.items()}
+        for g in GROUPS:
+            parts[g].append(group_errors(src, conv, g))
+    return {g: _merge(parts[g]) for g in GROUPS}
+
+
+def _merge(parts: list) -> GroupError:
+    """One GroupError from those of consecutive row ranges."""
+    if len(parts) == 1:
+        return parts[0]
+    compared = sum(p.compared for p in parts)
+    square_sum = sum(p.rmse ** 2 * p.compared for p in parts)
+    return GroupError(parts[0].group, max(p.max_abs_error for p in parts), max(p.max_rel_error for p in parts),
+                      float(np.sqrt(square_sum / compared)) if compared else 0.0,
+                      sum(p.unexplained for p in parts), max(p.worst_bound for p in parts), compared,
+                      values=sum(p.values for p in parts), became_infinite=sum(p.became_infinite for p in parts),
+                      nonfinite_changed=sum(p.nonfinite_changed for p in parts),
+                      nan_stored=sum(p.nan_stored for p in parts))

@@ -94,10 +94,6 @@ class Scene:
         """Number of splats N."""
         return len(self.columns["x"])
 
-    def column(self, name: str) -> np.ndarray:
-        """Return column ``name`` as an ``(N,) float32`` array."""
-        return self.columns[name]
-
     def take(self, index: np.ndarray) -> dict:
         """Gather rows ``index`` of every column.
 

@@ -27,6 +27,10 @@ HALF_QUIET_BIT = 0x0200
 F32_SIGN_BIT = 0x80000000
 F32_EXP_MASK = 0x7F800000
 F32_MANT_MASK = 0x007FFFFF
+#: The top mantissa bit: set in a quiet NaN.
+F32_QUIET_BIT = 0x00400000
+#: Bits of the canonical quiet NaN.
+F32_QUIET_NAN = 0x7FC00000
 
 
 @dataclass
@@ -312,11 +316,6 @@ def _splatvjs_exact(x: np.ndarray):
     return out, over, under, ~finite
 
 
-def pack_half2(low: np.ndarray, high: np.ndarray) -> np.ndarray:
-    """Two ``(N,) uint16`` arrays -> ``(N,) uint32``, ``low`` in bits 0-15 (packHalf2x16)."""
-    return low.astype(np.uint32) | (high.astype(np.uint32) << 16)
-
-
 def unpack_half2(words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``(N,) uint32`` -> (low, high) ``(N,) uint16`` halves.
 
@@ -328,44 +327,6 @@ def unpack_half2(words: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     halves.flags.writeable = False
     low = 0 if np.little_endian else 1
     return halves[..., low], halves[..., 1 - low]
-
-
-def unorm8_nearest(v: np.ndarray) -> tuple[np.ndarray, int, int]:
-    """Scaled values (already x255, float64) -> uint8, clamped then rounded to nearest even.
-
-    Returns
-    -------
-    bytes : (N,) uint8 ndarray
-    clamped : int
-        Values outside [0, 255] (NaN excluded).
-    nan : int
-        NaN values (written as 0).
-    """
-    v = np.asarray(v, dtype=np.float64)
-    nan = np.isnan(v)
-    clamped = int(np.count_nonzero((v < 0) | (v > 255)))
-    out = np.rint(np.clip(np.where(nan, 0.0, v), 0.0, 255.0)).astype(np.uint8)
-    return out, clamped, int(np.count_nonzero(nan))
-
-
-def unorm8_truncate(v: np.ndarray) -> tuple[np.ndarray, int, int]:
-    """Scaled values (x255, float64) -> uint8 the way splaTV's JS stores them.
-
-    ``Math.max(0, Math.min(255, v))`` then a Uint8Array store: truncation toward
-    zero; NaN gives 0. Returns the bytes and the clamped and NaN counts, as
-    :func:`unorm8_nearest` does.
-    """
-    v = np.asarray(v, dtype=np.float64)
-    nan = np.isnan(v)
-    clamped = int(np.count_nonzero((v < 0) | (v > 255)))
-    out = np.trunc(np.clip(np.where(nan, 0.0, v), 0.0, 255.0)).astype(np.uint8)
-    return out, clamped, int(np.count_nonzero(nan))
-
-
-def pack_rgba8(r, g, b, a) -> np.ndarray:
-    """Four ``(N,) uint8`` -> ``(N,) uint32`` with R in the low byte."""
-    return (r.astype(np.uint32) | (g.astype(np.uint32) << 8)
-            | (b.astype(np.uint32) << 16) | (a.astype(np.uint32) << 24))
 
 
 def unpack_rgba8(words: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:

@@ -12,7 +12,9 @@ def to_json(data) -> str:
 
 
 def _fmt_range(r) -> str:
-    return "none finite" if r is None else f"{r[0]:.6g} .. {r[1]:.6g}"
+    if r is None:
+        return "none finite"
+    return " .. ".join("always" if v is None else f"{v:.6g}" for v in r)
 
 
 def info_text(info: dict) -> str:
@@ -33,7 +35,8 @@ def info_text(info: dict) -> str:
     names = ", ".join(str(c["img_name"]) for c in cams[:4]) + (", ..." if len(cams) > 4 else "")
     lines.append(f"cameras:   {len(cams)}" + (f" ({names})" if cams else ""))
     lines.append(f"time:      centres {_fmt_range(info['time_range'])}, "
-                 f"visible {_fmt_range(info['visible_time_range'])}")
+                 f"visible {_fmt_range(info['visible_time_range'])}"
+                 + (f" ({info['visible_always']:,} splats visible always)" if info.get("visible_always") else ""))
     b = info["bounds"]
     if b is None:
         lines.append("bounds:    no finite positions")
@@ -58,25 +61,57 @@ def _psnr(v) -> str:
     return "inf" if v is None else f"{v:.2f}"
 
 
+def _count(n: int, word: str) -> str:
+    """``1 frame``, ``2 frames``, ``3,000 values``."""
+    return f"{n:,} {word}{'' if n == 1 else 's'}"
+
+
+def _frames_footnote(frames: list) -> str:
+    why = f"(errors out of 255; pixels off: a channel off by more than {frames[0]['tolerance']}"
+    if any(f["identical"] for f in frames):
+        why += "; inf: the two frames are identical"
+    return why + ")"
+
+
 def frames_text(data: dict) -> str:
-    """The per-frame table and verdict of ``verify`` / ``diff`` (from ``Outcome.as_dict``)."""
+    """The per-frame table of ``verify`` / ``diff`` of scene files (from ``Outcome.as_dict``)."""
     lines = [f"{'time':>6}  {'camera':>6}  {'PSNR dB':>8}  {'max err':>7}  {'mean err':>8}  {'pixels off':>10}"]
     for f in data["frames"]:
         lines.append(f"{f['time']:>6.3f}  {f['camera']:>6}  {_psnr(f['psnr']):>8}  {f['max_abs_error']:>7}  "
                      f"{f['mean_abs_error']:>8.3f}  {100 * f['share_off']:>9.3f}%")
     if data["frames"]:
-        lines.append(f"(errors out of 255; pixels off: a channel off by more than "
-                     f"{data['frames'][0]['tolerance']})")
+        lines.append(_frames_footnote(data["frames"]))
     return "\n".join(lines)
 
 
-def structure_text(data: dict) -> str:
-    """Per-attribute errors of ``verify``, against what quantization explains."""
+def attributes_text(data: dict) -> str:
+    """Per-attribute errors of ``verify`` (its ``attributes`` block), against what quantization explains."""
     lines = [f"{'attribute':<10}  {'max abs err':>11}  {'max rel err':>11}  {'rmse':>10}  {'unexplained':>11}"]
-    for name, g in data["structure"].items():
+    for name, g in data["attributes"].items():
         lines.append(f"{name:<10}  {g['max_abs_error']:>11.4g}  {g['max_rel_error']:>11.4g}  {g['rmse']:>10.4g}  "
                      f"{g['unexplained']:>11,}")
+    lines.append("(errors between values finite on both sides, in the viewer's units)")
+    for name, g in data["attributes"].items():
+        if g["nan_stored"]:
+            lines.append(f"{name}: {_count(g['nan_stored'], 'NaN value')} stored as numbers "
+                         f"(a byte cannot hold NaN)")
     return "\n".join(lines)
+
+
+def _drift_text(name: str, g: dict) -> str:
+    """What drifted in one attribute: values made infinite, non-finite values changed, the rest."""
+    parts = []
+    of = f"of {_count(g['values'], 'value')}"
+    if g["became_infinite"]:
+        parts.append(f"{g['became_infinite']:,} {of} became infinite (finite in the source)")
+    if g["nonfinite_changed"]:
+        parts.append(f"{g['nonfinite_changed']:,} {'' if parts else of + ' '}that were NaN or infinite in the "
+                     f"source were stored as something else")
+    off = g["unexplained"] - g["became_infinite"] - g["nonfinite_changed"]
+    if off:
+        parts.append(f"{off:,} {'more' if parts else of} off by more than quantization explains (largest error "
+                     f"between finite values {g['max_abs_error']:.4g}, relative {100 * g['max_rel_error']:.3g}%)")
+    return f"FAIL: {name} drifted: " + "; ".join(parts)
 
 
 def verdict_text(data: dict) -> str:
@@ -84,19 +119,17 @@ def verdict_text(data: dict) -> str:
     lines = []
     bad_frames = sorted((f for f in data["frames"] if f["psnr"] is not None and f["psnr"] < data["min_psnr"]),
                         key=lambda f: f["psnr"])
-    for name, g in data.get("structure", {}).items():
+    for name, g in (data.get("attributes") or {}).items():
         if g["unexplained"]:
-            lines.append(f"FAIL: {name} drifted: {g['unexplained']:,} of {g['compared']:,} values off by more than "
-                         f"quantization explains (max error {g['max_abs_error']:.4g}, relative "
-                         f"{100 * g['max_rel_error']:.3g}%)")
+            lines.append(_drift_text(name, g))
     if bad_frames:
         worst = ", ".join(f"t={f['time']:g} camera {f['camera']} ({f['psnr']:.2f} dB)" for f in bad_frames[:3])
-        lines.append(f"FAIL: {len(bad_frames)} of {len(data['frames'])} frames below {data['min_psnr']:g} dB; "
-                     f"worst: {worst}")
+        lines.append(f"FAIL: {len(bad_frames):,} of {_count(len(data['frames']), 'frame')} below "
+                     f"{data['min_psnr']:g} dB; worst: {worst}")
     if not lines:
         w = data["worst"]
         worst = "" if w is None else f"; worst {_psnr(w['psnr'])} dB at t={w['time']:g} camera {w['camera']}"
-        lines.append(f"PASS: {len(data['frames'])} frames at or above {data['min_psnr']:g} dB{worst}")
+        lines.append(f"PASS: {_count(len(data['frames']), 'frame')} at or above {data['min_psnr']:g} dB{worst}")
     return "\n".join(lines)
 
 
@@ -229,3 +262,26 @@ def stats_markdown(data: dict) -> str:
         out.append("")
     out.extend(f"- {line}" for line in _summary_lines(data))
     return "\n".join(out)
+
+
+def images_text(data: dict) -> str:
+    """The table of an image-vs-image ``diff`` (from ``Outcome.as_dict``): names, no time or camera;
+    the shape matches :func:`frames_text`."""
+    rows = [(f["a"], f["b"], f) for f in data["frames"]]
+    wa = max([1] + [len(a) for a, _, _ in rows])
+    wb = max([1] + [len(b) for _, b, _ in rows])
+    lines = [f"{'A':<{wa}}  {'B':<{wb}}  {'PSNR dB':>8}  {'max err':>7}  {'mean err':>8}  {'pixels off':>10}"]
+    for a, b, f in rows:
+        lines.append(f"{a:<{wa}}  {b:<{wb}}  {_psnr(f['psnr']):>8}  {f['max_abs_error']:>7}  "
+                     f"{f['mean_abs_error']:>8.3f}  {100 * f['share_off']:>9.3f}%")
+    if rows:
+        lines.append(_frames_footnote(data["frames"]))
+    return "\n".join(lines)
+
+
+def images_verdict_text(data: dict) -> str:
+    """The closing PASS / FAIL line of an image-vs-image ``diff``."""
+    bad = [f for f in data["frames"] if f["psnr"] is not None and f["psnr"] < data["min_psnr"]]
+    word, relation = ("FAIL", "below") if bad else ("PASS", "at or above")
+    w = data["worst"]
+    return f"{word}: {w['a']} vs {w['b']}: {_psnr(w['psnr'])} dB, {relation} {data['min_psnr']:g} dB"

@@ -4,16 +4,20 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 
-from .formats import splatv
+from . import viewer
+from .compare import HALF_MAX, align, group_errors
+from .io import read
+from .cameras import framing_camera
+from .packing import float_to_half, float_to_half_splatvjs
+from .transport import DEFAULT_LEVEL, compressed_size, plain_input, written_sizes
+from .formats import format_for, splatv
+from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
 from .model import COLOR, COLUMNS, GROUPS, Scene
-
-#: Temporal opacity below which the viewer skips a splat.
-TEMPORAL_CUTOFF = 0.02
-#: |dt| / exp(trbf_scale) at which exp(-(dt/s)^2) falls to the cutoff.
-_VISIBLE_RADIUS = math.sqrt(-math.log(TEMPORAL_CUTOFF))
+from .viewer import TEMPORAL_CUTOFF
 
 
 def _finite_range(values: np.ndarray):
@@ -24,70 +28,72 @@ def _finite_range(values: np.ndarray):
     return [float(v.min()), float(v.max())]
 
 
-def describe(scene: Scene, path: str, fmt: str) -> dict:
+def describe(scene: Scene, path: str, module) -> dict:
     """Facts about a scene file, as JSON-able data.
 
     Parameters
     ----------
     scene : Scene
     path : str
-    fmt : str
-        Format name (``"ply"`` or ``"splatv"``).
+    module : format module
+        The file's format (see :mod:`splatconv.formats`); its ``info_fields``
+        add what only that format has.
 
     Returns
     -------
     dict
         Keys: path, format, variant, count, file_bytes (uncompressed),
-        compressed_bytes (on disk, for .zst files, else None), texture, cameras,
-        time_range, visible_time_range, bounds, nonfinite, and format-specific
-        extras (ply: ply_format, color, ignored_properties, extra_elements;
-        splatv: chunks), notes.
+        compressed_bytes (on disk, for .zst files, else None), cameras,
+        time_range, visible_time_range, bounds, nonfinite, the format's own
+        fields, notes.
     """
     cols = scene.columns
     n = scene.count
     meta = scene.meta
-    texheight = splatv.texture_height(n)
-    texture = {
-        "width": splatv.TEXWIDTH,
-        "height": meta.get("texheight", texheight),
-        "declared_bytes": meta.get("declared_bytes", splatv.TEXWIDTH * texheight * 16),
-        "actual_bytes": meta.get("actual_bytes", None),
-    }
     bounds = None
-    pos = np.stack([np.asarray(cols[c], dtype=np.float64) for c in ("x", "y", "z")], axis=1)
+    pos = viewer.positions(cols)
     pos = pos[np.isfinite(pos).all(axis=1)]
     if len(pos):
         bounds = {"min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()}
     centre = np.asarray(cols["trbf_center"], dtype=np.float64)
-    with np.errstate(over="ignore", invalid="ignore"):
-        reach = np.exp(np.asarray(cols["trbf_scale"], dtype=np.float64)) * _VISIBLE_RADIUS
-        lo, hi = _finite_range(centre - reach), _finite_range(centre + reach)
+    lo, hi = viewer.visible_interval(cols)
     info = {
         "path": path,
-        "format": fmt,
+        "format": module.NAME,
         "variant": scene.variant,
         "count": n,
         "file_bytes": meta.get("file_bytes"),
         "compressed_bytes": meta.get("compressed_bytes"),
-        "texture": texture,
         "cameras": [{"id": c.get("id"), "img_name": c.get("img_name"), "width": c.get("width"),
                      "height": c.get("height")} for c in (scene.cameras or [])],
+        "texture": _texture(scene),
         "time_range": _finite_range(centre),
-        "visible_time_range": [lo[0], hi[1]] if lo and hi else None,
+        "visible_time_range": _visible_range(lo, hi),
+        "visible_always": int(np.count_nonzero(np.isinf(hi) & np.isinf(lo))),
         "bounds": bounds,
         "nonfinite": {name: int(np.count_nonzero(~np.isfinite(cols[name]))) for name in COLUMNS},
     }
-    if fmt == "ply":
-        info.update({
-            "ply_format": meta.get("format"),
-            "color": meta.get("color"),
-            "ignored_properties": meta.get("ignored_properties", []),
-            "extra_elements": meta.get("extra_elements", []),
-        })
-    else:
-        info["chunks"] = meta.get("chunks", [])
+    info.update(module.info_fields(scene))
     info["notes"] = list(scene.notes)
     return info
+
+
+def _visible_range(lo: np.ndarray, hi: np.ndarray):
+    """[earliest, latest] time any splat is drawn; an end is None (JSON null) where some
+    splat is drawn at every time (infinite temporal scale: see ``visible_always``)."""
+    lo, hi = lo[~np.isnan(lo)], hi[~np.isnan(hi)]
+    if lo.size == 0:
+        return None
+    first, last = float(lo.min()), float(hi.max())
+    return [first if math.isfinite(first) else None, last if math.isfinite(last) else None]
+
+
+def _texture(scene: Scene) -> dict:
+    """The texture the viewer holds for the scene: as a .splatv declares it, or as converting would make it."""
+    meta = scene.meta
+    height = meta.get("texheight", texture_height(scene.count))
+    return {"width": TEXWIDTH, "height": height, "declared_bytes": meta.get("declared_bytes", texture_bytes(height)),
+            "actual_bytes": meta.get("actual_bytes")}
 
 
 # --------------------------------------------------------------------------
@@ -139,10 +145,9 @@ _HALF_MIN_NORMAL = 2.0**-14
 
 def _counts(source_cols: dict, converted_cols: dict, group: str) -> dict:
     """Per-group counts: nonfinite, overflow, underflow, subnormal, clamped."""
-    from .compare import HALF_MAX, viewer_values
 
-    a = viewer_values(source_cols, group)
-    b = viewer_values(converted_cols, group)
+    a = viewer.group_values(source_cols, group)
+    b = viewer.group_values(converted_cols, group)
     raw = np.stack([np.asarray(source_cols[n], dtype=np.float64) for n in GROUPS[group]], axis=1)
     finite = np.isfinite(a)
     out = {"nonfinite": int(np.count_nonzero(~np.isfinite(b))), "overflow": 0, "underflow": 0, "subnormal": 0,
@@ -183,13 +188,11 @@ def splatvjs_damage(cols: dict) -> dict:
         magnitudes in [2^-136, 2^-126), [2^-120, 2^-109), [2^-88, 2^-77) and
         [2^-56, 2^-45).
     """
-    from .compare import viewer_values
-    from .packing import float_to_half, float_to_half_splatvjs
 
     out = {}
     for group in HALF_GROUPS:
         with np.errstate(over="ignore", invalid="ignore"):
-            exact = viewer_values(cols, group).ravel()
+            exact = viewer.group_values(cols, group).ravel()
             v = exact.astype(np.float32)  # the converter stores through a Float32Array
         garbled = ((float_to_half_splatvjs(v) & 0x7FFF) != 0) & ((float_to_half(v) & 0x7FFF) == 0)
         out[group] = {"infinity": int(np.count_nonzero(np.isfinite(exact) & (np.abs(v) >= 32768))),
@@ -230,9 +233,7 @@ def _texture_columns(cols: dict) -> dict:
 
 def _sizes(path: str, level: int) -> tuple:
     """(bytes, zstd bytes at ``level``) of a file's content: a ``.zst`` file's decompressed."""
-    import os
 
-    from .transport import compressed_size, plain_input
 
     with plain_input(path) as plain:
         return os.path.getsize(plain), compressed_size(plain, level)
@@ -260,8 +261,6 @@ def _simulated_conversion(source: Scene, level: int) -> tuple:
     then encoded again in memory to decode: two uncompressed copies of it never
     exist at once.
     """
-    from .cameras import framing_camera
-    from .transport import written_sizes
 
     size, zstd_bytes = written_sizes(lambda out: splatv.write(source, out), level)
     records, _ = splatv.encode(source)
@@ -294,44 +293,39 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
     memory and reported as ``converted``, with ``path`` null; a ``.splatv`` (or
     an empty PLY, which ``convert`` refuses) is reported as what it is.
     """
-    from . import read
-    from .compare import align, group_errors
-    from .formats import format_for
-    from .transport import DEFAULT_LEVEL
-
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     source = read(source_path, color=color)
-    src_fmt = format_for(source_path).NAME
+    src_mod = format_for(source_path)
     src_bytes, src_zstd = _sizes(source_path, level)
-    files = [_file_entry("source", source_path, src_fmt, src_bytes, source.count, src_zstd, level, src_bytes)]
+    files = [_file_entry("source", source_path, src_mod.NAME, src_bytes, source.count, src_zstd, level, src_bytes)]
     if converted_path is not None:
         converted = read(converted_path, color=color)
-        conv_fmt = format_for(converted_path).NAME
+        conv_mod = format_for(converted_path)
         order = align(source, converted, source_path, converted_path)
         conv_bytes, conv_zstd = _sizes(converted_path, level)
-        files.append(_file_entry("converted", converted_path, conv_fmt, conv_bytes, converted.count, conv_zstd,
+        files.append(_file_entry("converted", converted_path, conv_mod.NAME, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
-    elif src_fmt == "splatv" or source.count == 0:
-        converted, conv_fmt, order = source, src_fmt, None  # already what the viewer reads
+    elif src_mod.STORES_TEXTURE or source.count == 0:
+        converted, conv_mod, order = source, src_mod, None  # already what the viewer reads
     else:
         converted, size, zstd_bytes = _simulated_conversion(source, level)
-        conv_fmt = "splatv"
+        conv_mod = splatv
         order = align(source, converted)
-        files.append(_file_entry("converted", None, conv_fmt, size, source.count, zstd_bytes, level, src_bytes))
+        files.append(_file_entry("converted", None, conv_mod.NAME, size, source.count, zstd_bytes, level, src_bytes))
     src_cols = source.columns if order is None else source.take(order)
     conv_cols = converted.columns
-    if src_fmt == "splatv":
+    if src_mod.STORES_TEXTURE:
         src_cols = _texture_columns(src_cols)
-    if conv_fmt == "splatv":
+    if conv_mod.STORES_TEXTURE:
         conv_cols = _texture_columns(conv_cols)
     attributes = {}
     for group in GROUPS:
         e = group_errors(src_cols, conv_cols, group)
         attributes[group] = {"max_abs_error": e.max_abs_error, "max_rel_error": e.max_rel_error, "rmse": e.rmse,
                              **_counts(src_cols, conv_cols, group)}
-    info = describe(converted, files[-1]["path"] or source_path, conv_fmt)
-    # The viewer loads the .splatv side; with none (PLY to PLY), the converted file as converting would make it.
-    viewed = source if src_fmt == "splatv" and conv_fmt != "splatv" else converted
+    info = describe(converted, files[-1]["path"] or source_path, conv_mod)
+    # The viewer loads the texture side; with none (PLY to PLY), the converted file as converting would make it.
+    viewed = source if src_mod.STORES_TEXTURE and not conv_mod.STORES_TEXTURE else converted
     return {
         "files": files,
         "count": source.count,
@@ -341,6 +335,6 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
         "attributes": attributes,
         "viewer": {
             **_viewer_limits(viewed),
-            "splatv_js_damage": splatvjs_damage(source.columns) if src_fmt != "splatv" else None,
+            "splatv_js_damage": splatvjs_damage(source.columns) if not src_mod.STORES_TEXTURE else None,
         },
     }

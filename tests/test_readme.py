@@ -36,9 +36,9 @@ def test_quick_start_has_two_commands_install_and_test():
     assert lines[1] == "pip install '.[test]' && python -m pytest"
 
 
-def test_quick_start_conversion_and_info_example(tmp_path):
+def test_quick_start_conversion_and_info_example(monkeypatch, tmp_path):
     os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     args = splatconv_args(quick_start_commands()[0])
     result = CliRunner().invoke(main, args)
     assert result.exit_code == 0, result.output
@@ -48,9 +48,9 @@ def test_quick_start_conversion_and_info_example(tmp_path):
     assert result.stdout == example.group(2)
 
 
-def test_verify_example_runs_and_passes(tmp_path):
+def test_verify_example_runs_and_passes(monkeypatch, tmp_path):
     os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     block = README.split("### Proving a conversion", 1)[1]
     lines = [ln[2:] for ln in block.splitlines() if ln.startswith("$ splatconv ")]
     assert len(lines) == 2
@@ -64,9 +64,9 @@ def test_verify_example_runs_and_passes(tmp_path):
     assert example[-1].startswith("PASS: 3 frames")
 
 
-def test_stats_example(tmp_path):
+def test_stats_example(monkeypatch, tmp_path):
     os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     assert CliRunner().invoke(main, splatconv_args(quick_start_commands()[0])).exit_code == 0
     block = README.split("$ splatconv stats ", 1)[1]
     command, printed = block.split("\n", 1)
@@ -88,11 +88,11 @@ def psnr(a, b) -> float:
     return float("inf") if mse == 0 else 10 * np.log10(255.0**2 / mse)
 
 
-def test_preview_commands_run_and_draw_the_pictures_shown(tmp_path):
+def test_preview_commands_run_and_draw_the_pictures_shown(monkeypatch, tmp_path):
     from PIL import Image, ImageSequence
 
     os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     assert CliRunner().invoke(main, splatconv_args(quick_start_commands()[0])).exit_code == 0
     text = section("### Previews without a browser")
     lines = re.search(r"```\n(.*?)```", text, re.S).group(1).strip().splitlines()
@@ -111,11 +111,11 @@ def test_preview_commands_run_and_draw_the_pictures_shown(tmp_path):
     assert min(psnr(a, b) for a, b in zip(ours, shown)) >= 40
 
 
-def test_image_diff_example(tmp_path):
+def test_image_diff_example(monkeypatch, tmp_path):
     import numpy as np
     from PIL import Image
 
-    os.chdir(tmp_path)
+    monkeypatch.chdir(tmp_path)
     a = np.zeros((20, 30, 3), np.uint8)
     b = a.copy()
     b[5, 5] = [30, 0, 0]

@@ -18,6 +18,8 @@ from splatconv.model import COLUMNS
 from splatconv.render import camera as cam
 from splatconv.render.gl import create_context
 from splatconv.render.preview import Renderer, View
+from tests import reference
+from splatconv.formats.base import WriteReport
 
 W, H = 64, 48
 FOCAL = 60.0
@@ -55,7 +57,7 @@ def splat(**kw) -> dict:
 
 def records_of(splats) -> np.ndarray:
     cols = {name: np.array([s[name] for s in splats], np.float32) for name in COLUMNS}
-    block = splatv.pack_block(cols, False, splatv.WriteReport())
+    block = reference.pack_block(cols, False, WriteReport())
     recs = np.zeros((1024, 16), "<u4")
     recs[:len(block)] = block
     return recs
@@ -292,3 +294,19 @@ def test_padding_records_draw_nothing(ctx):
         finally:
             r.release()
         assert not img.any()
+
+
+def test_screen_axes_are_capped_at_1024_pixels_as_in_the_viewer(ctx):
+    # A splat whose major screen axis would be about 3,960 pixels long is drawn with
+    # 1,024: its quad ends 1,024 pixels from the centre and the falloff at d pixels is
+    # exp(-(2d / 1024)^2). This cap is what bounds the fill cost of huge splats.
+    wide = View(IDENTITY_AT_5, 1000.0, 1000.0, 2048, 8)
+    s = splat(scale=(7.0, 0.02, 0.02), rot_0=1.0, rot_3=0.0005, opacity=10.0)
+    img, ref = draw(ctx, [s], view=wide)
+    assert_close(img, ref, max_err=6)  # float32 over a 2,048-pixel quad: a few edge pixels round apart
+    alpha = img[3:5, :, 3].astype(float).mean(axis=0)
+    centre = alpha[1023:1025].mean()
+    for d, capped, uncapped in ((500, 0.385, 0.938), (1000, 0.022, 0.775)):
+        ratio = alpha[[1024 - d - 1, 1024 + d]].mean() / centre
+        assert ratio == pytest.approx(capped, abs=0.02), d
+        assert abs(ratio - uncapped) > 0.3

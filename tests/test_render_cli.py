@@ -19,17 +19,6 @@ def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args])
 
 
-@pytest.fixture(scope="module")
-def sample_splatv(tmp_path_factory):
-    from pathlib import Path
-
-    root = Path(__file__).resolve().parent.parent
-    out = tmp_path_factory.mktemp("r") / "dancers.splatv"
-    r = run("convert", root / SAMPLE, out, "--cameras", root / "sample_data/cameras.json")
-    assert r.exit_code == 0, r.output
-    return out
-
-
 def test_single_frame_png(tmp_path, sample_splatv):
     out = tmp_path / "f.png"
     r = run("render", sample_splatv, out, "--time", "0.5", "--size", "160x90", "--fx", "125", "--fy", "125")
@@ -87,7 +76,7 @@ def test_time_sweeps(tmp_path, sample_splatv, name, frames, check):
 @pytest.mark.parametrize("args,code,message", [
     (["o.jpg"], 2, "Error: o.jpg: cannot write .jpg: use .png (or --frames N with .gif, .webp)\n"),
     (["o.gif"], 2, "Error: o.gif: cannot write .gif: use .png (or --frames N with .gif, .webp)\n"),
-    (["o.png", "--camera", "7"], 2, "Error: {src}: --camera 7: the file has 3 camera(s), 0..2\n"),
+    (["o.png", "--camera", "7"], 2, "Error: {src}: --camera 7: the file has 3 cameras, 0..2\n"),
     (["o.png", "--camera", "0", "--view", "[]"], 2, "Error: --camera and --view cannot be used together\n"),
     (["o.png", "--view", "[1, 2]"], 2,
      "Error: --view: expected a JSON list of 16 finite numbers (a column-major view matrix)\n"),
@@ -154,7 +143,7 @@ def test_explicit_size_keeps_the_cameras_focal_length_as_the_viewer_does(tmp_pat
 ])
 def test_fit_scales_focal_lengths_with_the_size(size, expected):
     from splatconv.render import camera as cam
-    from splatconv.render.verify import frame_views
+    from splatconv.render.frames import frame_views
 
     c = {"width": 1280, "height": 720, "fx": 1000.0, "fy": 1000.0, "position": [0, 0, 0],
          "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]]}
@@ -198,3 +187,47 @@ def test_no_opengl_gives_one_line_with_what_to_install(tmp_path, sample_splatv, 
                         "EGL driver: on Debian or Ubuntu the packages libegl1 and libgl1-mesa-dri (Mesa's "
                         "llvmpipe renders on the CPU, no GPU or display needed)\n")
     assert not (tmp_path / "o.png").exists()
+
+
+@pytest.mark.parametrize("name,size,message", [
+    ("sheet.png", (192, 108), "192x108 contact sheet of 4 frames (96x54 each) over t=0..1"),
+    ("clip.gif", (96, 54), "96x54, 4 frames over t=0..1"),
+    ("one.png", (96, 54), "96x54, t=0.5"),
+])
+def test_render_prints_the_size_it_writes(tmp_path, sample_splatv, name, size, message):
+    frames = "1" if name == "one.png" else "4"
+    r = run("render", sample_splatv, tmp_path / name, "--frames", frames, "--size", "96x54")
+    assert r.exit_code == 0, r.output
+    assert r.stdout == f"wrote {tmp_path / name}: {message}\n"
+    assert Image.open(tmp_path / name).size == size
+
+
+def test_render_scene_is_what_render_draws(tmp_path):
+    # The public entry for drawing an in-memory Scene (the ops' pixel tests use it):
+    # the float reference path by default, the .splatv packing with reference=False.
+    from splatconv import io
+    from splatconv.model import Scene
+    from splatconv.render.frames import render_scene
+
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    cams = json.loads((root / "sample_data/cameras.json").read_text())
+    sample = root / SAMPLE
+    scene = io.read(sample)
+    frames = render_scene(scene, cams[1], [0.3, 0.7], size=(96, 54))
+    assert frames.shape == (2, 54, 96, 4) and frames.dtype == np.uint8
+    from splatconv.render import camera as cam
+
+    view = json.dumps(cam.view_matrix(cams[1]))
+    args = ["--view", view, "--size", "96x54", "--fx", "78.75", "--fy", "78.75", "--time"]  # 1050 * 96 / 1280
+    for i, t in enumerate((0.3, 0.7)):
+        for reference, drawn in ((True, frames[i]), (False, render_scene(scene, cams[1], t, reference=False,
+                                                                             size=(96, 54))[0])):
+            out = tmp_path / f"{t}{reference}.png"
+            r = run("render", sample, out, *args, t, *(["--reference"] if reference else []))
+            assert r.exit_code == 0, r.output
+            assert np.array_equal(np.asarray(Image.open(out)), drawn[..., :3])
+    assert frames[0, ..., 3].any() and not np.array_equal(frames[0], frames[1])
+    empty = Scene(columns={k: v[:0] for k, v in scene.columns.items()})
+    assert not render_scene(empty, cams[0], 0.5, size=(16, 9)).any()

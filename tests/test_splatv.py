@@ -15,13 +15,16 @@ import splatconv
 from splatconv import packing
 from splatconv.formats import splatv
 from splatconv.model import COLUMNS, Scene
+from tests import reference
+from splatconv.formats.base import WriteReport
+from splatconv import viewer
 
 from .conftest import random_columns, splatv_bytes
 
 
 def pack(cols, compat=False):
-    report = splatv.WriteReport()
-    return splatv.pack_block(cols, compat, report), report
+    report = WriteReport()
+    return reference.pack_block(cols, compat, report), report
 
 
 def one_splat(**values):
@@ -120,7 +123,7 @@ def test_compat_sort_is_stable_descending_on_float32_key(tmp_path):
     buf = io.BytesIO()
     splatv.write(scene, buf, compat="splatv-js")
     out = splatv_records(buf.getvalue())
-    key = splatv.importance(cols).astype(np.float32)
+    key = viewer.importance(cols).astype(np.float32)
     expected = sorted(range(50), key=lambda i: -key[i])  # Python's sort is stable
     assert np.array_equal(out[:50, 0], packing.f32_bits(cols["x"][expected]))
 
@@ -215,11 +218,11 @@ def test_inverse_tables_are_exhaustively_exact():
     assert np.array_equal(js[ok], h[ok])
     # Colour and alpha bytes, both writers.
     c = np.arange(256)
-    assert np.array_equal(packing.unorm8_nearest(splatv.COLOR_OF_BYTE.astype(np.float64) * 255)[0], c)
-    assert np.array_equal(packing.unorm8_truncate(splatv.COLOR_OF_BYTE.astype(np.float64) * 255)[0], c)
+    assert np.array_equal(reference.unorm8_nearest(splatv.COLOR_OF_BYTE.astype(np.float64) * 255)[0], c)
+    assert np.array_equal(reference.unorm8_truncate(splatv.COLOR_OF_BYTE.astype(np.float64) * 255)[0], c)
     a = splatv._sigmoid255(splatv.LOGIT_OF_BYTE)
-    assert np.array_equal(packing.unorm8_nearest(a)[0], c)
-    assert np.array_equal(packing.unorm8_truncate(a)[0], c)
+    assert np.array_equal(reference.unorm8_nearest(a)[0], c)
+    assert np.array_equal(reference.unorm8_truncate(a)[0], c)
     assert np.isfinite(splatv.LOGIT_OF_BYTE).all()
     # The inverse is the natural one up to float32 rounding.
     assert np.allclose(splatv.COLOR_OF_BYTE, c / 255, rtol=1e-6, atol=0)
@@ -351,13 +354,13 @@ def reference_texture(cols: dict, compat: bool, sort: bool) -> np.ndarray:
                 bits[np.isnan(cols[name])] |= np.uint32(0x00400000)
             recs[:, w] = bits
         for w, (lo, hi) in splatv.HALF_WORDS.items():
-            recs[:, w] = packing.pack_half2(halves(lo), halves(hi) if hi else np.zeros(n, np.uint16))
-        unorm = packing.unorm8_truncate if compat else packing.unorm8_nearest
+            recs[:, w] = reference.pack_half2(halves(lo), halves(hi) if hi else np.zeros(n, np.uint16))
+        unorm = reference.unorm8_truncate if compat else reference.unorm8_nearest
         rgba = [unorm(cols[f"f_dc_{i}"].astype(np.float64) * 255.0)[0] for i in range(3)]
         rgba.append(unorm(splatv._sigmoid255(cols["opacity"]))[0])
-        recs[:, 7] = packing.pack_rgba8(*rgba)
+        recs[:, 7] = reference.pack_rgba8(*rgba)
         if sort:
-            key = splatv.importance(cols)
+            key = viewer.importance(cols)
             recs = recs[np.argsort(-(key.astype(np.float32) if compat else key), kind="stable")]
     return recs
 
@@ -392,7 +395,7 @@ def test_threaded_block_writer_matches_reference(tmp_path, monkeypatch, compat, 
     # shuffled order with extra properties), which the writer copies by runs.
     from .conftest import write_ply
 
-    from splatconv.formats import _splatv_writer as engine
+    from splatconv.formats import splatv_engine as engine
 
     monkeypatch.setattr(engine, "BLOCK", 256)
     monkeypatch.setattr(engine, "KEY_BLOCK", 700)
@@ -403,10 +406,10 @@ def test_threaded_block_writer_matches_reference(tmp_path, monkeypatch, compat, 
         order = list(COLUMNS[10:]) + ["nx"] + list(COLUMNS[:10])
         cols["nx"] = np.zeros(len(cols["x"]), np.float32)
         scene = splatconv.read(write_ply(tmp_path / "s.ply", cols, order=order, extra_props=("extra",)))
-        assert engine._Source(scene.columns).rows_whole
+        assert engine.RowSource(scene.columns).rows_whole
     else:
         scene = Scene(columns=cols)
-        assert not engine._Source(scene.columns).rows_whole
+        assert not engine.RowSource(scene.columns).rows_whole
     data = write_bytes(scene, compat=compat, sort=sort)
     want = reference_texture(cols, compat == "splatv-js", sort == "importance")
     assert np.array_equal(splatv_records(data)[: len(want)], want)
@@ -431,12 +434,12 @@ def test_importance_order_is_the_stable_descending_argsort():
             key[: n // 2] = rng.normal(0, 1, n // 2)
             with np.errstate(invalid="ignore"):
                 want = np.argsort(-key, kind="stable")
-            assert np.array_equal(splatv.importance_order(key), want), (n, dtype)
+            assert np.array_equal(viewer.importance_order(key), want), (n, dtype)
     # float64 keys that differ only in the bits the row number displaces: the
     # order must still follow the full key.
     key = 1.0 + rng.integers(0, 64, 1 << 14) * np.finfo(np.float64).eps
     key[::5] = key[1::5]
-    assert np.array_equal(splatv.importance_order(key), np.argsort(-key, kind="stable"))
+    assert np.array_equal(viewer.importance_order(key), np.argsort(-key, kind="stable"))
 
 
 def test_framing_box_is_numpys_percentile():
@@ -498,3 +501,20 @@ def test_ply_writer_writes_row_tables_whole_with_the_same_bytes(tmp_path, sort):
     body = np.frombuffer(out.getvalue()[-500 * 128:], ply.LITE_DTYPE)
     assert not body["ny"].any() and np.array_equal(body["x"] if sort is None else np.sort(body["x"]),
                                                    full["x"] if sort is None else np.sort(full["x"]))
+
+
+def test_a_logarithm_that_reads_back_as_itself_is_not_reported_lossy(tmp_path):
+    """exp(log 65504) rounds past the half range, yet the record reads back the same: no note."""
+    import io as _io
+
+    from splatconv.model import COLUMNS, Scene
+
+    n = 4
+    cols = {c: np.zeros(n, np.float32) for c in COLUMNS}
+    cols["rot_0"][:] = 1
+    cols["scale_0"][:] = splatv.LOG_OF_HALF[0x7BFF]  # what a .splatv holding 65504 reads as
+    cols["trbf_scale"][:] = splatv.LOG_OF_HALF[0x7BFF]
+    cols["scale_1"][0] = np.float32(20.0)  # exp(20) is truly past the range
+    report = splatv.write(Scene(columns=cols, cameras=[]), _io.BytesIO())
+    lossy = [note for note in report.notes if "half-float range" in note]
+    assert lossy == ["scale_1: 1 value past the half-float range saturated to +-65504"]

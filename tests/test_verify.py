@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 import struct
 from pathlib import Path
 
@@ -13,6 +14,7 @@ from PIL import Image
 
 from splatconv import packing
 from splatconv.cli import main
+from tests import reference
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data" / "dancers.ply"
@@ -47,10 +49,10 @@ def damaged(src: Path, dst: Path, how: str) -> Path:
     elif how == "scales halved":
         for w in (5, 6):
             lo, hi = halves(w)
-            r[:, w] = packing.pack_half2(packing.float_to_half(lo * 0.5), packing.float_to_half(hi * 0.5))
+            r[:, w] = reference.pack_half2(packing.float_to_half(lo * 0.5), packing.float_to_half(hi * 0.5))
     elif how == "time centres shifted":
         lo, hi = halves(15)
-        r[:, 15] = packing.pack_half2(packing.float_to_half(lo + 0.15), packing.float_to_half(hi))
+        r[:, 15] = reference.pack_half2(packing.float_to_half(lo + 0.15), packing.float_to_half(hi))
     elif how == "quaternion reordered":
         r[:, 3], r[:, 4] = r[:, 4].copy(), r[:, 3].copy()
     recs[live] = r
@@ -86,7 +88,7 @@ def test_real_damage_fails(tmp_path, faithful, how, attribute, failing_times):
     assert verdict[1].startswith(f"FAIL: {len(failing_times)} of 2 frames below 40 dB; worst: ")
     data = json.loads(run("verify", SAMPLE, bad, *QUICK, "--json").stdout)
     assert not data["passed"]
-    drifted = [k for k, v in data["structure"].items() if not v["ok"]]
+    drifted = [k for k, v in data["attributes"].items() if not v["ok"]]
     assert drifted == [attribute]
     assert [f["time"] for f in data["frames"] if f["psnr"] < 40] == failing_times
 
@@ -99,7 +101,7 @@ def test_reordered_quaternions_are_caught_by_the_attribute_check_alone(tmp_path,
     data = json.loads(r.stdout)
     assert r.exit_code == 1
     assert all(f["psnr"] >= 40 for f in data["frames"]) and len(data["frames"]) == 3
-    assert [k for k, v in data["structure"].items() if not v["ok"]] == ["rotation"]
+    assert [k for k, v in data["attributes"].items() if not v["ok"]] == ["rotation"]
     text = run("verify", SAMPLE, bad, "--times", "0.5", "--size", "240x135").stdout
     assert text.rstrip().split("\n\n")[-1].startswith("FAIL: rotation drifted: ")
     assert "frames below" not in text
@@ -111,7 +113,7 @@ def test_splatv_to_ply_conversion_verifies(tmp_path, faithful):
     r = run("verify", faithful, ply, *QUICK, "--json")
     data = json.loads(r.stdout)
     assert r.exit_code == 0 and data["passed"]
-    assert all(v["unexplained"] == 0 for v in data["structure"].values())
+    assert all(v["unexplained"] == 0 for v in data["attributes"].values())
 
 
 def test_compat_conversion_of_the_sample_verifies(tmp_path):
@@ -122,16 +124,19 @@ def test_compat_conversion_of_the_sample_verifies(tmp_path):
 
 def test_json_shape(faithful):
     data = json.loads(run("verify", SAMPLE, faithful, *QUICK, "--json").stdout)
-    assert set(data) == {"paths", "count", "min_psnr", "passed", "structure", "frames", "worst"}
+    assert list(data) == ["schema", "paths", "count", "min_psnr", "passed", "attributes", "frames", "worst", "notes"]
+    assert data["schema"] == "splatconv.verify/1" and data["notes"] == []
     assert data["count"] == 5000 and data["min_psnr"] == 40.0
-    assert set(data["structure"]) == {"position", "rotation", "scale", "color", "opacity", "motion", "omega",
+    assert set(data["attributes"]) == {"position", "rotation", "scale", "color", "opacity", "motion", "omega",
                                       "trbf"}
-    assert set(data["structure"]["scale"]) == {"max_abs_error", "max_rel_error", "rmse", "unexplained",
-                                               "compared", "ok"}
+    assert set(data["attributes"]["scale"]) == {"max_abs_error", "max_rel_error", "rmse", "unexplained",
+                                                "became_infinite", "nonfinite_changed", "nan_stored", "compared",
+                                                "values", "ok"}
+    assert data["attributes"]["scale"]["values"] == 3 * 5000
     assert [(f["time"], f["camera"]) for f in data["frames"]] == [(0.25, 0), (0.6, 0)]
-    assert set(data["frames"][0]) == {"time", "camera", "psnr", "max_abs_error", "mean_abs_error", "share_off",
-                                      "tolerance"}
-    assert data["structure"]["position"]["max_abs_error"] == 0
+    assert list(data["frames"][0]) == ["time", "camera", "psnr", "identical", "max_abs_error", "mean_abs_error",
+                                       "share_off", "tolerance"]
+    assert data["attributes"]["position"]["max_abs_error"] == 0
 
 
 def test_report_dir(tmp_path, faithful):
@@ -262,7 +267,7 @@ def test_image_diff_rows_name_the_images_not_a_time_or_camera(tmp_path, monkeypa
     b[5, 5] = [30, 0, 0]
     write_png(tmp_path / "a.png", a), write_png(tmp_path / "b.png", b)
     data = json.loads(run("diff", "a.png", "b.png", "--json").stdout)
-    row = {"a": "a.png", "b": "b.png", "psnr": 51.141, "max_abs_error": 30, "mean_abs_error": 0.0167,
+    row = {"a": "a.png", "b": "b.png", "psnr": 51.141, "identical": False, "max_abs_error": 30, "mean_abs_error": 0.0167,
            "share_off": 0.001667, "tolerance": 8}
     assert data["frames"] == [row] and data["worst"] == row
     r = run("diff", "a.png", "b.png")
@@ -301,3 +306,231 @@ def test_diff_mixed_inputs_is_usage_error(tmp_path, faithful):
     r = run("diff", pa, faithful)
     assert r.exit_code == 2
     assert r.stderr == "Error: compare two images or two scene files, not one of each\n"
+
+
+# --------------------------------------------------------------------------
+# Figures true, false verdicts gone, bounded work, progress, JSON as documented.
+
+TINY = ["--times", "0.5", "--size", "64x36"]
+
+
+def _scene_file(tmp_path, name, cols):
+    from .conftest import lite_columns_with_normals, write_ply
+
+    return write_ply(tmp_path / name, lite_columns_with_normals(cols))
+
+
+def _convert(src, dst, *extra):
+    r = run("convert", src, dst, "-q", *extra)
+    assert r.exit_code == 0, r.output
+    return dst
+
+
+@pytest.mark.parametrize("how", ["one position", "all NaN", "NaN positions"])
+def test_faithful_conversions_of_tied_positions_pass(tmp_path, how):
+    from .conftest import random_columns
+
+    cols = random_columns(3000, seed=7)
+    if how == "all NaN":
+        cols = {k: np.full(3000, np.nan, np.float32) for k in cols}
+    for k in "xyz":
+        cols[k][:] = 0.5 if how == "one position" else np.nan
+    src = _scene_file(tmp_path, "tie.ply", cols)
+    out = _convert(src, tmp_path / "tie.splatv")
+    r = run("verify", src, out, *TINY, "--json")
+    data = json.loads(r.stdout)
+    assert r.exit_code == 0 and data["passed"], r.stdout
+    assert all(g["unexplained"] == 0 for g in data["attributes"].values())
+
+
+def test_rows_matched_by_position_break_ties_by_colour_and_opacity(tmp_path):
+    # CONVERTED is SOURCE's rows shuffled (no writer's order): rows are matched by
+    # position, and splats sharing a position by their opacity and colour bytes.
+    from .conftest import random_columns
+
+    cols = random_columns(400, seed=8)
+    for k in "xyz":
+        cols[k] = np.repeat(cols[k][:40], 10)
+    perm = np.random.default_rng(1).permutation(400)
+    src = _scene_file(tmp_path, "a.ply", cols)
+    shuffled = _scene_file(tmp_path, "b.ply", {k: v[perm] for k, v in cols.items()})
+    data = json.loads(run("verify", src, shuffled, *TINY, "--json").stdout)
+    assert data["passed"] and all(g["max_abs_error"] == 0 for g in data["attributes"].values())
+
+
+def test_values_made_infinite_by_splatvjs_are_called_so(tmp_path):
+    # splaTV's converter writes |x| >= 32768 as infinity: 700 temporal scales of 40,000.
+    from .conftest import random_columns
+
+    cols = random_columns(3000, seed=9)
+    cols["trbf_scale"][:700] = np.float32(np.log(40000.0))
+    src = _scene_file(tmp_path, "s.ply", cols)
+    out = _convert(src, tmp_path / "js.splatv", "--compat", "splatv-js")
+    r = run("verify", src, out, *TINY)
+    assert r.exit_code == 1
+    assert r.stdout.rstrip().splitlines()[-1] == ("FAIL: trbf drifted: 700 of 6,000 values became infinite "
+                                                  "(finite in the source)")
+    trbf = json.loads(run("verify", src, out, *TINY, "--json").stdout)["attributes"]["trbf"]
+    assert (trbf["unexplained"], trbf["became_infinite"], trbf["values"], trbf["ok"]) == (700, 700, 6000, False)
+    assert _convert(src, tmp_path / "ok.splatv")  # the default writer saturates nothing here: it passes
+    assert run("verify", src, tmp_path / "ok.splatv", *TINY).exit_code == 0
+
+
+def test_nan_colour_and_opacity_stored_in_bytes_are_explained_and_counted(tmp_path):
+    from .conftest import random_columns
+
+    cols = random_columns(3000, seed=10)
+    for k in ("opacity", "f_dc_0", "f_dc_1", "f_dc_2"):
+        cols[k][:] = np.nan
+    src = _scene_file(tmp_path, "n.ply", cols)
+    out = _convert(src, tmp_path / "n.splatv")
+    r = run("verify", src, out, *TINY)
+    assert r.exit_code == 0, r.stdout
+    assert "color: 9,000 NaN values stored as numbers (a byte cannot hold NaN)\n" in r.stdout
+    assert "opacity: 3,000 NaN values stored as numbers (a byte cannot hold NaN)\n" in r.stdout
+    data = json.loads(run("verify", src, out, *TINY, "--json").stdout)
+    assert [data["attributes"][g]["nan_stored"] for g in ("color", "opacity", "scale")] == [9000, 3000, 0]
+
+
+def test_drift_counts_are_out_of_every_value_of_the_attribute(tmp_path, faithful):
+    bad = damaged(faithful, tmp_path / "bad.splatv", "scales halved")
+    r = run("verify", SAMPLE, bad, *QUICK)
+    line = r.stdout.split("\n\n")[-1].splitlines()[0]
+    assert re.fullmatch(r"FAIL: scale drifted: [\d,]+ of 15,000 values off by more than quantization explains "
+                        r"\(largest error between finite values [\d.e+-]+, relative [\d.e+-]+%\)", line), line
+
+
+def test_one_frame_is_one_frame_and_identical_frames_are_said_to_be(tmp_path, faithful):
+    r = run("diff", faithful, faithful, *TINY)
+    assert r.exit_code == 0
+    lines = r.stdout.splitlines()
+    assert lines[1].split()[2] == "inf"
+    assert lines[2] == ("(errors out of 255; pixels off: a channel off by more than 8; inf: the two frames are "
+                        "identical)")
+    assert lines[-1] == "PASS: 1 frame at or above 40 dB; worst inf dB at t=0.5 camera 0"
+    frame = json.loads(run("diff", faithful, faithful, *TINY, "--json").stdout)["frames"][0]
+    assert frame["psnr"] is None and frame["identical"] is True
+    r = run("verify", SAMPLE, faithful, *TINY, "--cameras", "0", "--min-psnr", "99")
+    assert r.stdout.rstrip().splitlines()[-1].startswith("FAIL: 1 of 1 frame below 99 dB; worst: t=0.5 camera 0 (")
+
+
+def test_json_keys_are_those_specs_json_md_lists(tmp_path, faithful):
+    spec = (ROOT / "specs" / "json.md").read_text(encoding="utf-8")
+
+    def keys(section: str, sub: str | None = None) -> list:
+        text = spec.split(f"\n## {section}\n", 1)[1].split("\n## ", 1)[0]
+        text = text.split(f"\n### {sub}\n", 1)[1] if sub else text
+        text = text.split("\n### ", 1)[0]
+        return re.findall(r"^\| `(\w+)` \|", text, re.M)
+
+    v = json.loads(run("verify", SAMPLE, faithful, *TINY, "--cameras", "0", "--json").stdout)
+    assert list(v) == keys("verify") and v["schema"] == "splatconv.verify/1"
+    assert all(list(g) == keys("verify", "`attributes` entries") for g in v["attributes"].values())
+    assert list(v["frames"][0]) == keys("verify", "`frames` entries") == list(v["worst"])
+    d = json.loads(run("diff", faithful, SAMPLE, *TINY, "--json").stdout)
+    assert list(d) == keys("diff") and d["schema"] == "splatconv.diff/1"
+    assert list(d["frames"][0]) == keys("verify", "`frames` entries")
+    a = write_png(tmp_path / "a.png", np.zeros((4, 4, 3)))
+    i = json.loads(run("diff", a, a, "--json").stdout)
+    assert list(i) == keys("diff") and list(i["frames"][0]) == ["a", "b"] + keys("verify", "`frames` entries")[2:]
+
+
+def test_verify_draws_the_first_8_cameras_unless_told(tmp_path):
+    cams = json.loads(CAMERAS.read_text())
+    many = [dict(cams[i % 3], id=i, img_name=f"cam{i:02}") for i in range(12)]
+    (tmp_path / "cams.json").write_text(json.dumps(many))
+    out = _convert(SAMPLE, tmp_path / "many.splatv", "--cameras", tmp_path / "cams.json")
+    r = run("verify", SAMPLE, out, *TINY, "--json")
+    data = json.loads(r.stdout)
+    assert [f["camera"] for f in data["frames"]] == list(range(8))
+    assert data["notes"] == ["drew the first 8 of 12 cameras (--cameras all draws every one)"]
+    assert r.stderr == "note: drew the first 8 of 12 cameras (--cameras all draws every one)\n"
+    data = json.loads(run("verify", SAMPLE, out, *TINY, "--json", "--cameras", "all").stdout)
+    assert [f["camera"] for f in data["frames"]] == list(range(12)) and data["notes"] == []
+
+
+class Recorder:
+    """A Progress that records each stage and how far it advanced."""
+
+    def __init__(self):
+        self.stages = []
+
+    def stage(self, label, total=None, unit="it"):
+        import contextlib
+
+        @contextlib.contextmanager
+        def cm():
+            done = [label, total, unit, 0]
+            self.stages.append(done)
+
+            def advance(n=1):
+                done[3] += n
+
+            yield advance
+
+        return cm()
+
+
+def test_verify_and_diff_report_progress(faithful):
+    from splatconv.render.commands import diff_files
+    from splatconv.render.verify import verify
+
+    rec = Recorder()
+    verify(SAMPLE, faithful, times=[0.2, 0.4, 0.6], cameras="0,1", size=(32, 18), progress=rec)
+    assert rec.stages == [["reading", 2, "file", 2], ["checking attributes", 2, "step", 2],
+                          ["drawing", 6, "frame", 6]]
+    rec = Recorder()
+    diff_files(SAMPLE, faithful, size="32x18", progress=rec)
+    assert rec.stages == [["reading", 2, "file", 2], ["drawing", 1, "frame", 1]]
+
+
+def test_report_dir_saves_each_frame_as_it_is_drawn(tmp_path, faithful, monkeypatch):
+    # Images are never all kept: each frame's files are written before the next is drawn.
+    from splatconv.render import diff as imgdiff
+    from splatconv.render.preview import Renderer
+
+    draws, saved_after = [], []
+    real_draw, real_save = Renderer.draw, imgdiff.save_png
+    monkeypatch.setattr(Renderer, "draw", lambda self, *a, **k: draws.append(1) or real_draw(self, *a, **k))
+    monkeypatch.setattr(imgdiff, "save_png", lambda img, stream: saved_after.append(len(draws)) or real_save(img, stream))
+    r = run("verify", SAMPLE, faithful, "--cameras", "0", "--times", "0.1,0.5,0.9", "--size", "32x18",
+            "--report-dir", tmp_path / "rep")
+    assert r.exit_code == 0, r.output
+    assert saved_after == [2] * 4 + [4] * 4 + [6] * 4
+
+
+def test_attribute_check_in_row_blocks_gives_the_whole_scenes_figures(faithful, monkeypatch):
+    # compare_scenes works a block of rows at a time (bounded memory on 1M splats);
+    # the merged figures are those of one pass over every row.
+    from splatconv import compare, io
+
+    source, converted = io.read(SAMPLE), io.read(faithful)
+    order = compare.align(source, converted)
+    whole = compare.compare_scenes(source, converted, order)
+    monkeypatch.setattr(compare, "_ROWS", 1000)
+    blocks = compare.compare_scenes(source, converted, order)
+    for g, e in whole.items():
+        b = blocks[g]
+        assert (b.max_abs_error, b.max_rel_error, b.unexplained, b.compared, b.values) == (
+            e.max_abs_error, e.max_rel_error, e.unexplained, e.compared, e.values)
+        assert b.rmse == pytest.approx(e.rmse, rel=1e-9)
+
+
+def test_nonfinite_values_that_splatvjs_changes_are_called_so(tmp_path):
+    # splaTV's converter writes NaN as infinity: the verdict says so instead of an error of 0.
+    from .conftest import random_columns
+
+    cols = random_columns(3000, seed=11)
+    cols["omega_0"][:50] = np.nan
+    cols["motion_0"][:20] = np.float32(40000.0)
+    src = _scene_file(tmp_path, "s.ply", cols)
+    out = _convert(src, tmp_path / "js.splatv", "--compat", "splatv-js")
+    data = json.loads(run("verify", src, out, *TINY, "--json").stdout)
+    omega, motion = data["attributes"]["omega"], data["attributes"]["motion"]
+    assert (omega["unexplained"], omega["nonfinite_changed"], omega["became_infinite"]) == (50, 50, 0)
+    assert (motion["unexplained"], motion["nonfinite_changed"], motion["became_infinite"]) == (20, 0, 20)
+    verdict = run("verify", src, out, *TINY).stdout.split("\n\n")[-1].splitlines()
+    assert verdict[:2] == [
+        "FAIL: motion drifted: 20 of 27,000 values became infinite (finite in the source)",
+        "FAIL: omega drifted: 50 of 12,000 values that were NaN or infinite in the source were stored as "
+        "something else"]

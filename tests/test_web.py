@@ -23,7 +23,7 @@ import splatconv
 from splatconv.model import Scene
 from splatconv.render import camera as cam
 from splatconv.render.diff import compare
-from splatconv.render.frames import load, render_frames, resolve_view
+from splatconv.render.frames import cameras_of, load, render_frames, resolve_view
 from splatconv.web.page import SceneRef, build_page
 from splatconv.web.publish import publish
 
@@ -70,9 +70,8 @@ def nonfinite(tmp_path_factory):
 def rendered(path, time, view=None, size=(W, H)) -> np.ndarray:
     """`splatconv render PATH --time T [--view V] --size WxH`, as an array."""
     source = load(path)
-    v = resolve_view(source, view=view, size=size)
-    frames, _ = render_frames(source, v, [time])
-    return frames[0]
+    v = resolve_view(cameras_of(source), view=view, size=size)
+    return list(render_frames(source.texture(), v, [time]))[0]
 
 
 def assert_matches(page_frame, reference, what):

@@ -130,7 +130,7 @@ def test_ply_and_zst_inputs_are_converted_in_memory(sample, tmp_path):
 
 def _start_view(path, port=0):
     env = dict(os.environ, PYTHONUNBUFFERED="1")
-    proc = subprocess.Popen([sys.executable, "-m", "splatconv.cli", "view", str(path), "--no-open",
+    proc = subprocess.Popen([sys.executable, "-m", "splatconv", "view", str(path), "--no-open",
                              "--port", str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
                             text=True)
     line = proc.stdout.readline()
@@ -203,6 +203,6 @@ def test_convert_html_refusals(sample, tmp_path):
     assert r.exit_code == 1 and "taken.splatv: already exists" in r.stderr
     assert not (tmp_path / "taken.html").exists() and (tmp_path / "taken.splatv").read_bytes() == b"keep"
     r = run("convert", tmp_path / "x.html", tmp_path / "x.splatv")
-    assert r.exit_code == 1 and "cannot be read as a scene" in r.stderr
+    assert r.exit_code == 2 and r.stderr == f"Error: {tmp_path / 'x.html'}: html files can be written, not read\n"
     r = run("convert", sample, sample, tmp_path / "c.html", "--sort", "none")
     assert r.exit_code == 2 and not (tmp_path / "c.html").exists()

@@ -1,9 +1,12 @@
 """One module per format behind one registry keyed by file suffix.
 
-A format module has ``NAME``, ``SUFFIXES``, ``read(path, **options) -> Scene``
-and ``write(scene, stream, **options) -> WriteReport``. Adding a format is adding
-a module and one line to ``_MODULES``. A ``.zst`` suffix after a format's suffix
-means the same format, zstd-compressed (see :mod:`splatconv.transport`).
+Every format module declares what it supports (see :mod:`splatconv.formats.base`):
+``NAME``, ``SUFFIXES``, ``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``,
+``DEFAULT_SORT``, ``HOLDS_EMPTY``, ``DYNAMIC``, and provides ``read``, ``write``
+and ``info_fields``. Callers look a module up with :func:`format_for` and ask it
+those questions; none of them names a format. Adding a format is adding a module
+and one line to ``_MODULES``. A ``.zst`` suffix after a format's suffix means the
+same format, zstd-compressed (see :mod:`splatconv.transport`).
 """
 
 from __future__ import annotations
@@ -11,26 +14,40 @@ from __future__ import annotations
 import os
 
 from ..errors import UsageError
-from . import html, ply, splatv
+from ..transport import inner_name
+from . import html, ply, splat, splatv
 
-_MODULES = (ply, splatv, html)
+_MODULES = (ply, splatv, splat, html)
 REGISTRY = {suffix: module for module in _MODULES for suffix in module.SUFFIXES}
 
 
-def format_for(path: str | os.PathLike):
+def format_for(path: str | os.PathLike, *, purpose: str | None = None):
     """The format module for ``path``, chosen by its (case-insensitive) suffix.
+
+    Parameters
+    ----------
+    path : path
+    purpose : {None, "read", "write"}
+        Refuse a format that cannot be read (or written).
 
     Raises
     ------
     UsageError
-        For a suffix no format claims.
+        For a suffix no format claims, or one that cannot serve ``purpose``.
     """
-    from ..transport import inner_name
-
     path = os.fspath(path)
     lower = inner_name(path).lower()
     for suffix, module in REGISTRY.items():
         if lower.endswith(suffix):
+            if purpose == "read" and not module.CAN_READ:
+                raise UsageError(f"{module.NAME} files can be written, not read", path)
+            if purpose == "write" and not module.CAN_WRITE:
+                raise UsageError(f"{module.NAME} files can be read, not written", path)
             return module
     known = ", ".join(sorted(REGISTRY))
     raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)
+
+
+def compat_modes() -> tuple:
+    """Every compat mode some format accepts, for option choices."""
+    return tuple(sorted({mode for module in _MODULES for mode in module.COMPAT_MODES}))

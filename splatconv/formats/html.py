@@ -22,7 +22,12 @@ CAN_READ = False
 CAN_WRITE = True
 COMPAT_MODES = ("splatv-js",)
 DEFAULT_SORT = "importance"
+#: The viewer cannot show an empty texture.
 HOLDS_EMPTY = False
+#: Holds motion and a temporal basis (the embedded ``.splatv``).
+DYNAMIC = True
+#: Not the texture itself: a page around it, which nothing here reads back.
+STORES_TEXTURE = False
 
 
 def read(path, **options) -> Scene:
@@ -46,7 +51,7 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     splatv.WriteReport
     """
     buffer = io.BytesIO()
-    report = splatv.write(scene, buffer, compat=compat, sort=sort or DEFAULT_SORT)
+    report = splatv.write(scene, buffer, compat=compat, sort=sort or DEFAULT_SORT, **options)
     stream.write(build_page([SceneRef(name="scene", data=buffer.getvalue())]))
     return report
 

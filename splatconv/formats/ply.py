@@ -3,14 +3,18 @@
 Reading accepts binary (either endianness) and ASCII PLY, float or double
 properties (narrowed to float32 once, here), CRLF headers, comments and
 obj_info, any property order, extra properties and extra elements. Writing
-produces the Spacetime Gaussians lite layout, float32 little endian.
+produces the Spacetime Gaussians lite layout or the plain 3DGS layout (SH
+degree 0), float32 little endian.
 """
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
 import os
 import re
+import struct
 import warnings
 
 import numpy as np
@@ -18,13 +22,26 @@ import plyfile
 
 from .. import model
 from ..cameras import validate_cameras
-from ..errors import FormatError, UnsupportedError
+from ..errors import FormatError, UnsupportedError, UsageError
 from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, Scene, constant_column
+from ..progress import SILENT
+from ..viewer import importance, importance_order
+from .base import WriteReport, refuse_time_varying
 
 NAME = "ply"
 SUFFIXES = (".ply",)
+CAN_READ = True
+CAN_WRITE = True
+COMPAT_MODES = ()
+#: Input order: a PLY is a training format, its row order is the user's.
+DEFAULT_SORT = "none"
+#: A PLY may hold zero rows.
+HOLDS_EMPTY = True
+DYNAMIC = True
+#: A PLY holds attributes, not the viewer's texture.
+STORES_TEXTURE = False
 
 #: Property order of the lite layout as SpacetimeGaussians writes it.
 LITE_LAYOUT = model.LITE_ROW
@@ -43,6 +60,8 @@ _SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2,
           "double": 8, "float64": 8}
 _FULL_FEATURE = re.compile(r"^f_t_\d+$|^f_dc_([3-9]|\d\d+)$")
 _MAX_HEADER = 16 << 20
+_END_HEADER = re.compile(rb"end_header\r?\n")
+_ELEMENT_LINE = re.compile(rb"^(element[ \t]+\S+[ \t]+)(\S+)([ \t]*\r?)$", re.M)
 
 
 def _read_header_bytes(f, file_size: int) -> bytes:
@@ -59,42 +78,75 @@ def _read_header_bytes(f, file_size: int) -> bytes:
         if not chunk:
             break
         head += chunk
-        if re.search(rb"end_header\r?\n", head[-len(chunk) - 12:]):
+        if _END_HEADER.search(head[-len(chunk) - 12:]):
             break
         step *= 4
     return head
 
 
-def _minimum_body(f, path: str, file_size: int) -> None:
+class _Layout:
+    """What a PLY header says, as far as sizes go: format, elements, their counts and row sizes.
+
+    ``elements`` holds ``[name, count, fixed_row_bytes, n_properties, has_list]``;
+    ``header_bytes`` is the offset of the body. Only sizes are read here; plyfile
+    parses and validates the header for real.
+    """
+
+    def __init__(self, head: bytes, path: str):
+        self.format = None
+        self.elements = []
+        end = _END_HEADER.search(head)
+        self.header_bytes = end.end() if end else None
+        if not head.startswith(b"ply") or end is None:
+            return  # let plyfile name the problem
+        for line in head[:end.start()].decode("ascii", "replace").splitlines():
+            words = line.split()
+            if len(words) >= 2 and words[0] == "format":
+                self.format = words[1]
+            elif len(words) == 3 and words[0] == "element":
+                if not words[2].isdigit():
+                    raise FormatError(f"row count {words[2][:24]!r} is not a non-negative integer", path,
+                                      (f"element '{words[1]}'",))
+                self.elements.append([words[1], int(words[2]), 0, 0, False])
+            elif words[:1] == ["property"] and self.elements:
+                self.elements[-1][3] += 1
+                if len(words) == 3:
+                    self.elements[-1][2] += _SIZES.get(words[1], 1)
+                elif len(words) == 5 and words[1] == "list":
+                    self.elements[-1][2] += _SIZES.get(words[2], 1)
+                    self.elements[-1][4] = True
+
+    def fixed_size(self):
+        """Bytes of a binary file whose rows are all fixed-size; None when unknown (ASCII, lists)."""
+        if self.header_bytes is None or self.format not in ("binary_little_endian", "binary_big_endian"):
+            return None
+        if any(e[4] for e in self.elements):
+            return None
+        return self.header_bytes + sum(count * row for _name, count, row, _props, _list in self.elements)
+
+
+def declared_size(head: bytes):
+    """File size a binary PLY header at the start of ``head`` declares (None: ASCII, lists or unknown).
+
+    Used to bound the decompression of a ``.ply.zst``.
+    """
+    try:
+        return _Layout(head, "").fixed_size()
+    except FormatError:
+        return None
+
+
+def _minimum_body(layout: _Layout, path: str, file_size: int) -> None:
     """Fail fast when the header declares more rows than the file can hold.
 
-    plyfile would otherwise try to allocate e.g. 10^12 ASCII rows up front. Only
-    sizes are checked here; plyfile parses and validates the header for real.
+    plyfile would otherwise try to allocate e.g. 10^12 ASCII rows up front.
     """
-    head = _read_header_bytes(f, file_size)
-    f.seek(0)
-    end = re.search(rb"end_header\r?\n", head)
-    if not head.startswith(b"ply") or end is None:
-        return  # let plyfile name the problem
-    body = file_size - end.end()
-    fmt = None
-    elements = []
-    for line in head[:end.start()].decode("ascii", "replace").splitlines():
-        words = line.split()
-        if len(words) >= 2 and words[0] == "format":
-            fmt = words[1]
-        elif len(words) == 3 and words[0] == "element" and words[2].isdigit():
-            elements.append([words[1], int(words[2]), 0, 0])
-        elif words[:1] == ["property"] and elements:
-            elements[-1][3] += 1
-            if len(words) == 3:
-                elements[-1][2] += _SIZES.get(words[1], 1)
-            elif len(words) == 5 and words[1] == "list":
-                elements[-1][2] += _SIZES.get(words[2], 1)
-    if fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
+    fmt = layout.format
+    if layout.header_bytes is None or fmt not in ("ascii", "binary_little_endian", "binary_big_endian"):
         return
+    body = file_size - layout.header_bytes
     need = 0
-    for name, count, row_bytes, props in elements:
+    for name, count, row_bytes, props, _list in layout.elements:
         # At least one byte a value in binary; a digit and a separator in ASCII.
         row = max(row_bytes, 1) if fmt != "ascii" else 2 * max(props, 1)
         need += count * row
@@ -104,17 +156,25 @@ def _minimum_body(f, path: str, file_size: int) -> None:
                               "header: file truncated?", path, (f"element '{name}'",))
 
 
-def _open(path: str) -> plyfile.PlyData:
-    with open_input(path) as f:
-        size = os.fstat(f.fileno()).st_size
-        if size == 0:
-            raise FormatError("file is empty", path)
-        _minimum_body(f, path, size)
+class _PlyFile:
+    """A parsed PLY: plyfile's header objects, the vertex rows and notes on what was left unread."""
+
+    def __init__(self, header: plyfile.PlyData, vertex_data, notes: list):
+        self.header = header
+        self.vertex_data = vertex_data
+        self.notes = notes
+
+
+def _plyfile_errors(path: str):
+    """A context that turns plyfile's errors into :class:`FormatError` naming where."""
+
+    @contextlib.contextmanager
+    def manager():
         try:
             with warnings.catch_warnings():
                 # An empty list in an ASCII row: plyfile reads it right, numpy warns.
                 warnings.filterwarnings("ignore", "loadtxt: input contained no data")
-                return plyfile.PlyData.read(f, mmap="r")
+                yield
         except plyfile.PlyHeaderParseError as e:
             raise FormatError(f"bad header: {e.message}", path,
                               (f"line {e.line}",) if e.line else ()) from None
@@ -125,8 +185,226 @@ def _open(path: str) -> plyfile.PlyData:
             if e.prop is not None:
                 where.append(f"property '{e.prop.name}'")
             raise FormatError(e.message, path, where) from None
-        except (ValueError, MemoryError) as e:
+        except (ValueError, MemoryError, OverflowError) as e:
             raise FormatError(f"cannot parse: {e}", path) from None
+
+    return manager()
+
+
+def _open(path: str) -> _PlyFile:
+    with open_input(path) as f:
+        size = os.fstat(f.fileno()).st_size
+        if size == 0:
+            raise FormatError("file is empty", path)
+        head = _read_header_bytes(f, size)
+        layout = _Layout(head, path)
+        _minimum_body(layout, path, size)
+        if layout.header_bytes is None or layout.format not in ("ascii", "binary_little_endian",
+                                                                 "binary_big_endian"):
+            f.seek(0)
+            with _plyfile_errors(path):  # a header plyfile will refuse, with the line that is wrong
+                plyfile.PlyData.read(f, mmap="r")
+            raise FormatError("bad header", path)  # pragma: no cover - plyfile refuses it above
+        # plyfile parses the header (its rules, its messages) from a copy whose
+        # element counts are zero, so that it reads no rows: the rows are read
+        # here, in bulk, and only as far as the vertex element.
+        zeroed = _ELEMENT_LINE.sub(lambda m: m.group(1) + b"0" + m.group(3), head[:layout.header_bytes])
+        with _plyfile_errors(path):
+            header = plyfile.PlyData.read(io.BytesIO(zeroed))
+        counts = {e[0]: e[1] for e in layout.elements}
+        if len(header.elements) != len(layout.elements):  # pragma: no cover - both parse the same lines
+            raise FormatError("bad header: element lines not understood", path)
+        if "vertex" not in header:
+            return _PlyFile(header, None, [])
+        if header.text:
+            return _read_ascii(f, path, header, layout, counts)
+        return _read_binary(f, path, header, layout, counts)
+
+
+def _element_dtype(element, byte_order: str, list_lengths=None) -> np.dtype:
+    """Row dtype of ``element``; each list property as a length field plus a fixed array of values."""
+    fields = []
+    for i, prop in enumerate(element.properties):
+        if isinstance(prop, plyfile.PlyListProperty):
+            len_t, val_t = prop.list_dtype(byte_order)
+            fields.append((f"\n{i}len", len_t))
+            fields.append((prop.name, val_t, (list_lengths[i],)))
+        else:
+            fields.append((prop.name, prop.dtype(byte_order)))
+    return np.dtype(fields)
+
+
+def _list_lengths_at(buf: np.ndarray, start: int, element, byte_order: str):
+    """Lengths of the list properties of the row at ``start`` of ``buf`` (uint8), None past the end."""
+    lengths = {}
+    pos = start
+    for i, prop in enumerate(element.properties):
+        if isinstance(prop, plyfile.PlyListProperty):
+            len_t, val_t = (np.dtype(t) for t in prop.list_dtype(byte_order))
+            if pos + len_t.itemsize > len(buf):
+                return None, pos
+            n = int(buf[pos:pos + len_t.itemsize].view(len_t)[0])
+            if n < 0:
+                return None, pos
+            lengths[i] = n
+            pos += len_t.itemsize + n * val_t.itemsize
+        else:
+            pos += np.dtype(prop.dtype(byte_order)).itemsize
+    return lengths, pos
+
+
+def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: str, path: str,
+                 need_rows: bool = True):
+    """Read ``count`` rows of ``element`` at ``offset``: ``(rows, bytes)``.
+
+    Fixed-size rows are a view of ``buf``. With list properties every row is
+    first assumed to have the first row's list lengths (true of the files met
+    in practice); that is checked for all rows at once, and only where it fails
+    are the rows walked one by one; the rows returned then hold the properties
+    that are not lists (lists are never splat attributes).
+    """
+    has_list = any(isinstance(p, plyfile.PlyListProperty) for p in element.properties)
+    where = (f"element '{element.name}'",)
+    if count == 0:
+        return np.zeros(0, _element_dtype(element, byte_order, dict.fromkeys(range(len(element.properties)), 0))), 0
+    lengths = None
+    if has_list:
+        lengths, _end = _list_lengths_at(buf, offset, element, byte_order)
+        if lengths is None:
+            raise FormatError("row 0: unexpected end of file", path, where)
+    dtype = _element_dtype(element, byte_order, lengths)
+    if offset + count * dtype.itemsize <= len(buf):
+        rows = buf[offset:offset + count * dtype.itemsize].view(dtype)
+        if not has_list or all((rows[f"\n{i}len"] == n).all() for i, n in lengths.items()):
+            return rows, count * dtype.itemsize
+    elif not has_list:
+        available = (len(buf) - offset) // dtype.itemsize
+        raise FormatError(f"row {available}: unexpected end of file", path, where)
+    return _walk_rows(buf, offset, element, count, byte_order, path, need_rows)
+
+
+def _walk_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: str, path: str, need_rows: bool):
+    """Rows whose lists vary in length: one step a row to find where each starts, the rest in bulk."""
+    props = element.properties
+    steps = []  # per property: (struct of the list length or None, bytes a value / of the value)
+    for prop in props:
+        if isinstance(prop, plyfile.PlyListProperty):
+            len_t, val_t = (np.dtype(t) for t in prop.list_dtype(byte_order))
+            steps.append((struct.Struct(byte_order + len_t.char), val_t.itemsize))
+        else:
+            steps.append((None, np.dtype(prop.dtype(byte_order)).itemsize))
+    list_index = [i for i, (st, _size) in enumerate(steps) if st is not None]
+    starts = np.empty(count, np.int64)
+    lengths = np.empty((count, len(list_index)), np.int64)
+    raw = memoryview(buf)
+    end = len(buf)
+    pos = offset
+    for row in range(count):
+        starts[row] = pos
+        k = 0
+        for st, size in steps:
+            if st is None:
+                pos += size
+                continue
+            if pos + st.size > end:
+                raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
+            n = st.unpack_from(raw, pos)[0]
+            if n < 0:
+                raise FormatError(f"row {row}: negative list length {n}", path,
+                                  (f"element '{element.name}'", f"property '{props[list_index[k]].name}'"))
+            lengths[row, k] = n
+            k += 1
+            pos += st.size + n * size
+        if pos > end:
+            raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
+    if not need_rows:
+        return None, pos - offset
+    fields = [(p.name, p.dtype(byte_order)) for p in props if not isinstance(p, plyfile.PlyListProperty)]
+    rows = np.empty(count, np.dtype(fields))
+    within = np.zeros(count, np.int64)  # offset inside the row of the property at hand
+    k = 0
+    for prop, (st, size) in zip(props, steps):
+        if st is None:
+            at = starts + within
+            rows[prop.name] = buf[at[:, None] + np.arange(size)].reshape(-1).view(rows.dtype[prop.name])
+            within += size
+        else:
+            within += st.size + lengths[:, k] * size
+            k += 1
+    return rows, pos - offset
+
+
+def _read_binary(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFile:
+    byte_order = header.byte_order
+    buf = np.memmap(f, dtype=np.uint8, mode="r") if os.fstat(f.fileno()).st_size else np.zeros(0, np.uint8)
+    offset = layout.header_bytes
+    notes = []
+    vertex = None
+    for element in header.elements:
+        count = counts[element.name]
+        if element.name != "vertex" and vertex is not None and any(
+                isinstance(p, plyfile.PlyListProperty) for p in element.properties):
+            # Not needed, and its extent costs a walk when its lists vary: stop here.
+            return _PlyFile(header, vertex, notes)
+        rows, nbytes = _binary_rows(buf, offset, element, count, byte_order, path, element.name == "vertex")
+        if element.name == "vertex":
+            vertex = rows
+        offset += nbytes
+    extra = len(buf) - offset
+    if extra > 0:
+        last = header.elements[-1]
+        row_bytes = _element_dtype(last, byte_order, {}).itemsize if not any(
+            isinstance(p, plyfile.PlyListProperty) for p in last.properties) else 0
+        rows_more = f" ({extra // row_bytes} more rows of '{last.name}' than its header declares?)" if (
+            row_bytes and extra % row_bytes == 0) else ""
+        notes.append(f"{extra} bytes after the last element ignored{rows_more}")
+    return _PlyFile(header, vertex, notes)
+
+
+def _read_ascii(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFile:
+    """ASCII rows: one line a row, parsed in bulk by ``np.loadtxt`` where every property is a number.
+
+    Anything the bulk parse refuses (a malformed value, a short line, a list
+    property before the vertex rows) is read again by plyfile, whose row-by-row
+    parser names the row and property that is wrong.
+    """
+    f.seek(layout.header_bytes)
+    lines = f.read().split(b"\n")
+    if lines and lines[-1].strip() == b"":
+        lines.pop()  # the newline that ends the last row
+    at = 0
+    vertex = None
+    notes = []
+    for element in header.elements:
+        count = counts[element.name]
+        if vertex is None:
+            if any(isinstance(p, plyfile.PlyListProperty) for p in element.properties):
+                return _read_ascii_plyfile(f, path)
+            dtype = _element_dtype(element, "=")
+            if count == 0:
+                rows = np.zeros(0, dtype)
+            else:
+                try:
+                    text = [line.decode("ascii") for line in lines[at:at + count]]
+                    rows = np.loadtxt(text, dtype=dtype, comments=None, ndmin=1)
+                except (ValueError, OverflowError, UnicodeDecodeError):
+                    return _read_ascii_plyfile(f, path)
+                if len(rows) != count:
+                    return _read_ascii_plyfile(f, path)
+            if element.name == "vertex":
+                vertex = rows
+        at += count
+    extra = sum(1 for line in lines[at:] if line.strip())
+    if extra:
+        notes.append(f"{extra} lines after the last element ignored (more rows than the header declares?)")
+    return _PlyFile(header, vertex, notes)
+
+
+def _read_ascii_plyfile(f, path: str) -> _PlyFile:
+    f.seek(0)
+    with _plyfile_errors(path):
+        ply = plyfile.PlyData.read(f)
+    return _PlyFile(ply, ply["vertex"].data, [])
 
 
 def detect_variant(names) -> str:
@@ -172,7 +450,8 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
         the variant.
     """
     path = os.fspath(path)
-    ply = _open(path)
+    opened = _open(path)
+    ply = opened.header
     if "vertex" not in ply:
         names = ", ".join(e.name for e in ply.elements) or "none"
         raise UnsupportedError(f"not a splat file: no 'vertex' element (elements: {names})", path)
@@ -188,10 +467,10 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
         if clash:
             raise UnsupportedError(f"property {', '.join(clash)} is a list, not one number a splat", path) from None
         raise UnsupportedError(e.message, path) from None
-    data = vertex.data
+    data = opened.vertex_data
     populate(data)
     n = len(data)
-    notes = []
+    notes = list(opened.notes)
     used = set(LITE_REQUIRED if variant == model.VARIANT_LITE else GS_REQUIRED) | set(NORMALS)
     ignored = [p for p in names if p not in used]
     doubles = [p.name for p in vertex.properties if p.name in used and p.val_dtype.endswith("8")]
@@ -243,16 +522,23 @@ def _cameras_from_comments(comments, path: str):
 
 #: Row type of the written lite layout.
 LITE_DTYPE = np.dtype([(name, "<f4") for name in LITE_LAYOUT])
+#: Property order of the written 3DGS layout: SH degree 0 only (the viewer draws
+#: view-independent colour), as 3DGS tools and web viewers read it.
+GS_LAYOUT = model.POSITION + NORMALS + model.COLOR + model.OPACITY + model.SCALE + model.ROTATION
+#: Row type of the written 3DGS layout.
+GS_DTYPE = np.dtype([(name, "<f4") for name in GS_LAYOUT])
+#: Layouts :func:`write` produces, by ``layout=`` name.
+LAYOUTS = {"lite": LITE_LAYOUT, "3dgs": GS_LAYOUT}
 
 
-def header_bytes(count: int, cameras) -> bytes:
-    """The PLY header of a lite file of ``count`` rows."""
+def header_bytes(count: int, cameras, layout: str = "lite") -> bytes:
+    """The PLY header of a file of ``count`` rows in ``layout`` (a :data:`LAYOUTS` name)."""
     lines = ["ply", "format binary_little_endian 1.0"]
     if cameras:
         text = json.dumps(cameras, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
         lines.append("comment " + CAMERA_COMMENT + text)
     lines.append(f"element vertex {count}")
-    lines.extend(f"property float {name}" for name in LITE_LAYOUT)
+    lines.extend(f"property float {name}" for name in LAYOUTS[layout])
     lines.append("end_header")
     return ("\n".join(lines) + "\n").encode("ascii")
 
@@ -260,8 +546,14 @@ def header_bytes(count: int, cameras) -> bytes:
 BLOCK = 1 << 16
 
 
-def write(scene: Scene, stream, *, sort: str | None = None, **_options):
-    """Write ``scene`` in the Spacetime Gaussians lite layout (float32 LE, normals 0).
+def default_layout(scene: Scene) -> str:
+    """The layout a scene is written in when none is asked: a plain 3DGS scene stays 3DGS, all else lite."""
+    return "3dgs" if scene.variant == model.VARIANT_3DGS else "lite"
+
+
+def write(scene: Scene, stream, *, sort: str | None = None, layout: str | None = None,
+          progress=SILENT, **_options):
+    """Write ``scene`` as a binary little-endian float32 PLY.
 
     Parameters
     ----------
@@ -270,35 +562,90 @@ def write(scene: Scene, stream, *, sort: str | None = None, **_options):
     sort : {None, "none", "importance"}
         ``importance`` orders rows largest first as the splatv writer does; the
         default keeps the input order.
+    layout : {None, "lite", "3dgs"}
+        ``lite``: the Spacetime Gaussians lite layout (normals 0, RGB in
+        f_dc_0..2). ``3dgs``: the plain 3DGS layout (colour as the degree-0 SH
+        coefficient (rgb - 0.5) / SH_C0, no f_rest, log scales, logit opacity),
+        refused for a scene that moves or fades (see
+        :func:`splatconv.formats.base.refuse_time_varying`). None: 3DGS for a
+        scene read as plain 3DGS, lite otherwise (:func:`default_layout`).
 
     Returns
     -------
     WriteReport
     """
-    from .splatv import WriteReport, importance, importance_order  # the importance key is splatv's notion
-
+    layout = layout or default_layout(scene)
+    if layout not in LAYOUTS:
+        raise UsageError(f"unknown PLY layout {layout!r} (expected one of {', '.join(LAYOUTS)})")
+    if layout == "3dgs":
+        return _write_3dgs(scene, stream, sort, progress)
     n = scene.count
     report = WriteReport(count=n)
-    order = None
-    if sort == "importance":
-        order = importance_order(importance(scene.columns))
+    order = _order(scene, sort)
     stream.write(header_bytes(n, scene.cameras))
     rows = _lite_rows_of(scene)
-    if rows is not None:
-        # The columns are fields of rows already in the written layout: write them whole.
+    with progress.stage("writing", n, "splat") as advance:
+        if rows is not None:
+            # The columns are fields of rows already in the written layout: write them whole.
+            for start in range(0, n, BLOCK):
+                block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK],
+                                                                               axis=0)
+                stream.write(memoryview(block))
+                advance(len(block))
+            return report
+        block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
         for start in range(0, n, BLOCK):
-            block = rows[start:start + BLOCK] if order is None else np.take(rows, order[start:start + BLOCK], axis=0)
-            stream.write(memoryview(block))
-        return report
-    block = np.zeros(min(BLOCK, max(n, 1)), dtype=LITE_DTYPE)
-    for start in range(0, n, BLOCK):
-        stop = min(start + BLOCK, n)
-        rows = slice(start, stop) if order is None else order[start:stop]
-        out = block[: stop - start]
-        for name in COLUMNS:
-            out[name] = np.asarray(scene.columns[name])[rows]
-        stream.write(memoryview(out).cast("B"))
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            out = block[: stop - start]
+            for name in COLUMNS:
+                out[name] = np.asarray(scene.columns[name])[rows]
+            stream.write(memoryview(out).cast("B"))
+            advance(stop - start)
     return report
+
+
+def _order(scene: Scene, sort: str | None):
+    """The written row order: None for the input order."""
+    return importance_order(importance(scene.columns)) if sort == "importance" else None
+
+
+def _write_3dgs(scene: Scene, stream, sort: str | None, progress) -> WriteReport:
+    """The plain 3DGS layout; see :func:`write`."""
+    cols = scene.columns
+    refuse_time_varying(cols, "a 3DGS PLY")
+    n = scene.count
+    report = WriteReport(count=n)
+    static_basis = (_all_equal(cols["trbf_center"], model.STATIC_TRBF_CENTER)
+                    and _all_equal(cols["trbf_scale"], model.STATIC_TRBF_SCALE))
+    if n and not static_basis:
+        report.notes.append("trbf: temporal basis dropped (every splat is within half an alpha step of full "
+                            "opacity over the whole clip)")
+    order = _order(scene, sort)
+    stream.write(header_bytes(n, scene.cameras, "3dgs"))
+    block = np.zeros(min(BLOCK, max(n, 1)), dtype=GS_DTYPE)  # normals stay 0
+    with progress.stage("writing", n, "splat") as advance:
+        for start in range(0, n, BLOCK):
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            out = block[: stop - start]
+            for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION:
+                out[name] = np.asarray(cols[name])[rows]
+            for name in model.COLOR:
+                rgb = np.asarray(cols[name])[rows].astype(np.float64)
+                with np.errstate(over="ignore", invalid="ignore"):
+                    out[name] = (rgb - 0.5) / SH_C0
+            stream.write(memoryview(out).cast("B"))
+            advance(stop - start)
+    return report
+
+
+def _all_equal(column, value) -> bool:
+    """Whether every value of ``column`` is ``value`` (a constant column is checked at no cost)."""
+    column = np.asarray(column)
+    if column.ndim == 1 and column.strides[0] == 0:
+        column = column[:1]
+    return bool(np.all(column == value))
 
 
 def _lite_rows_of(scene: Scene):
@@ -321,3 +668,14 @@ def _lite_rows_of(scene: Scene):
     if normals.view(np.uint32).any():
         return None  # the writer writes zero normals (+0.0)
     return matrix.view(np.uint8)
+
+
+def info_fields(scene: Scene) -> dict:
+    """What ``info`` shows of a scene read from a PLY: encoding, colour reading, what was ignored."""
+    meta = scene.meta
+    return {
+        "ply_format": meta.get("format"),
+        "color": meta.get("color"),
+        "ignored_properties": meta.get("ignored_properties", []),
+        "extra_elements": meta.get("extra_elements", []),
+    }

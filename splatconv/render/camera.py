@@ -8,15 +8,17 @@ sees the same numbers.
 
 from __future__ import annotations
 
-import json
-import math
-
 from ..errors import UsageError
+from ..jsonutil import decode as decode_json
+from ..jsonutil import is_finite_number
 
 ZNEAR = 0.2
 ZFAR = 200.0
 #: Default largest preview width.
 MAX_DEFAULT_WIDTH = 1280
+#: Largest image side drawn: GL implementations guarantee 16,384 (llvmpipe's and
+#: most GPUs' limit); a larger framebuffer is "not complete".
+MAX_IMAGE_SIDE = 16384
 
 
 def projection_matrix(fx: float, fy: float, width: float, height: float) -> list:
@@ -62,23 +64,22 @@ def parse_view(text: str) -> list:
     UsageError
     """
     try:
-        values = json.loads(text)
-    except json.JSONDecodeError as e:
-        raise UsageError(f"--view: invalid JSON: {e.msg}") from None
-    if not (isinstance(values, list) and len(values) == 16 and all(
-            isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in values)):
+        values = decode_json(text)
+    except ValueError as e:
+        raise UsageError(f"--view: invalid JSON: {getattr(e, 'msg', e)}") from None
+    if not (isinstance(values, list) and len(values) == 16 and all(map(is_finite_number, values))):
         raise UsageError("--view: expected a JSON list of 16 finite numbers (a column-major view matrix)")
     return [float(v) for v in values]
 
 
 def parse_size(text: str) -> tuple:
-    """``WxH`` -> (W, H), both positive integers no larger than 16384."""
+    """``WxH`` -> (W, H), both positive integers no larger than :data:`MAX_IMAGE_SIDE`."""
     parts = text.lower().split("x")
-    if len(parts) != 2 or not all(p.isdigit() for p in parts):
+    if len(parts) != 2 or not all(p.isdigit() and len(p) < 12 for p in parts):
         raise UsageError(f"--size: expected WIDTHxHEIGHT, got {text!r}")
     w, h = int(parts[0]), int(parts[1])
-    if not (0 < w <= 16384 and 0 < h <= 16384):
-        raise UsageError(f"--size: {w}x{h} is outside 1..16384")
+    if not (0 < w <= MAX_IMAGE_SIDE and 0 < h <= MAX_IMAGE_SIDE):
+        raise UsageError(f"--size: {w}x{h} is outside 1..{MAX_IMAGE_SIDE}")
     return w, h
 
 
@@ -90,16 +91,21 @@ def fit(camera: dict, size: tuple | None = None, max_width: int = MAX_DEFAULT_WI
     camera : dict
         A ``cameras.json`` camera (``width``, ``height``, ``fx``, ``fy``).
     size : (int, int), optional
-        (width, height); default the camera's, scaled down to at most ``max_width``.
+        (width, height); default the camera's, scaled down to at most
+        ``max_width`` wide and :data:`MAX_IMAGE_SIDE` high.
 
     Returns
     -------
     (width, height, fx, fy) : (int, int, float, float)
+        Width and height are at most :data:`MAX_IMAGE_SIDE`.
     """
     w, h = int(camera["width"]), int(camera["height"])
     if size is None:
-        scale = min(1.0, max_width / w)
-        width, height = max(1, round(w * scale)), max(1, round(h * scale))
+        # A camera taller than the largest framebuffer is scaled down to fit too
+        # (fx, fy along), rather than failing in the GL driver.
+        scale = min(1.0, max_width / w, MAX_IMAGE_SIDE / h)
+        width = min(MAX_IMAGE_SIDE, max(1, round(w * scale)))
+        height = min(MAX_IMAGE_SIDE, max(1, round(h * scale)))
     else:
         # verify and diff compare what the camera saw, at whatever size: fx and fy scale
         # with the image rather than cropping its centre; with another aspect ratio the

@@ -1,7 +1,11 @@
-"""Library entry points behind the ``render`` command."""
+"""File-level entry points behind ``render`` and ``diff``: check the options, draw, write the output.
+
+``verify`` needs no more than :func:`splatconv.render.verify.verify`.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 
@@ -9,22 +13,23 @@ import numpy as np
 
 from ..errors import UsageError
 from ..fsutil import atomic_writer, check_output
+from ..progress import SILENT, Progress
 from . import camera as cam
+from . import diff as imgdiff
 from . import images
-from .frames import load, render_frames, resolve_view
+from .frames import Frame, cameras_of, load, render_frames, resolve_view
+from .verify import DEFAULT_MIN_PSNR, Outcome, check_min_psnr, diff_scenes
 
 
-#: ``diff``'s frames for two scene files: one quick frame (``verify`` draws more).
-DIFF_TIMES = (0.5,)
-DIFF_CAMERAS = "0"
-
-
-def render_file(input_path, output_path, *, time=0.5, camera=None, view=None, size=None, fx=None, fy=None,
-                frames=1, reference=False, color="auto", force=False) -> str:
-    """Render a scene file to an image file; returns a one-line summary.
+def render_file(input_path, output_path, *, time: float = 0.5, camera: int | None = None, view: str | None = None,
+                size: str | None = None, fx: float | None = None, fy: float | None = None, frames: int = 1,
+                reference: bool = False, color: str = "auto", force: bool = False,
+                progress: Progress = SILENT) -> str:
+    """Render a scene file to an image file; returns a one-line summary of what was written.
 
     Parameters mirror ``splatconv render``; ``view`` and ``size`` are the option
-    strings (a JSON list, ``WxH``).
+    strings (a JSON list, ``WxH``). ``size`` is each frame's size: a contact
+    sheet of several frames is larger, and the summary gives its size.
     """
     output_path = os.fspath(output_path)
     suffix = os.path.splitext(output_path)[1].lower()
@@ -41,54 +46,66 @@ def render_file(input_path, output_path, *, time=0.5, camera=None, view=None, si
         if value is not None and not (math.isfinite(value) and value > 0):
             raise UsageError(f"{name} must be a positive number")
     check_output(output_path, [input_path], force)
-    source = load(input_path, color=color, keep_scene=reference)
-    v = resolve_view(source, camera=camera, view=matrix, size=dims, fx=fx, fy=fy)
-    times = [time] if frames == 1 else list(np.linspace(0.0, 1.0, frames))
-    rendered, _stats = render_frames(source, v, times, reference=reference)
-    with atomic_writer(output_path) as stream:
-        images.save(rendered, times, stream, suffix)
-    what = f"{len(times)} frames" if len(times) > 1 else f"t={time:g}"
-    return f"wrote {output_path}: {v.width}x{v.height}, {what}"
+    with progress.stage("reading", 1, "file") as advance:
+        source = load(input_path, color=color)
+        advance()
+    v = resolve_view(cameras_of(source), camera=camera, view=matrix, size=dims, fx=fx, fy=fy, path=source.path)
+    times = [time] if frames == 1 else [float(t) for t in np.linspace(0.0, 1.0, frames)]
+    data = source.reference() if reference else source.texture()
+    del source
+    with contextlib.closing(render_frames(data, v, times, progress=progress)) as drawn:
+        del data
+        with atomic_writer(output_path) as stream:
+            width, height = images.save(drawn, times, stream, suffix)
+    if len(times) == 1:
+        return f"wrote {output_path}: {width}x{height}, t={time:g}"
+    if (width, height) != (v.width, v.height):
+        return (f"wrote {output_path}: {width}x{height} contact sheet of {len(times)} frames "
+                f"({v.width}x{v.height} each) over t=0..1")
+    return f"wrote {output_path}: {width}x{height}, {len(times)} frames over t=0..1"
 
 
-def diff_files(a, b, *, size=None, cameras=None, times=None, min_psnr=40.0, color="auto", out=None,
-               reference=False, force=False):
+def diff_files(a, b, *, size: str | None = None, cameras: str | None = None, times: str | None = None,
+               min_psnr: float = DEFAULT_MIN_PSNR, color: str = "auto", out=None, reference: bool = False,
+               force: bool = False, progress: Progress = SILENT) -> Outcome:
     """Compare two images, or two scene files drawn the same way; optionally write a heatmap.
 
     Scene files are drawn at ``times`` (default 0.5) from ``cameras`` (default
-    ``"0"``): one frame, unlike ``verify``'s five times from every camera. Two
-    images give one frame named by the two paths (no time or camera).
+    camera 0): one frame, unlike ``verify``'s five times from several cameras
+    (see :func:`splatconv.render.verify.diff_scenes`). Two images give one frame
+    named by the two paths (no time or camera). ``out`` receives a heatmap of
+    the worst frame; only that frame's images are kept while drawing.
 
     Returns
     -------
-    verify.Outcome
+    Outcome
     """
-    from . import diff as imgdiff
-    from .verify import DEFAULT_MIN_PSNR, Frame, Outcome, check_min_psnr, diff_scenes, parse_times
-
     a, b = os.fspath(a), os.fspath(b)
     min_psnr = check_min_psnr(DEFAULT_MIN_PSNR if min_psnr is None else min_psnr)
     if out is not None:
         if not os.fspath(out).lower().endswith(".png"):
             raise UsageError("--out must be a .png file", out)
         check_output(out, [a, b], force)
-    images = imgdiff.is_image(a), imgdiff.is_image(b)
-    if images[0] != images[1]:
+    kinds = imgdiff.is_image(a), imgdiff.is_image(b)
+    if kinds[0] != kinds[1]:
         raise UsageError("compare two images or two scene files, not one of each")
-    if images[0]:
+    worst = []
+    if kinds[0]:
         if size or cameras or times or reference:
             raise UsageError("--size, --cameras, --times and --reference apply to scene files, not images")
         ia, ib = imgdiff.load_image(a), imgdiff.load_image(b)
-        outcome = Outcome(min_psnr=min_psnr, paths=(a, b))
-        outcome.frames.append(Frame(0.0, 0, imgdiff.compare(ia, ib), (ia, ib), names=(a, b)))
+        outcome = Outcome("diff", (a, b), min_psnr)
+        outcome.frames.append(Frame(0.0, 0, imgdiff.compare(ia, ib), names=(a, b)))
+        worst.append((ia, ib))
     else:
-        outcome = diff_scenes(a, b, times=parse_times(times) if times else DIFF_TIMES,
-                              cameras=cameras or DIFF_CAMERAS, size=cam.parse_size(size) if size else None,
-                              min_psnr=min_psnr, color=color, reference=reference)
-    if out is not None:
-        worst = min(outcome.frames, key=lambda f: f.diff.psnr)
-        with atomic_writer(out) as stream:
-            from PIL import Image
+        def keep_worst(frame, ia, ib):
+            if not worst or frame.diff.psnr < worst[0][0]:
+                worst[:] = [(frame.diff.psnr, (ia, ib))]
 
-            Image.fromarray(imgdiff.heatmap(*worst.images), "RGB").save(stream, format="PNG")
+        outcome = diff_scenes(a, b, times=times, cameras=cameras, size=size, min_psnr=min_psnr, color=color,
+                              reference=reference, progress=progress, on_frame=keep_worst if out else None)
+        worst = [w[1] for w in worst]
+    if out is not None:
+        with atomic_writer(out) as stream:
+            imgdiff.save_png(imgdiff.heatmap(*worst[0]), stream)
     return outcome

@@ -7,6 +7,7 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+from PIL import Image, UnidentifiedImageError
 
 from ..errors import FormatError, UnsupportedError
 
@@ -24,8 +25,14 @@ class ImageDiff:
     share_off: float  # share of pixels with a channel off by more than the tolerance
     tolerance: int
 
+    @property
+    def identical(self) -> bool:
+        """The RGB channels are equal (PSNR is infinite)."""
+        return math.isinf(self.psnr)
+
     def as_dict(self) -> dict:
-        return {"psnr": None if math.isinf(self.psnr) else round(self.psnr, 3),
+        """JSON form: ``psnr`` is null for identical images (``identical`` says so), as JSON has no infinity."""
+        return {"psnr": None if self.identical else round(self.psnr, 3), "identical": self.identical,
                 "max_abs_error": self.max_abs_error, "mean_abs_error": round(self.mean_abs_error, 4),
                 "share_off": round(self.share_off, 6), "tolerance": self.tolerance}
 
@@ -68,12 +75,12 @@ IMAGE_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
 
 
 def is_image(path) -> bool:
+    """Whether ``path`` names an image file (by suffix) rather than a scene file."""
     return os.fspath(path).lower().endswith(IMAGE_SUFFIXES)
 
 
 def load_image(path) -> np.ndarray:
     """An image file as ``(H, W, 3) uint8`` RGB (alpha dropped, palette expanded)."""
-    from PIL import Image, UnidentifiedImageError
 
     path = os.fspath(path)
     try:
@@ -87,36 +94,5 @@ def load_image(path) -> np.ndarray:
 
 def save_png(img: np.ndarray, stream) -> None:
     """Write ``(H, W, 3+) uint8`` RGB to an open binary stream as PNG (use an atomic writer)."""
-    from PIL import Image
 
     Image.fromarray(np.ascontiguousarray(img[..., :3]), "RGB").save(stream, format="PNG")
-
-
-def _psnr(v) -> str:
-    return "inf" if v is None else f"{v:.2f}"
-
-
-def images_text(data: dict) -> str:
-    """The table of an image-vs-image ``diff`` (from ``Outcome.as_dict``): names, no time or camera.
-
-    Lives beside the comparison rather than in :mod:`splatconv.report` only because an image
-    pair has no scene to report on; the shape matches ``report.frames_text``.
-    """
-    rows = [(f["a"], f["b"], f) for f in data["frames"]]
-    wa = max([1] + [len(a) for a, _, _ in rows])
-    wb = max([1] + [len(b) for _, b, _ in rows])
-    lines = [f"{'A':<{wa}}  {'B':<{wb}}  {'PSNR dB':>8}  {'max err':>7}  {'mean err':>8}  {'pixels off':>10}"]
-    for a, b, f in rows:
-        lines.append(f"{a:<{wa}}  {b:<{wb}}  {_psnr(f['psnr']):>8}  {f['max_abs_error']:>7}  "
-                     f"{f['mean_abs_error']:>8.3f}  {100 * f['share_off']:>9.3f}%")
-    if rows:
-        lines.append(f"(errors out of 255; pixels off: a channel off by more than {rows[0][2]['tolerance']})")
-    return "\n".join(lines)
-
-
-def images_verdict_text(data: dict) -> str:
-    """The closing PASS / FAIL line of an image-vs-image ``diff``."""
-    bad = [f for f in data["frames"] if f["psnr"] is not None and f["psnr"] < data["min_psnr"]]
-    word, relation = ("FAIL", "below") if bad else ("PASS", "at or above")
-    w = data["worst"]
-    return f"{word}: {w['a']} vs {w['b']}: {_psnr(w['psnr'])} dB, {relation} {data['min_psnr']:g} dB"

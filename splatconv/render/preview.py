@@ -16,14 +16,12 @@ from importlib import resources
 
 import numpy as np
 
-from ..formats import splatv
+from ..formats.splatv_layout import SPLATS_PER_ROW, TEXWIDTH, WORDS_PER_SPLAT
 from . import camera as cam
 from .gl import create_context
+from .layout import FLOAT_SPLATS_PER_ROW, FLOAT_WORDS
 from .sort import viewer_order
 
-#: Float reference texture: 8 RGBA32F texels per splat, 512 splats per row.
-FLOAT_TEXELS = 8
-FLOAT_SPLATS_PER_ROW = splatv.TEXWIDTH // FLOAT_TEXELS
 _QUAD = np.array([-2, -2, 2, -2, 2, 2, -2, 2], dtype="f4")
 
 
@@ -33,8 +31,8 @@ def shader_source(name: str) -> str:
 
 
 def vertex_source(path: str) -> str:
-    """The vertex shader for ``path`` ``"splatv"`` (quantized texture) or ``"float"``."""
-    fetch = {"splatv": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
+    """The vertex shader for ``path`` ``"texture"`` (the stored, quantized texture) or ``"float"``."""
+    fetch = {"texture": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
     return "\n".join(shader_source(n) for n in ("splat_head.glsl", fetch, "splat_main.glsl"))
 
 
@@ -62,32 +60,6 @@ class FrameTimes:
     extra: dict = field(default_factory=dict)
 
 
-def float_attributes(scene, order=None) -> np.ndarray:
-    """Scene -> float reference texels: ``(N, 32) float32`` rows (8 RGBA texels).
-
-    Linear scales, exp(trbf_scale), colour clamped to [0, 1] and sigmoid(opacity),
-    computed in double and rounded once to float32.
-    """
-    c = scene.columns if order is None else scene.take(order)
-    n = len(c["x"])
-    f = np.zeros((n, 32), dtype=np.float32)
-
-    def d(name):
-        return np.asarray(c[name], dtype=np.float64)
-
-    with np.errstate(over="ignore", invalid="ignore"):
-        f[:, 0:3] = np.stack([c["x"], c["y"], c["z"]], axis=1)
-        f[:, 3] = c["trbf_center"]
-        f[:, 4:8] = np.stack([c[f"rot_{i}"] for i in range(4)], axis=1)
-        f[:, 8:11] = np.exp(np.stack([d(f"scale_{i}") for i in range(3)], axis=1))
-        f[:, 11] = np.exp(d("trbf_scale"))
-        f[:, 12:15] = np.clip(np.stack([d(f"f_dc_{i}") for i in range(3)], axis=1), 0.0, 1.0)
-        f[:, 15] = 1.0 / (1.0 + np.exp(-d("opacity")))
-        f[:, 16:25] = np.stack([c[f"motion_{i}"] for i in range(9)], axis=1)
-        f[:, 25:29] = np.stack([c[f"omega_{i}"] for i in range(4)], axis=1)
-    return f
-
-
 class Renderer:
     """Draws splat frames into an offscreen RGBA8 framebuffer.
 
@@ -105,41 +77,72 @@ class Renderer:
         self._mgl = moderngl
         self._own_ctx = ctx is None
         self.ctx = ctx or create_context()
-        self.width, self.height = width, height
         frag = shader_source("splat.frag")
         self._programs = {p: self.ctx.program(vertex_shader=vertex_source(p), fragment_shader=frag)
-                          for p in ("splatv", "float")}
+                          for p in ("texture", "float")}
         self._quad = self.ctx.buffer(_QUAD.tobytes())
         self._index = None
         self._texture = None
         self._path = None
         self._positions = None
         self._count = 0
+        #: The draw order of the last frame (splat indices, front to back).
+        self.last_order = None
+        self.fbo = None
+        self._resize(width, height)
+
+    def _resize(self, width: int, height: int) -> None:
+        if self.fbo is not None:
+            self.ctx.detect_framebuffer(0).use()  # see release()
+            for attachment in self.fbo.color_attachments:
+                attachment.release()
+            self.fbo.release()
+        self.width, self.height = width, height
         self.fbo = self.ctx.framebuffer(color_attachments=[self.ctx.renderbuffer((width, height), 4)])
+
+    def load(self, data: np.ndarray) -> float:
+        """Upload what to draw, by its dtype; returns seconds.
+
+        ``(R, 16) uint32`` is a ``.splatv`` texture (:meth:`load_records`),
+        ``(R, FLOAT_WORDS) float32`` float reference rows (:meth:`load_float`).
+        """
+        if data.dtype == np.uint32 and data.shape[1:] == (WORDS_PER_SPLAT,):
+            return self.load_records(data)
+        if data.dtype == np.float32 and data.shape[1:] == (FLOAT_WORDS,):
+            return self.load_float(data)
+        raise TypeError(f"cannot draw a {data.dtype} array of shape {data.shape}")
 
     def load_records(self, records: np.ndarray) -> float:
         """Upload a ``.splatv`` texture, ``(texheight * 1024, 16) uint32``; returns seconds.
 
-        Every record is drawn, padding included, as the viewer does.
+        Every record is drawn, padding included, as the viewer does. The array is
+        not kept (only a copy of the positions, for the depth sort).
         """
         t0 = _time.perf_counter()
         records = np.ascontiguousarray(records, dtype="<u4")
-        rows = len(records) // splatv.SPLATS_PER_ROW
-        self._set_texture((splatv.TEXWIDTH, rows), records, "u4")
-        self._positions = records[:, 0:3].view(np.float32)
+        rows = len(records) // SPLATS_PER_ROW
+        self._set_texture((TEXWIDTH, rows), records, "u4")
+        self._positions = records[:, 0:3].view(np.float32).copy()
         self._count = len(records)
-        self._path = "splatv"
+        self._path = "texture"
         return _time.perf_counter() - t0
 
     def load_float(self, texels: np.ndarray) -> float:
-        """Upload float reference attributes from :func:`float_attributes`; returns seconds."""
+        """Upload float reference rows from :func:`splatconv.render.layout.float_attributes`; returns seconds.
+
+        Every row is drawn (pad with zero rows to draw what the ``.splatv``
+        texture's padding adds). The array is not kept.
+        """
         t0 = _time.perf_counter()
         n = len(texels)
         rows = max(1, -(-n // FLOAT_SPLATS_PER_ROW))
-        padded = np.zeros((rows * FLOAT_SPLATS_PER_ROW, 32), dtype="f4")
-        padded[:n] = texels
-        self._set_texture((splatv.TEXWIDTH, rows), padded, "f4")
-        self._positions = padded[:n, 0:3]
+        if n == rows * FLOAT_SPLATS_PER_ROW and texels.dtype == np.dtype("<f4") and texels.flags.c_contiguous:
+            padded = texels  # whole rows already: upload without a copy
+        else:
+            padded = np.zeros((rows * FLOAT_SPLATS_PER_ROW, FLOAT_WORDS), dtype="<f4")
+            padded[:n] = texels
+        self._set_texture((TEXWIDTH, rows), padded, "f4")
+        self._positions = np.ascontiguousarray(texels[:, 0:3], dtype=np.float32)
         self._count = n
         self._path = "float"
         return _time.perf_counter() - t0
@@ -147,22 +150,31 @@ class Renderer:
     def _set_texture(self, size, data, dtype):
         if self._texture is not None:
             self._texture.release()
-        self._texture = self.ctx.texture(size, 4, data.tobytes(), dtype=dtype)
+        self._texture = self.ctx.texture(size, 4, memoryview(data).cast("B"), dtype=dtype)
         self._texture.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
         self._texture.repeat_x = self._texture.repeat_y = False
 
-    def draw(self, view: View, time: float, times: FrameTimes | None = None) -> np.ndarray:
+    @property
+    def positions(self) -> np.ndarray:
+        """Positions of the loaded records, ``(R, 3) float32``: what the depth sort reads."""
+        return self._positions
+
+    def draw(self, view: View, time: float, times: FrameTimes | None = None,
+             order: np.ndarray | None = None) -> np.ndarray:
         """Render one frame.
 
         Parameters
         ----------
         view : View
-            Its width and height set the projection and viewport uniforms; they
-            should equal the framebuffer size.
+            Its width and height set the projection, the viewport uniform and the
+            framebuffer size (the framebuffer is remade when they change).
         time : float
             Scene time (the viewer plays [0, 1]).
         times : FrameTimes, optional
             Filled with sort, upload and draw seconds.
+        order : (R,) int32 ndarray, optional
+            The draw order, when already known: ``viewer_order`` of the same
+            positions and view (another renderer's :attr:`last_order`).
 
         Returns
         -------
@@ -173,8 +185,11 @@ class Renderer:
             raise RuntimeError("nothing loaded")
         times = times if times is not None else FrameTimes()
         mgl = self._mgl
+        if (view.width, view.height) != (self.width, self.height):
+            self._resize(view.width, view.height)
         t0 = _time.perf_counter()
-        order = viewer_order(self._positions, view.view_proj())
+        order = viewer_order(self._positions, view.view_proj()) if order is None else order
+        self.last_order = order
         t1 = _time.perf_counter()
         if self._index is None or self._index.size != order.nbytes:
             if self._index is not None:
@@ -189,7 +204,7 @@ class Renderer:
         prog["viewport"].value = (view.width, view.height)
         prog["time"].value = time
         self._texture.use(0)
-        sampler = "u_texture" if self._path == "splatv" else "u_ftexture"
+        sampler = "u_texture" if self._path == "texture" else "u_ftexture"
         prog[sampler].value = 0
         self.ctx.finish()
         t2 = _time.perf_counter()
@@ -213,7 +228,8 @@ class Renderer:
         # Rebind the default framebuffer first: moderngl restores the last bound one
         # when it makes the next framebuffer, and a deleted one is a GL error.
         self.ctx.detect_framebuffer(0).use()
-        for obj in (self._index, self._texture, self._quad, self.fbo, *self._programs.values()):
+        for obj in (self._index, self._texture, self._quad, *self.fbo.color_attachments, self.fbo,
+                    *self._programs.values()):
             if obj is not None:
                 obj.release()
         if self._own_ctx:

@@ -1,9 +1,13 @@
-"""``verify`` and ``diff``: prove a conversion by structure and by pixels.
+"""``verify`` and ``diff``: prove a conversion by attributes and by pixels.
 
-``verify`` draws SOURCE through the float reference path (its attributes as float32,
-no quantization) and CONVERTED as stored (a .splatv texture; a PLY's attributes),
-with the same cameras, times and splat order, and compares the frames. Before
-drawing it checks that every attribute differs only by what quantization explains.
+``verify`` checks that every attribute of CONVERTED differs from SOURCE only by
+what quantization explains, then draws SOURCE through the float reference path
+(its attributes as float32, no quantization) and CONVERTED as stored (a stored
+texture as the viewer gets it; other files' attributes), with the same cameras,
+times and splat order, and compares the frames. ``diff`` draws two scene files
+the same way (both as the viewer would get them, or both unquantized) and
+compares the frames. Both return an :class:`Outcome` (data; text and JSON are
+:mod:`splatconv.report`'s).
 """
 
 from __future__ import annotations
@@ -12,26 +16,31 @@ import math
 import os
 from dataclasses import dataclass, field
 
-import numpy as np
-
-from .. import read as read_scene
-from ..cameras import framing_camera
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
-from ..formats import format_for, splatv
 from ..fsutil import atomic_writer, check_output
+from ..progress import SILENT, Progress
 from . import camera as cam
 from . import diff as imgdiff
-from .preview import FLOAT_SPLATS_PER_ROW, Renderer, View, float_attributes
+from .frames import Frame, cameras_of, compare_frames, frame_views, load
+from .layout import float_attributes
 
+#: Version of the JSON that :meth:`Outcome.as_dict` gives (``"schema": "splatconv.verify/1"``).
+SCHEMA_VERSION = 1
 DEFAULT_TIMES = (0.0, 0.25, 0.5, 0.75, 1.0)
 DEFAULT_MIN_PSNR = 40.0
-#: verify's default image width: big enough to see damage, quick on a CPU.
+#: verify draws this many cameras (the first ones) unless ``--cameras`` says otherwise:
+#: a header may list hundreds of thousands.
+DEFAULT_CAMERAS = 8
+#: verify's and diff's default image width: big enough to see damage, quick on a CPU.
 VERIFY_MAX_WIDTH = 640
+#: diff's frames for two scene files: one quick frame, t = 0.5 from camera 0.
+DIFF_TIMES = (0.5,)
+DIFF_CAMERAS = 1
 
 
 def parse_times(text: str) -> list:
-    """``--times`` value: comma-separated numbers."""
+    """``--times`` value: comma-separated finite numbers."""
     try:
         times = [float(t) for t in text.split(",") if t.strip()]
     except ValueError:
@@ -48,8 +57,10 @@ def check_min_psnr(min_psnr: float) -> float:
     return float(min_psnr)
 
 
-def parse_cameras(text: str, available: int) -> list:
-    """``--cameras`` value: ``all`` or comma-separated indices."""
+def parse_cameras(text: str | None, available: int, first: int = DEFAULT_CAMERAS) -> list:
+    """``--cameras`` value: ``all``, comma-separated indices, or None for the first ``first``."""
+    if text is None:
+        return list(range(min(first, available)))
     if text == "all":
         return list(range(available))
     try:
@@ -58,60 +69,40 @@ def parse_cameras(text: str, available: int) -> list:
         raise UsageError(f"--cameras: expected 'all' or comma-separated indices, got {text!r}") from None
     bad = [c for c in picked if not 0 <= c < available]
     if bad:
-        raise UsageError(f"--cameras: no camera {bad[0]}; there are {available} (0..{available - 1})")
+        raise UsageError(f"--cameras: no camera {bad[0]}; there are {available:,} (0..{available - 1})")
     return picked
 
 
-def frame_views(cameras: list, indices: list, size, max_width: int = VERIFY_MAX_WIDTH) -> list:
-    """(camera index, View) for each chosen camera; default size scaled to max_width.
-
-    fx and fy scale with the size, as in ``render`` (see :func:`camera.fit`).
-    """
-    views = []
-    for i in indices:
-        w, h, fx, fy = cam.fit(cameras[i], size, max_width)
-        views.append((i, View(cam.view_matrix(cameras[i]), fx, fy, w, h)))
-    return views
-
-
-def _float_texels_padded(scene, order, records: int) -> np.ndarray:
-    """Float reference rows in the given order, padded with zero rows to ``records``.
-
-    Zero rows stand for the texture's zero padding, which the viewer also sorts, so
-    both paths see the same depth range and draw in the same order.
-    """
-    rows = float_attributes(scene, order)
-    if records > len(rows):
-        rows = np.concatenate([rows, np.zeros((records - len(rows), rows.shape[1]), np.float32)])
-    return rows
-
-
-@dataclass
-class Frame:
-    """One compared pair: a scene frame (time, camera) or, with ``names``, two image files."""
-
-    time: float
-    camera: int
-    diff: imgdiff.ImageDiff
-    images: tuple = ()
-    names: tuple = ()
-
-    def where(self) -> dict:
-        """What was compared: ``{"a", "b"}`` image paths, or ``{"time", "camera"}``."""
-        if self.names:
-            return {"a": self.names[0], "b": self.names[1]}
-        return {"time": self.time, "camera": self.camera}
+def _times(times, default) -> list:
+    if times is None:
+        return list(default)
+    if isinstance(times, str):
+        return parse_times(times)
+    return [float(t) for t in times]
 
 
 @dataclass
 class Outcome:
-    """Everything ``verify`` or ``diff`` found, as data."""
+    """Everything ``verify`` or ``diff`` found, as data.
 
-    frames: list = field(default_factory=list)
-    structure: dict = field(default_factory=dict)
-    min_psnr: float = DEFAULT_MIN_PSNR
-    count: int = 0
+    Attributes
+    ----------
+    command : {"verify", "diff"}
+    attributes : dict of str to compare.GroupError, or None
+        verify's attribute check, by group; None for diff.
+    count : int or None
+        Splats compared (verify).
+    notes : list of str
+        What was drawn that a user may not expect (fewer cameras than the file has).
+    """
+
+    command: str
     paths: tuple = ()
+    min_psnr: float = DEFAULT_MIN_PSNR
+    frames: list = field(default_factory=list)
+    attributes: dict | None = None
+    count: int | None = None
+    notes: list = field(default_factory=list)
 
     @property
     def failing_frames(self) -> list:
@@ -119,120 +110,143 @@ class Outcome:
 
     @property
     def drifted(self) -> list:
-        return [g for g in self.structure.values() if g.unexplained]
+        return [g for g in (self.attributes or {}).values() if g.unexplained]
 
     @property
     def passed(self) -> bool:
         return not self.failing_frames and not self.drifted
 
+    @property
+    def worst(self) -> Frame | None:
+        """The frame of lowest PSNR (the first of equals)."""
+        return min(self.frames, key=lambda f: f.diff.psnr) if self.frames else None
+
     def as_dict(self) -> dict:
-        worst = min(self.frames, key=lambda f: f.diff.psnr) if self.frames else None
-        return {
-            "paths": list(self.paths),
-            "count": self.count,
-            "min_psnr": self.min_psnr,
-            "passed": self.passed,
-            "structure": {g.group: {"max_abs_error": g.max_abs_error, "max_rel_error": g.max_rel_error,
-                                    "rmse": g.rmse, "unexplained": g.unexplained, "compared": g.compared,
-                                    "ok": not g.unexplained} for g in self.structure.values()},
-            "frames": [{**f.where(), **f.diff.as_dict()} for f in self.frames],
-            "worst": None if worst is None else {**worst.where(), **worst.diff.as_dict()},
-        }
+        """The JSON form (``specs/json.md``): a ``schema`` key first, then the findings."""
+        out = {"schema": f"splatconv.{self.command}/{SCHEMA_VERSION}", "paths": list(self.paths)}
+        if self.count is not None:
+            out["count"] = self.count
+        out["min_psnr"] = self.min_psnr
+        out["passed"] = self.passed
+        if self.attributes is not None:
+            out["attributes"] = {g.group: {
+                "max_abs_error": g.max_abs_error, "max_rel_error": g.max_rel_error, "rmse": g.rmse,
+                "unexplained": g.unexplained, "became_infinite": g.became_infinite,
+                "nonfinite_changed": g.nonfinite_changed, "nan_stored": g.nan_stored,
+                "compared": g.compared, "values": g.values, "ok": not g.unexplained,
+            } for g in self.attributes.values()}
+        worst = self.worst
+        out["frames"] = [{**f.where(), **f.diff.as_dict()} for f in self.frames]
+        out["worst"] = None if worst is None else {**worst.where(), **worst.diff.as_dict()}
+        out["notes"] = list(self.notes)
+        return out
 
 
-def _read(path: str, color: str):
-    """A scene, plus its texture when it is a .splatv (drawn as stored); one read."""
-    if format_for(path) is splatv:
-        from .frames import splatv_texture
-
-        padded, scene = splatv_texture(path)
-        return scene, padded
-    return read_scene(path, color=color), None
-
-
-def verify(source_path, converted_path, *, times=DEFAULT_TIMES, cameras="all", size=None,
-           min_psnr=DEFAULT_MIN_PSNR, tolerance=imgdiff.TOLERANCE, color="auto", keep_images=False,
-           report_dir=None, force=False) -> Outcome:
+def verify(source_path, converted_path, *, times=None, cameras: str | None = None, size=None,
+           min_psnr: float = DEFAULT_MIN_PSNR, tolerance: int = imgdiff.TOLERANCE, color: str = "auto",
+           report_dir=None, force: bool = False, progress: Progress = SILENT) -> Outcome:
     """Check CONVERTED against SOURCE by attributes and by rendered frames.
 
     Parameters
     ----------
+    times : sequence of float or str, optional
+        Scene times (default :data:`DEFAULT_TIMES`); a string is ``--times``.
+    cameras : str, optional
+        ``"all"`` or comma-separated indices; default the first
+        :data:`DEFAULT_CAMERAS` (a note says so when the file has more).
+    size : (int, int) or str, optional
+        Image size; default each camera's, scaled down to :data:`VERIFY_MAX_WIDTH`.
     report_dir : path, optional
-        Write each frame's images there (:func:`write_report_dir`). Checked before
-        anything is drawn: an existing report file is an error unless ``force``.
+        Save each frame's images there as it is drawn (:func:`report_files`).
+        Checked before anything is drawn: an existing report file is an error
+        unless ``force``.
+    progress : Progress
+        Receives the stages "reading", "checking attributes" and "drawing".
 
     Returns
     -------
     Outcome
         ``passed`` is False when any frame is below ``min_psnr`` or any attribute
-        drifted past what quantization explains.
+        drifted past what quantization explains. No image is kept: memory does
+        not grow with the number of frames.
     """
     min_psnr = check_min_psnr(min_psnr)
-    source_path, converted_path = os.fspath(source_path), os.fspath(converted_path)
-    source, _ = _read(source_path, color)
-    converted, records = _read(converted_path, color)
-    order = align(source, converted, source_path, converted_path)
-    outcome = Outcome(min_psnr=min_psnr, count=source.count, paths=(source_path, converted_path))
-    outcome.structure = compare_scenes(source, converted, order)
+    times = _times(times, DEFAULT_TIMES)
+    size = cam.parse_size(size) if isinstance(size, str) else size
+    paths = os.fspath(source_path), os.fspath(converted_path)
+    with progress.stage("reading", 2, "file") as advance:
+        source = load(paths[0], color=color)
+        advance()
+        converted = load(paths[1], color=color)
+        advance()
+    with progress.stage("checking attributes", 2, "step") as advance:
+        order = align(source.scene, converted.scene, *paths)
+        advance()
+        attributes = compare_scenes(source.scene, converted.scene, order)
+        advance()
+    available = cameras_of(source, converted)
+    indices = parse_cameras(cameras, len(available))
+    outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=source.scene.count)
+    if cameras is None and len(available) > len(indices):
+        outcome.notes.append(f"drew the first {len(indices)} of {len(available):,} cameras "
+                             f"(--cameras all draws every one)")
+    views = frame_views(available, indices, size, VERIFY_MAX_WIDTH)
+    on_frame = None
+    if report_dir is not None:
+        check_report_dir(report_dir, [(i, t) for i, _ in views for t in times], paths, force)
 
-    cams = source.cameras or converted.cameras or [framing_camera(source.columns["x"], source.columns["y"],
-                                                                  source.columns["z"])]
-    views = frame_views(cams, parse_cameras(cameras, len(cams)) if isinstance(cameras, str) else cameras, size)
-    if report_dir is not None:
-        check_report_dir(report_dir, [(i, float(t)) for i, _ in views for t in times],
-                         (source_path, converted_path), force)
-        keep_images = True
-    n_records = len(records) if records is not None else splatv.texture_height(source.count) * 1024
-    src_rows = _float_texels_padded(source, order, n_records)
-    conv_rows = None if records is not None else _float_texels_padded(converted, None, n_records)
-    for index, view in views:
-        a = Renderer(view.width, view.height)
-        b = Renderer(view.width, view.height, ctx=a.ctx)
-        try:
-            a.load_float(src_rows)
-            b.load_records(records) if records is not None else b.load_float(conv_rows)
-            for t in times:
-                ia, ib = a.draw(view, float(t)), b.draw(view, float(t))
-                d = imgdiff.compare(ia, ib, tolerance)
-                outcome.frames.append(Frame(float(t), index, d, (ia, ib) if keep_images else ()))
-        finally:
-            b.release()
-            a.release()
-    if report_dir is not None:
-        write_report_dir(outcome, report_dir, force)
+        def on_frame(frame, a, b):
+            save_report_frame(report_dir, frame, a, b, paths, force)
+
+    records = converted.records
+
+    # Each callable drops its scene once the rows are built: nothing but the GL
+    # textures is needed while drawing, so the scenes' memory goes back first.
+    def source_data():
+        nonlocal source
+        rows = float_attributes(source.scene, order, records)
+        source = None
+        return rows
+
+    def converted_data():
+        nonlocal converted
+        data = converted.stored if converted.stored is not None else float_attributes(converted.scene, None, records)
+        converted = None
+        return data
+
+    outcome.frames = compare_frames(source_data, converted_data, views, times, tolerance=tolerance,
+                                    progress=progress, on_frame=on_frame)
     return outcome
 
 
-def diff_scenes(path_a, path_b, *, times=(0.5,), cameras="0", size=None, min_psnr=DEFAULT_MIN_PSNR,
-                tolerance=imgdiff.TOLERANCE, color="auto", reference=False) -> Outcome:
-    """Draw two scene files the same way and compare the frames (no structure check)."""
-    from .frames import load
+def diff_scenes(path_a, path_b, *, times=None, cameras: str | None = None, size=None,
+                min_psnr: float = DEFAULT_MIN_PSNR, tolerance: int = imgdiff.TOLERANCE, color: str = "auto",
+                reference: bool = False, progress: Progress = SILENT, on_frame=None) -> Outcome:
+    """Draw two scene files the same way and compare the frames (no attribute check).
 
+    Each is drawn as the viewer would get it (a stored texture, or the scene
+    packed as ``convert`` writes it) or, with ``reference``, unquantized; at
+    ``times`` (default :data:`DIFF_TIMES`) from ``cameras`` (default camera 0).
+    ``on_frame(frame, image_a, image_b)`` sees each pair as it is drawn.
+    """
     min_psnr = check_min_psnr(min_psnr)
-
-    a_src = load(path_a, color=color, keep_scene=reference)
-    b_src = load(path_b, color=color, keep_scene=reference)
-    cams = a_src.cameras or b_src.cameras
-    if not cams:
-        x, y, z = (a_src.records[:, i].view(np.float32) for i in range(3))
-        cams = [framing_camera(x, y, z)]
-    views = frame_views(cams, parse_cameras(cameras, len(cams)), size)
-    outcome = Outcome(min_psnr=min_psnr, paths=(os.fspath(path_a), os.fspath(path_b)))
-    for index, view in views:
-        ra = Renderer(view.width, view.height)
-        rb = Renderer(view.width, view.height, ctx=ra.ctx)
-        try:
-            for r, s in ((ra, a_src), (rb, b_src)):
-                if reference:
-                    r.load_float(_float_texels_padded(s.scene, s.order, len(s.records)))
-                else:
-                    r.load_records(s.records)
-            for t in times:
-                ia, ib = ra.draw(view, float(t)), rb.draw(view, float(t))
-                outcome.frames.append(Frame(float(t), index, imgdiff.compare(ia, ib, tolerance), (ia, ib)))
-        finally:
-            rb.release()
-            ra.release()
+    times = _times(times, DIFF_TIMES)
+    size = cam.parse_size(size) if isinstance(size, str) else size
+    paths = os.fspath(path_a), os.fspath(path_b)
+    with progress.stage("reading", 2, "file") as advance:
+        a = load(paths[0], color=color)
+        advance()
+        b = load(paths[1], color=color)
+        advance()
+    available = cameras_of(a, b)
+    views = frame_views(available, parse_cameras(cameras, len(available), DIFF_CAMERAS), size, VERIFY_MAX_WIDTH)
+    outcome = Outcome("diff", paths, min_psnr)
+    if reference:
+        data_a, data_b = a.reference, b.reference
+    else:
+        data_a, data_b = a.texture, b.texture
+    outcome.frames = compare_frames(data_a, data_b, views, times, tolerance=tolerance, progress=progress,
+                                    on_frame=on_frame)
     return outcome
 
 
@@ -279,27 +293,18 @@ def check_report_dir(directory, frames, inputs=(), force: bool = False) -> None:
                 check_output(path, inputs, force)
 
 
-def write_report_dir(outcome: Outcome, directory, force: bool = False) -> list:
-    """Save each frame's two images, heatmap and side-by-side; returns the paths.
+def save_report_frame(directory, frame: Frame, a, b, inputs=(), force: bool = False) -> list:
+    """Save one frame's two images, heatmap and side-by-side picture; returns the paths.
 
-    Each file is written atomically. Existing files are replaced only with
-    ``force``; none is written when any would be refused.
+    Each file is written atomically; an existing one is replaced only with ``force``.
     """
-    directory = os.fspath(directory)
-    frames = [f for f in outcome.frames if f.images]
-    check_report_dir(directory, [(f.camera, f.time) for f in frames], outcome.paths, force)
-    os.makedirs(directory, exist_ok=True)
+    os.makedirs(os.fspath(directory), exist_ok=True)
+    heat = imgdiff.heatmap(a, b)
     written = []
-    for f in frames:
-        a, b = f.images
-        heat = imgdiff.heatmap(a, b)
-        images = (a, b, heat, imgdiff.side_by_side(a, b, heat))
-        for path, img in zip(report_files(directory, f.camera, f.time), images):
-            with atomic_writer(path) as stream:
-                imgdiff.save_png(img, stream)
-            written.append(path)
+    for path, img in zip(report_files(directory, frame.camera, frame.time),
+                         (a, b, heat, imgdiff.side_by_side(a, b, heat))):
+        check_output(path, inputs, force)
+        with atomic_writer(path) as stream:
+            imgdiff.save_png(img, stream)
+        written.append(path)
     return written
-
-
-__all__ = ["verify", "diff_scenes", "write_report_dir", "check_report_dir", "report_files", "parse_times",
-           "parse_cameras", "check_min_psnr", "FLOAT_SPLATS_PER_ROW"]

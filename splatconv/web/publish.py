@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from urllib.parse import quote
 
 from ..errors import UsageError
-from ..fsutil import atomic_writer, check_output
+from ..fsutil import atomic_group, check_output
 from .page import SceneRef, build_page
 from .scenes import splatv_bytes
 
@@ -58,18 +58,20 @@ def publish(inputs, output, *, external: bool = False, force: bool = False) -> P
         raise UsageError("output names collide", output)
     report = PublishReport()
     refs = []
-    for path, name in zip(inputs, names):
-        data, notes = splatv_bytes(path)
-        report.notes.extend(f"{path}: {n}" for n in notes)
-        if external:
-            with atomic_writer(name) as stream:
-                stream.write(data)
-            report.written.append((name, len(data)))
-            refs.append(SceneRef(name=os.path.basename(path), url=quote(os.path.basename(name))))
-        else:
-            refs.append(SceneRef(name=os.path.basename(path), data=data))
-    page = build_page(refs, title=os.path.basename(stem))
-    with atomic_writer(output) as stream:
-        stream.write(page)
+    # All files or none: a page never points at a scene file that was not written.
+    with atomic_group(replace=force) as group:
+        for path, name in zip(inputs, names):
+            data, notes = splatv_bytes(path)
+            report.notes.extend(f"{path}: {n}" for n in notes)
+            if external:
+                with group.open(name) as stream:
+                    stream.write(data)
+                report.written.append((name, len(data)))
+                refs.append(SceneRef(name=os.path.basename(path), url=quote(os.path.basename(name))))
+            else:
+                refs.append(SceneRef(name=os.path.basename(path), data=data))
+        page = build_page(refs, title=os.path.basename(stem))
+        with group.open(output) as stream:
+            stream.write(page)
     report.written.insert(0, (output, len(page)))
     return report

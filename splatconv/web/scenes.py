@@ -5,35 +5,32 @@ from __future__ import annotations
 import io
 import os
 
-from .. import read as read_scene
 from ..errors import UnsupportedError
 from ..formats import format_for, splatv
+from ..io import read as read_scene
 from ..fsutil import open_input
 from ..transport import is_compressed, plain_input
 
 
-def check_splatv(path: str | os.PathLike) -> int:
-    """Check a plain ``.splatv`` file's header the way the player will; returns its size in bytes.
+def check_splatv(path: str | os.PathLike) -> None:
+    """Check a plain ``.splatv`` file as every command reads it (header, splat chunk, cameras).
 
     Raises
     ------
     FormatError
-        For a file the page could not read (not .splatv, damaged header, no splat chunk).
+        For a file the page could not play: not .splatv, a damaged header, no splat chunk.
     """
-    path = os.fspath(path)
-    with open_input(path) as f:
-        size = os.fstat(f.fileno()).st_size
-        chunks, _offset = splatv.read_header(f, path, size)
-    if not any(c["type"] == "splat" for c in chunks):
-        from ..errors import FormatError
+    splatv.read_records(path)
 
-        raise FormatError("header has no 'splat' chunk", path)
-    return size
+
+def stores_texture(path: str | os.PathLike) -> bool:
+    """True for a file that holds the viewer's texture itself (``.splatv``, maybe ``.zst``): the page plays its bytes."""
+    return bool(getattr(format_for(path, purpose="read"), "STORES_TEXTURE", False))
 
 
 def is_plain_splatv(path: str | os.PathLike) -> bool:
-    """True for an uncompressed ``.splatv`` file, which the player can fetch as it is."""
-    return format_for(path) is splatv and not is_compressed(path)
+    """True for an uncompressed file holding the viewer's texture, which the player can fetch as it is."""
+    return stores_texture(path) and not is_compressed(path)
 
 
 def splatv_bytes(path: str | os.PathLike) -> tuple[bytes, list]:
@@ -48,8 +45,9 @@ def splatv_bytes(path: str | os.PathLike) -> tuple[bytes, list]:
     notes : list of str
     """
     path = os.fspath(path)
-    if format_for(path) is splatv:
-        with plain_input(path) as plain:
+    module = format_for(path, purpose="read")
+    if getattr(module, "STORES_TEXTURE", False):
+        with plain_input(path, declared_size=getattr(module, "declared_size", None)) as plain:
             check_splatv(plain)
             with open_input(plain) as f:
                 return f.read(), []
@@ -57,5 +55,5 @@ def splatv_bytes(path: str | os.PathLike) -> tuple[bytes, list]:
     if scene.count == 0:
         raise UnsupportedError("holds no splats to show", path)
     buffer = io.BytesIO()
-    report = splatv.write(scene, buffer)
+    report = splatv.write(scene, buffer, sort=splatv.DEFAULT_SORT)
     return buffer.getvalue(), list(scene.notes) + list(report.notes)

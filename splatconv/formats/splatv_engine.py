@@ -1,34 +1,28 @@
 """The ``.splatv`` writer's engine: records packed a block of rows at a time, by threads.
 
-:mod:`splatconv.formats.splatv` says what a record holds; this module makes a
-million of them, sorted, in well under a fifth of a second on two cores with
-numpy alone (``bench/bench_convert.py``). What that takes, measured on the
-machines this was built on:
+:mod:`splatconv.formats.splatv_layout` says what a record holds; this module
+makes the records, sorted, fast (``bench/bench_convert.py`` measures it; the
+measurements behind each choice are in ``bench/README.md``). What a reader
+needs to change it:
 
-* Work in the record's own layout. A block of input rows is copied, a few
-  runs of adjacent fields at a time, into a working block ``W`` of float32
-  columns, one per half slot of the record from word 3 on (26 a row). One flat
-  float -> half conversion of ``W`` gives the record's last 52 bytes as they
-  are stored, copied in one item a row; the position words come straight from
-  the input and the colour word is made beside. No transposes, no
-  per-attribute strided stores.
-* Few, long numpy calls. A call costs about a microsecond however short, and
-  threads hand the GIL over at every call (dear on a virtual machine, where
-  waking the other CPU takes longer than a short call), so blocks are large;
-  the half conversion runs on groups of rows small enough to stay in cache.
-  Even so two threads pack only about 1.3 times as fast as one: numpy gives
-  the GIL up only inside its loops. (Two forked processes were tried too:
-  about 10% faster, not worth forking inside a library call.)
-* Reuse memory. Fresh pages cost a fault each (and a virtual machine's host
-  may fault again behind it): working arrays belong to a thread and are reused
-  block after block, and output blocks come from a ring.
+* Work in the record's own layout. A block of input rows is copied, a few runs
+  of adjacent fields at a time, into a working block ``W`` of float32 columns,
+  one per half slot of the record from word 3 on (26 a row). One flat float ->
+  half conversion of ``W`` gives the record's last 52 bytes as stored; the
+  position words come straight from the input, the colour word is made beside.
+* Few, long numpy calls: threads hand the GIL over at every call, so blocks are
+  large; the half conversion runs on groups of rows small enough for a cache.
+* Reuse memory: working arrays (:class:`Scratch`) belong to a thread and are
+  reused block after block; output blocks come from a ring.
 * Exponentials on contiguous values only, so that every row gets numpy's same
   SIMD ``exp`` (a strided loop may use another implementation, whose last bit
-  can differ).
+  can differ): the byte-identical mode depends on it.
 
 Sorted output takes two passes: one in input order for the importance key,
 then, after the sort, one in output order that gathers each block's rows from
-the input, packs them and hands them to the writing thread.
+the input, packs them and hands them to the writing thread. Drivers:
+:class:`Plan` with :func:`helpers`, :func:`prepare`, then :func:`blocks` (a
+stream) or :func:`into` (an array).
 """
 
 from __future__ import annotations
@@ -44,8 +38,9 @@ import numpy as np
 from .. import packing
 from ..cameras import camera_for_box, framing_box
 from ..model import COLUMNS, row_fields
-from .splatv import (COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, POSITION_WORDS, WORDS_PER_SPLAT, WriteReport,
-                     _importance_order, importance)
+from ..viewer import importance, importance_order_into
+from .base import WriteReport
+from .splatv_layout import COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, LOG_OF_HALF, POSITION_WORDS, WORDS_PER_SPLAT
 
 #: Rows packed at a time: long numpy calls, few GIL hand-overs.
 BLOCK = 1 << 14
@@ -136,7 +131,7 @@ def _copy_runs(dst: np.ndarray, src: np.ndarray, runs) -> None:
             np.copyto(dst[:, d:d + k].view(item)[:, 0], src[:, s:s + k].view(item)[:, 0])
 
 
-class _Source:
+class RowSource:
     """Blocks of a scene's rows as ``(M, F)`` float32 arrays, and where each attribute is in them.
 
     When every column is a float32 field of one row-major buffer (a
@@ -169,7 +164,7 @@ class _Source:
         """Whether blocks come from one row buffer (see the class docstring)."""
         return self.matrix is not None
 
-    def block(self, rows, scratch: "_Scratch") -> np.ndarray:
+    def block(self, rows, scratch: "Scratch") -> np.ndarray:
         """The rows ``rows`` (a slice, or an ``(M,)`` index array): ``(M, F)`` float32."""
         if self.matrix is not None:
             if isinstance(rows, slice):
@@ -190,7 +185,7 @@ class _Source:
         return self.columns[COLUMNS.index(name)][rows]
 
 
-class _Scratch:
+class Scratch:
     """Working arrays reused block after block (for one thread).
 
     Temporaries of a few hundred kilobytes or more go through mmap and back on
@@ -219,12 +214,12 @@ class _Scratch:
 # Packing one block
 
 
-def pack(source: _Source, rows, out: np.ndarray, compat: bool, counts: WriteReport, scratch: _Scratch) -> None:
+def pack_rows(source: RowSource, rows, out: np.ndarray, compat: bool, counts: WriteReport, scratch: Scratch) -> None:
     """Pack the records of some rows.
 
     Parameters
     ----------
-    source : _Source
+    source : RowSource
     rows : slice or (M,) intp ndarray
         The rows, in output order.
     out : (M, 16) uint32 ndarray, C-contiguous
@@ -233,7 +228,7 @@ def pack(source: _Source, rows, out: np.ndarray, compat: bool, counts: WriteRepo
         Model splaTV's JavaScript converter bit for bit instead of rounding.
     counts : WriteReport
         Counts are added to it (from :func:`new_counts`).
-    scratch : _Scratch
+    scratch : Scratch
     """
     block = source.block(rows, scratch)
     m = len(block)
@@ -271,13 +266,13 @@ def pack(source: _Source, rows, out: np.ndarray, compat: bool, counts: WriteRepo
         position = out[:, :len(_POSITIONS)]
         nan = np.isnan(position.view(np.float32))
         if nan.any():
-            position[nan] |= np.uint32(0x00400000)
+            position[nan] |= np.uint32(packing.F32_QUIET_BIT)
 
     _colour(rgba, wide[:, 0], out, compat, counts, scratch)
 
 
 def _halves(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, compat: bool, counts: WriteReport,
-            scratch: _Scratch) -> None:
+            scratch: Scratch) -> None:
     """Half bits of the working block, exact where the fast path says it is not.
 
     Parameters
@@ -326,6 +321,12 @@ def _exceptions(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, listed: 
     if not compat and len(nan_at):
         half[nan_at] = packing.float_to_half_exact(nan_logs)[0]
     halves[rows, cols] = half
+    # A logarithm that reads back as itself lost nothing, though exp() of it
+    # rounds past the half range: exp(log 65504) is 65504.000000000015.
+    at = at[~nan]
+    if len(at):
+        same = LOG_OF_HALF[half[at]].view(np.uint32) == logs[rows[at], _LOG_INDEX[cols[at]]].view(np.uint32)
+        overflow[at[same]] = False
     for what, mask in (("overflow", overflow), ("underflow", underflow), ("nonfinite", nonfinite)):
         per_column = np.bincount(cols[mask], minlength=_WIDTH)
         for col in np.flatnonzero(per_column):
@@ -334,7 +335,7 @@ def _exceptions(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, listed: 
 
 
 def _colour(rgba: np.ndarray, exp_neg_opacity: np.ndarray, out: np.ndarray, compat: bool, counts: WriteReport,
-            scratch: _Scratch) -> None:
+            scratch: Scratch) -> None:
     """The colour word: RGB x255 and sigmoid(opacity) x255, clamped, then rounded or truncated.
 
     Parameters
@@ -386,15 +387,15 @@ class Plan:
         self.compat = compat
         self.sorted = (sort or "importance") != "none"
         self.columns = scene.columns
-        self.source = _Source(scene.columns)
+        self.source = RowSource(scene.columns)
         self.order = None
         self.local = threading.local()
 
-    def scratch(self) -> _Scratch:
+    def scratch(self) -> Scratch:
         """This thread's working arrays."""
         scratch = getattr(self.local, "scratch", None)
         if scratch is None:
-            scratch = self.local.scratch = _Scratch()
+            scratch = self.local.scratch = Scratch()
         return scratch
 
     def frame(self) -> dict:
@@ -422,7 +423,7 @@ class Plan:
                 report.notes.append(
                     f"{nan} splats have a NaN importance; splaTV's comparator makes their order "
                     "engine-defined, splatconv puts them last")
-        self.order = _importance_order(sort_key, key.view(np.uint64), self._key_of)
+        self.order = importance_order_into(sort_key, key.view(np.uint64), self._key_of)
 
     def _key_of(self, rows) -> np.ndarray:
         """:func:`importance` of some rows (a slice or an index array), from the scene."""
@@ -432,7 +433,7 @@ class Plan:
         """Pack output records ``start:start + len(out)`` into ``out``; their counts."""
         rows = slice(start, start + len(out))
         counts = new_counts()
-        pack(self.source, rows if self.order is None else self.order[rows], out, self.compat, counts,
+        pack_rows(self.source, rows if self.order is None else self.order[rows], out, self.compat, counts,
              self.scratch())
         return counts
 

@@ -1,0 +1,134 @@
+"""Commands on scene files: ``convert``, ``info``, ``stats``."""
+
+from __future__ import annotations
+
+import os
+
+import click
+
+from .. import io
+from ..formats import format_for
+from ..report import info_text, stats_markdown, stats_text, to_json
+from ..stats import describe, stats_report
+from ..transport import DEFAULT_LEVEL
+from ..web.publish import publish
+from ._base import (Failure, color_option, force_option, library_errors, main, notes, options, progress,
+                    quiet_option)
+from ._edit import edit_options, scene_editor
+
+
+def _zstd_option(what: str):
+    return click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
+                        help=f"zstd level for {what} [default: {DEFAULT_LEVEL}].")
+
+
+@main.command()
+@click.argument("input_path", metavar="INPUT", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
+@options(
+    click.option("--external", is_flag=True,
+                 help="For an .html OUTPUT: write the scene beside the page (OUT.splatv) instead of "
+                      "embedding it, for scenes too large to embed; the page must then be served over HTTP."),
+    click.option("--compat", type=click.Choice(io.COMPAT_MODES),
+                 help="splatv-js: texture bytes identical to splaTV's in-browser converter "
+                      "(truncating halves). Default: accurate rounding."),
+    click.option("--sort", type=click.Choice(io.SORT_MODES),
+                 help="Record order: importance (largest, most opaque first, so the viewer can draw "
+                      "while streaming) or none (input order). Default: the output format's "
+                      "(importance for .splatv, none for .ply)."),
+    click.option("--cameras", "cameras", type=click.Path(dir_okay=False),
+                 help="A 3DGS / Spacetime Gaussians cameras.json to store in the output."),
+    click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
+                 help="PLY output: lite (Spacetime Gaussians, keeps motion and time) or 3dgs (plain 3DGS, "
+                      "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
+    color_option(),
+    _zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
+    force_option(),
+    quiet_option(),
+)
+@edit_options()
+@library_errors
+def convert(input_path, output_path, external, compat, sort, cameras, layout, color, zstd_level, force, quiet,
+            **edits):
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
+
+    Lossy steps (saturated halves, clamped colours, dropped properties) are
+    reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
+    compressed while it is written. Several INPUTs make one .html page that
+    plays them as the segments of one clip.
+
+    \b
+    Example:
+      splatconv convert scene.ply scene.splatv --cameras cameras.json
+      splatconv convert scene.splatv scene.ply
+      splatconv convert scene.splatv scene.html
+    """
+    # Player pages of several segments or with --external: splatconv.web.publish.
+    if external or len(input_path) > 1:
+        if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
+            raise Failure("--external and several inputs take no other options but --force", 2)
+        report = publish(input_path, output_path, external=external, force=force)
+        notes(report.notes)
+        for path, size in report.written:
+            click.echo(f"wrote {path}: {size:,} bytes")
+        return
+    input_path = input_path[0]
+    scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
+                               force=force, zstd_level=zstd_level, layout=layout, progress=progress(quiet),
+                               edit=scene_editor(edits))
+    notes(scene.notes)
+    notes(report.notes)
+    size = os.path.getsize(output_path)
+    click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
+
+
+@main.command()
+@click.argument("paths", metavar="FILE...", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@options(
+    click.option("--json", "as_json", is_flag=True,
+                 help="Print the facts as JSON (one object per file, in a list when there are several)."),
+    color_option(),
+)
+@library_errors
+def info(paths, as_json, color):
+    """Describe scene files: format, variant, count, texture, cameras, time range,
+    bounds, non-finite values and what is ignored.
+
+    \b
+    Example:
+      splatconv info scene.splatv
+      splatconv info --json segments/*.splatv
+    """
+    facts = [describe(io.read(path, color=color), path, format_for(path)) for path in paths]
+    if as_json:
+        click.echo(to_json(facts[0] if len(facts) == 1 else facts))
+    else:
+        click.echo("\n\n".join(info_text(f) for f in facts))
+
+
+@main.command()
+@click.argument("source", type=click.Path(dir_okay=False))
+@click.argument("converted", required=False, type=click.Path(dir_okay=False))
+@options(
+    click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (keys in specs/stats.md)."),
+    click.option("--markdown", is_flag=True, help="Print the report as Markdown tables."),
+    _zstd_option("the transport sizes"),
+    color_option(),
+    quiet_option(),
+)
+@library_errors
+def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
+    """Report sizes, zstd transport size and what a conversion loses.
+
+    With CONVERTED, compares it against SOURCE attribute by attribute; with SOURCE
+    alone, reports what converting it to .splatv would give.
+
+    \b
+    Example:
+      splatconv stats scene.ply scene.splatv
+      splatconv stats scene.ply --markdown
+    """
+    if as_json and markdown:
+        raise Failure("--json and --markdown cannot be used together", 2)
+    data = stats_report(source, converted, zstd_level=zstd_level, color=color)
+    click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))

@@ -1,0 +1,261 @@
+"""antimatter15's ``.splat``: a static scene, 32 bytes a splat, no header.
+
+Each record, little endian::
+
+    bytes  0..11  float32 x, y, z            position
+    bytes 12..23  float32 scale_0..2         linear scales (the model keeps their logarithm)
+    bytes 24..27  uint8 r, g, b, a           colour and opacity, value * 255
+    bytes 28..31  uint8 rot_0..3             quaternion (w, x, y, z) as q * 128 + 128
+
+Viewers decode the rotation as (byte - 128) / 128. The format holds no time, no
+motion and no cameras: a scene that moves or fades is refused (bake a moment
+first), and reading gives a static scene (the model's static temporal basis,
+zero motion).
+
+Writing rounds colour, opacity and rotation to the nearest byte (antimatter15's
+converter truncates; rounding halves the error) and normalises each quaternion
+first, as antimatter15's viewer uses them without normalising. Bytes read from
+a ``.splat`` come back as the same bytes: colours and opacities are read to
+values that round to their byte, and a quaternion already on the byte grid
+(and of unit length to within its rounding) is written unchanged.
+Records are written in importance order by default (largest, most opaque
+first), as antimatter15's converter does, so a viewer can draw while loading.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from .. import model
+from ..errors import FormatError
+from ..fsutil import open_input
+from ..model import Scene
+from ..progress import SILENT
+from ..viewer import importance, importance_order, opacity, scales
+from .base import WriteReport, refuse_time_varying
+from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
+from .splatv_layout import MAGIC as SPLATV_MAGIC
+
+NAME = "splat"
+SUFFIXES = (".splat",)
+CAN_READ = True
+CAN_WRITE = True
+COMPAT_MODES = ()
+DEFAULT_SORT = "importance"
+#: An empty file is refused on reading, so an empty scene is not written.
+HOLDS_EMPTY = False
+DYNAMIC = False
+STORES_TEXTURE = False
+
+#: One record, as the table at the top of this module lays it out.
+RECORD = np.dtype([("position", "<f4", (3,)), ("scale", "<f4", (3,)), ("rgba", "u1", (4,)), ("rot", "u1", (4,))])
+RECORD_BYTES = RECORD.itemsize
+#: Quaternion byte = q * ROT_STEPS + ROT_STEPS.
+ROT_STEPS = 128.0
+
+#: Records converted per step when writing: bounds the temporaries.
+BLOCK = 1 << 16
+
+
+# --------------------------------------------------------------------------
+# Reading
+
+
+def read(path: str | os.PathLike, **_options) -> Scene:
+    """Read a ``.splat`` file as a static :class:`Scene`.
+
+    Colour bytes become the smallest float32 that gives the byte back, alpha
+    bytes the logit that does (0 and 255 map to finite logits, as in
+    :mod:`splatconv.formats.splatv`), quaternion bytes (b - 128) / 128 (not
+    normalised: the viewer normalises). A scale of 0 is read as log 0 = -inf;
+    a negative or NaN scale as NaN (noted).
+
+    Raises
+    ------
+    FormatError
+        For an empty file or one whose size is not a whole number of records.
+    """
+    path = os.fspath(path)
+    with open_input(path) as f:
+        size = os.fstat(f.fileno()).st_size
+        if size == 0:
+            raise FormatError("file is empty", path)
+        _refuse_other_formats(f.read(8), path)
+        f.seek(0)
+        if size % RECORD_BYTES:
+            raise FormatError(f"size {size:,} bytes is not a whole number of {RECORD_BYTES}-byte records: "
+                              f"{size % RECORD_BYTES} bytes after record {size // RECORD_BYTES:,}; file truncated?",
+                              path)
+        records = np.fromfile(f, dtype=RECORD, count=size // RECORD_BYTES)
+    n = len(records)
+    _rows, cols = model.lite_rows(n)
+    notes = []
+    for i in range(3):
+        cols[model.POSITION[i]][:] = records["position"][:, i]
+    linear = records["scale"]
+    negative = int(np.count_nonzero(linear < 0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i in range(3):
+            cols[model.SCALE[i]][:] = np.log(linear[:, i])
+    if negative:
+        notes.append(f"scale: {negative:,} negative values have no logarithm; read as NaN")
+    for i in range(3):
+        cols[model.COLOR[i]][:] = COLOR_OF_BYTE[records["rgba"][:, i]]
+    cols["opacity"][:] = LOGIT_OF_BYTE[records["rgba"][:, 3]]
+    for i in range(4):
+        cols[model.ROTATION[i]][:] = (records["rot"][:, i].astype(np.float32) - np.float32(ROT_STEPS)) / np.float32(
+            ROT_STEPS)
+    cols["trbf_center"][:] = model.STATIC_TRBF_CENTER
+    cols["trbf_scale"][:] = model.STATIC_TRBF_SCALE
+    for name in model.MOTION + model.OMEGA:
+        cols[name][:] = 0.0
+    meta = {"file_bytes": size, "records": n}
+    return Scene(columns=cols, cameras=None, variant=model.VARIANT_3DGS, meta=meta, notes=notes)
+
+
+def _refuse_other_formats(head: bytes, path: str) -> None:
+    """A ``.splat`` has no header to check; name the files most often misnamed ``.splat``.
+
+    A PLY's first bytes are ``ply`` and a line end, a ``.splatv``'s its magic
+    number; as a first position they would be ~1e-19 and ~4e-41, which no
+    scene holds.
+    """
+    if head.startswith((b"ply\n", b"ply\r\n")):
+        raise FormatError("this is a PLY file, not a .splat (name it .ply)", path)
+    if len(head) >= 4 and int.from_bytes(head[:4], "little") == SPLATV_MAGIC:
+        raise FormatError("this is a .splatv file, not a .splat (name it .splatv)", path)
+
+
+# --------------------------------------------------------------------------
+# Writing
+
+
+def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_options) -> WriteReport:
+    """Write ``scene`` as ``.splat`` records.
+
+    Parameters
+    ----------
+    scene : Scene
+        A static scene (see :func:`splatconv.formats.base.time_varying`);
+        anything that moves or fades is refused.
+    stream : binary file object
+    sort : {None, "importance", "none"}
+        Record order; None keeps the input order.
+    progress : splatconv.progress.Progress
+        Told the splats written as they are written.
+
+    Returns
+    -------
+    WriteReport
+        ``clamped`` and ``nan_bytes`` count colour and alpha values outside
+        [0, 1] or NaN; ``notes`` say how many splats' colour, opacity and
+        rotation the bytes changed.
+
+    Raises
+    ------
+    UnsupportedError
+        For a scene that moves or fades over time.
+    """
+    cols = scene.columns
+    refuse_time_varying(cols, "a .splat file")
+    n = scene.count
+    report = WriteReport(count=n, clamped={"color": 0, "alpha": 0}, nan_bytes={"color": 0, "alpha": 0})
+    changed = {"color": 0, "opacity": 0, "rotation": 0, "degenerate": 0, "scale": 0}
+    order = importance_order(importance(cols)) if sort == "importance" else None
+    out = np.zeros(min(BLOCK, n), dtype=RECORD)
+    with progress.stage("writing", n, "splat") as advance:
+        for start in range(0, n, BLOCK):
+            stop = min(start + BLOCK, n)
+            rows = slice(start, stop) if order is None else order[start:stop]
+            block = {name: np.asarray(cols[name])[rows] for name in model.COLUMNS}
+            rec = out[: stop - start]
+            _encode(block, rec, report, changed)
+            stream.write(memoryview(rec).cast("B"))
+            advance(stop - start)
+    report.notes.extend(_notes(report, changed, n))
+    return report
+
+
+def _encode(block: dict, rec: np.ndarray, report: WriteReport, changed: dict) -> None:
+    """Fill records ``rec`` from a block of model columns, counting what the bytes change."""
+    rec["position"] = np.stack([block[name] for name in model.POSITION], axis=1)
+    linear = scales(block)
+    with np.errstate(over="ignore"):
+        rec["scale"] = linear  # float64 -> float32: past float32's range becomes inf
+    changed["scale"] += int(np.count_nonzero(np.isinf(rec["scale"]) & np.isfinite(linear)))
+    rgb = np.stack([np.asarray(block[name], dtype=np.float64) for name in model.COLOR], axis=1)
+    alpha = opacity(block)
+    rec["rgba"][:, :3] = _bytes(rgb, report, "color")
+    rec["rgba"][:, 3] = _bytes(alpha, report, "alpha")
+    # A value survives when reading its byte back gives the same number.
+    kept_rgb = COLOR_OF_BYTE[rec["rgba"][:, :3]] == np.stack([block[name] for name in model.COLOR], axis=1)
+    changed["color"] += int(np.count_nonzero(~kept_rgb.all(axis=1)))
+    changed["opacity"] += int(np.count_nonzero(LOGIT_OF_BYTE[rec["rgba"][:, 3]] != block["opacity"]))
+    rec["rot"], moved, degenerate = _rotation_bytes(np.stack([block[name] for name in model.ROTATION], axis=1))
+    changed["rotation"] += moved
+    changed["degenerate"] += degenerate
+
+
+def _bytes(values: np.ndarray, report: WriteReport, key: str) -> np.ndarray:
+    """Values in [0, 1] (float64) as the nearest of 0..255; outside clamped, NaN as 0 (counted)."""
+    scaled = values * 255.0
+    nan = np.isnan(scaled)
+    report.nan_bytes[key] += int(np.count_nonzero(nan))
+    report.clamped[key] += int(np.count_nonzero((scaled < 0) | (scaled > 255)))
+    scaled[nan] = 0.0
+    return np.rint(np.clip(scaled, 0.0, 255.0)).astype(np.uint8)
+
+
+def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """Quaternions ``(M, 4) float32`` -> ``(M, 4) uint8``, the splats changed, the non-finite ones.
+
+    A quaternion that bytes already hold exactly ((b - 128) / 128 each) and that
+    is a unit quaternion rounded or truncated to bytes (its length within 2/128
+    of 1: four components each off by at most one step), or zero, is written as those
+    bytes: a quaternion read from a ``.splat`` comes back as it was. Others are
+    normalised and rounded. A NaN or infinite quaternion has no direction:
+    written as 128s (zero), which viewers draw unrotated.
+    """
+    q = q.astype(np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        steps = q * ROT_STEPS + ROT_STEPS
+        on_grid = np.all((steps == np.rint(steps)) & (steps >= 0) & (steps <= 255), axis=1)
+        length = np.sqrt((q * q).sum(axis=1, keepdims=True))
+        kept = on_grid & ((np.abs(length[:, 0] - 1.0) <= 2.0 / ROT_STEPS) | (length[:, 0] == 0.0))
+        unit = q / length
+    nonfinite = ~np.all(np.isfinite(unit), axis=1) & ~kept
+    unit[nonfinite] = 0.0
+    with np.errstate(invalid="ignore"):
+        scaled = np.where(kept[:, None], steps, unit * ROT_STEPS + ROT_STEPS)
+    out = np.rint(np.clip(scaled, 0.0, 255.0)).astype(np.uint8)
+    return out, int(np.count_nonzero(~kept & ~nonfinite)), int(np.count_nonzero(nonfinite))
+
+
+def _notes(report: WriteReport, changed: dict, n: int) -> list:
+    notes = []
+    if changed["color"]:
+        notes.append(f"color: {changed['color']:,} of {n:,} splats rounded to 8 bits a channel")
+    if changed["opacity"]:
+        notes.append(f"opacity: {changed['opacity']:,} of {n:,} splats rounded to 8 bits")
+    if changed["rotation"]:
+        notes.append(f"rotation: {changed['rotation']:,} of {n:,} splats normalised and rounded to 8 bits a "
+                     "component")
+    if changed["degenerate"]:
+        notes.append(f"rotation: {changed['degenerate']:,} non-finite quaternions written as zero "
+                     "(drawn unrotated)")
+    if changed["scale"]:
+        notes.append(f"scale: {changed['scale']:,} values past the float32 range written as infinity")
+    for key, count in report.clamped.items():
+        if count:
+            notes.append(f"{key}: {count:,} values outside [0, 1] clamped")
+    for key, count in report.nan_bytes.items():
+        if count:
+            notes.append(f"{key}: {count:,} NaN values written as 0")
+    return notes
+
+
+def info_fields(scene: Scene) -> dict:
+    """What ``info`` shows of a ``.splat``: its record count."""
+    return {"records": scene.meta.get("records")}

@@ -1,0 +1,261 @@
+"""Reading and writing scene files: the format by suffix, ``.zst`` transparently, atomically.
+
+:func:`read`, :func:`write` and :func:`convert` are re-exported by
+:mod:`splatconv`. Nothing here knows a format by name: each format module says
+what it supports (see :mod:`splatconv.formats`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+
+from .cameras import load_cameras
+from .errors import OutputError, SplatconvError, UnsupportedError, UsageError
+from .formats import REGISTRY, compat_modes, format_for
+from .fsutil import atomic_group, atomic_writer, check_output
+from .model import Scene
+from .progress import SILENT
+from .transport import DEFAULT_LEVEL, is_compressed, output_stream, plain_input
+
+#: Record orders a writer takes.
+SORT_MODES = ("importance", "none")
+#: How a PLY's ``f_dc_0..2`` are read.
+COLOR_MODES = ("auto", "rgb", "sh")
+#: Byte-identical modes some writer offers.
+COMPAT_MODES = compat_modes()
+#: Record layouts some writer offers (``.ply``: lite, 3dgs).
+LAYOUTS = tuple(dict.fromkeys(name for module in REGISTRY.values() for name in getattr(module, "LAYOUTS", ())))
+
+
+def _choice(value, allowed, what: str):
+    if value is not None and value not in allowed:
+        raise UsageError(f"unknown {what} {value!r} (expected one of {', '.join(allowed)})")
+
+
+def read(path: str | os.PathLike, *, color: str = "auto") -> Scene:
+    """Read any supported scene file into a :class:`Scene` (format by suffix).
+
+    Parameters
+    ----------
+    path : path
+    color : {"auto", "rgb", "sh"}
+        How a PLY's ``f_dc_0..2`` are read (see :func:`splatconv.formats.ply.read`).
+    """
+    _choice(color, COLOR_MODES, "colour mode")
+    module = format_for(path, purpose="read")
+    with plain_input(path, declared_size=getattr(module, "declared_size", None)) as plain:
+        scene = module.read(plain, color=color)
+    if is_compressed(path):
+        scene.meta["compressed_bytes"] = os.path.getsize(path)
+    return scene
+
+
+def read_texture(path: str | os.PathLike):
+    """The viewer's texture as a file stores it, and the scene decoded from it, in one read.
+
+    Returns
+    -------
+    (padded, scene) or None
+        None for a format that does not store the viewer's texture
+        (``STORES_TEXTURE`` false): draw its attributes instead.
+    """
+    module = format_for(path, purpose="read")
+    if not getattr(module, "STORES_TEXTURE", False):
+        return None
+    with plain_input(path, declared_size=getattr(module, "declared_size", None)) as plain:
+        padded, scene = module.read_texture(plain)
+    if is_compressed(path):
+        scene.meta["compressed_bytes"] = os.path.getsize(path)
+    return padded, scene
+
+
+def check_write_options(path, *, compat: str | None = None, sort: str | None = None, layout: str | None = None):
+    """Refuse options the output's format does not take; the format module.
+
+    Raises
+    ------
+    UsageError
+    """
+    module = format_for(path, purpose="write")
+    _choice(compat, COMPAT_MODES, "compat mode")
+    if compat is not None and compat not in module.COMPAT_MODES:
+        suffixes = ", ".join(_suffixes_taking(compat))
+        raise UsageError(f"--compat {compat} applies to {suffixes} output only", path)
+    _choice(sort, SORT_MODES, "sort")
+    if layout is not None and layout not in getattr(module, "LAYOUTS", ()):
+        takes = [suffix for suffix, m in REGISTRY.items() if layout in getattr(m, "LAYOUTS", ())]
+        if not takes:
+            raise UsageError(f"unknown layout {layout!r}")
+        raise UsageError(f"layout {layout} applies to {', '.join(takes)} output only", path)
+    return module
+
+
+def _suffixes_taking(compat: str) -> list:
+    """Suffixes of the formats whose writer takes ``compat``."""
+    return [suffix for suffix, module in REGISTRY.items() if compat in module.COMPAT_MODES]
+
+
+def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
+          force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None,
+          progress=SILENT):
+    """Write ``scene`` to ``path`` (format by suffix), atomically.
+
+    Parameters
+    ----------
+    scene : Scene
+    path : path
+    compat : {None, "splatv-js"}
+        A byte-identical mode the output format offers (``.splatv``: splaTV's
+        own converter).
+    sort : {None, "importance", "none"}
+        Record order; None means the format's ``DEFAULT_SORT``.
+    force : bool
+        Replace an existing file (never an input).
+    inputs : iterable of path
+        Files the scene came from; writing onto them is refused.
+    zstd_level : int, optional
+        Level for a ``.zst`` output (default :data:`splatconv.transport.DEFAULT_LEVEL`);
+        the data is compressed as it is written, never held twice.
+    layout : str, optional
+        A record layout the output's format offers (``LAYOUTS``; ``.ply``:
+        ``lite`` or ``3dgs``); None: the format's choice for the scene.
+    progress : splatconv.progress.Progress
+        Told the splats written as they are written.
+
+    Returns
+    -------
+    WriteReport
+        Counts and ``notes`` describing every lossy step.
+    """
+    module = check_write_options(path, compat=compat, sort=sort, layout=layout)
+    if scene.count == 0 and not module.HOLDS_EMPTY:
+        raise UnsupportedError(f"no splats to write; a {module.NAME} file cannot hold an empty scene", path)
+    check_output(path, inputs, force)
+    level = DEFAULT_LEVEL if zstd_level is None else zstd_level
+    extra = {"layout": layout} if layout is not None else {}
+    try:
+        with atomic_writer(path, replace=force) as stream, output_stream(stream, path, level) as out:
+            return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, progress=progress,
+                                **extra)
+    except SplatconvError as e:
+        if e.path is not None:
+            raise
+        raise type(e)(e.message, path, e.where) from None  # a writer does not know its file's name
+
+
+def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = None, force: bool = False,
+               inputs=(), zstd_level: int | None = None, progress=SILENT) -> list:
+    """Write several scene files all or nothing: ``scenes[i]`` to ``paths[i]``.
+
+    Every output is checked before the first scene is asked for; the scenes may
+    come from a generator, made one at a time (a frame sequence need not be in
+    memory at once). On any error no output is created or changed.
+
+    Parameters
+    ----------
+    scenes : iterable of Scene
+        As many as ``paths``.
+    paths : sequence of path
+    sort, layout, force, inputs, zstd_level
+        As for :func:`write`.
+    progress : splatconv.progress.Progress
+        Told each file written.
+
+    Returns
+    -------
+    list of WriteReport
+    """
+    paths = [os.fspath(p) for p in paths]
+    modules = [check_write_options(p, sort=sort, layout=layout) for p in paths]
+    for path in paths:
+        check_output(path, inputs, force)
+    level = DEFAULT_LEVEL if zstd_level is None else zstd_level
+    extra = {"layout": layout} if layout is not None else {}
+    reports = []
+    with atomic_group(replace=force) as group, progress.stage("files", len(paths), "file") as advance:
+        for module, path, scene in zip(modules, paths, scenes):
+            if scene.count == 0 and not module.HOLDS_EMPTY:
+                raise UnsupportedError(f"no splats to write; a {module.NAME} file cannot hold an empty scene", path)
+            try:
+                with group.open(path) as stream, output_stream(stream, path, level) as out:
+                    reports.append(module.write(scene, out, sort=sort or module.DEFAULT_SORT, **extra))
+            except SplatconvError as e:
+                if e.path is not None:
+                    raise
+                raise type(e)(e.message, path, e.where) from None
+            advance()
+        if len(reports) != len(paths):
+            raise ValueError(f"{len(reports)} scenes for {len(paths)} paths")
+    return reports
+
+
+def write_sequence(scenes, folder: str | os.PathLike, names, **options) -> list:
+    """Write numbered files into ``folder`` all or nothing (see :func:`write_each`).
+
+    ``folder`` is made when it does not exist (its parent must), and removed
+    again when the writing fails.
+
+    Parameters
+    ----------
+    scenes : iterable of Scene
+    folder : path
+    names : sequence of str
+        File names inside ``folder``, one a scene.
+    **options
+        As for :func:`write_each`.
+    """
+    folder = os.fspath(folder)
+    if os.path.exists(folder) and not os.path.isdir(folder):
+        raise OutputError("is not a folder", folder)
+    made = not os.path.exists(folder)
+    if made:
+        parent = os.path.dirname(os.path.abspath(folder))
+        if not os.path.isdir(parent):
+            raise OutputError(f"folder {parent} does not exist", folder)
+        os.mkdir(folder)
+    try:
+        return write_each(scenes, [os.path.join(folder, name) for name in names], **options)
+    except BaseException:
+        if made:
+            with contextlib.suppress(OSError):
+                os.rmdir(folder)
+        raise
+
+
+def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
+            sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
+            zstd_level: int | None = None, layout: str | None = None, progress=SILENT, edit=None):
+    """Read ``source`` and write it to ``output``; formats by suffix.
+
+    Parameters
+    ----------
+    cameras : path or list of dict, optional
+        A ``cameras.json`` file (or its decoded list) replacing the source's cameras.
+    edit : callable, optional
+        ``edit(scene) -> scene``, applied after reading (and after ``cameras``)
+        and before writing, e.g. :func:`splatconv.ops.apply_edits` with a plan.
+    layout : str, optional
+        As for :func:`write`.
+
+    Returns
+    -------
+    (Scene, WriteReport)
+        The scene written (its ``notes`` say what reading dropped, and what
+        ``edit`` did when it says so) and the write report.
+    """
+    format_for(source, purpose="read")
+    module = check_write_options(output, compat=compat, sort=sort, layout=layout)
+    # Check the output before the (possibly long) read: fail fast, touch nothing.
+    check_output(output, [source], force)
+    camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
+    scene = read(source, color=color)
+    if scene.count == 0 and not module.HOLDS_EMPTY:
+        raise UnsupportedError(f"holds no splats; a {module.NAME} file cannot hold an empty scene", source)
+    if camera_list is not None:
+        scene.cameras = camera_list
+    if edit is not None:
+        scene = edit(scene)
+    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
+                   layout=layout, progress=progress)
+    return scene, report

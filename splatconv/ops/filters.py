@@ -1,0 +1,363 @@
+"""Clean-up filters: drop broken splats, faint splats, splats outside a box, all but the N most important.
+
+Each filter has a ``*_mask`` function (which rows it keeps, computed without
+copying anything) and a scene function returning ``(Scene, OpReport)``. The
+edit pipeline (:mod:`splatconv.ops.edit`) combines the masks and copies the
+survivors once.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .. import viewer
+from ..errors import UsageError
+from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
+from ._table import blocks, blockwise, derive, gather, keep_rows
+from .report import OpReport
+
+#: Groups whose every value must be finite for a splat to be kept by
+#: :func:`drop_nonfinite`: a non-finite value in any of them puts the splat
+#: nowhere or everywhere, or gives it no shape.
+FINITE_GROUPS = {"position": POSITION, "rotation": ROTATION, "scale": SCALE, "motion": MOTION,
+                 "omega": OMEGA, "trbf centre": ("trbf_center",)}
+#: Groups where only NaN removes a splat: their infinities mean something to the
+#: viewer. A temporal scale of +inf is "visible at every time"; an opacity of
+#: -inf/+inf is sigmoid 0/1; a colour of -inf/+inf is clamped to 0/1.
+NAN_GROUPS = {"trbf scale": ("trbf_scale",), "opacity": ("opacity",), "color": COLOR}
+
+# --------------------------------------------------------------------------
+# drop-nonfinite
+
+
+def nonfinite_mask(columns: dict) -> np.ndarray:
+    """Rows :func:`drop_nonfinite` keeps: ``(N,) bool``.
+
+    A row is dropped when any position, rotation, scale, motion, omega or trbf
+    centre value is NaN or infinite, when its trbf scale is NaN or -inf, or when
+    its opacity or a colour value is NaN.
+    """
+    out = np.empty(len(columns["x"]), dtype=bool)
+    test = nonfinite_tester(columns)
+    for part, block in blocks(columns, _CHECKED):
+        out[part] = test(part, block)
+    return out
+
+
+_FINITE = [c for names in FINITE_GROUPS.values() for c in names]
+_NAN_ONLY = [c for names in NAN_GROUPS.values() for c in names]
+_CHECKED = tuple(_FINITE + _NAN_ONLY)
+
+
+def nonfinite_tester(columns: dict):
+    """``test(part, block)``: :func:`nonfinite_mask` of the rows ``part`` of ``columns`` (``block`` their views)."""
+    found = row_fields([columns[name] for name in _CHECKED])
+    if found is None:
+        return lambda part, block: _nonfinite_block(block)
+    # Fields of one row table: test a block's rows whole, a few calls instead of ~90.
+    matrix, fields = found
+    finite, nan_only = fields[:len(_FINITE)], fields[len(_FINITE):]
+
+    def test(part, block):
+        rows = matrix[part]
+        bad = ~np.isfinite(rows)[:, finite].all(axis=1)
+        bad |= np.isnan(rows[:, nan_only]).any(axis=1)
+        bad |= block["trbf_scale"] == -np.inf
+        return ~bad
+
+    return test
+
+
+def _nonfinite_block(block: dict) -> np.ndarray:
+    """:func:`nonfinite_mask` of one block of separate columns."""
+    acc = np.zeros(len(block["x"]), dtype=np.float32)
+    part = np.empty_like(acc)
+    with np.errstate(invalid="ignore"):
+        # v * 0 is 0 for finite v and NaN for NaN or +-inf: their sum is NaN exactly
+        # when some value is non-finite.
+        for name in _FINITE:
+            np.multiply(block[name], np.float32(0), out=part)
+            acc += part
+        for name in _NAN_ONLY:
+            np.multiply(block[name], np.float32(0), out=part)
+            # +-inf * 0 is NaN too: count only the NaN inputs.
+            np.copyto(part, 0, where=~np.isnan(block[name]))
+            acc += part
+    # trbf_scale = -inf: a zero-width temporal basis, never drawn (0/0 at its centre).
+    acc[block["trbf_scale"] == -np.inf] = np.nan
+    return acc == acc
+
+
+def _nonfinite_counts(columns: dict, rows: np.ndarray) -> dict:
+    """Of rows ``rows``, how many have a disqualifying value in each group (a row may count in several)."""
+    counts = {}
+    for group, names in FINITE_GROUPS.items():
+        bad = np.zeros(len(rows), dtype=bool)
+        for name in names:
+            bad |= ~np.isfinite(np.asarray(columns[name])[rows])
+        counts[group] = int(bad.sum())
+    for group, names in NAN_GROUPS.items():
+        bad = np.zeros(len(rows), dtype=bool)
+        for name in names:
+            v = np.asarray(columns[name])[rows]
+            bad |= np.isnan(v) | ((v == -np.inf) if name == "trbf_scale" else False)
+        counts[group] = int(bad.sum())
+    return {k: v for k, v in counts.items() if v}
+
+
+def nonfinite_report(columns: dict, keep: np.ndarray, alive: np.ndarray | None = None) -> OpReport:
+    """The report of :func:`drop_nonfinite` for mask ``keep`` over the rows ``alive`` (all when None)."""
+    count_in = len(keep) if alive is None else int(alive.sum())
+    dropped = ~keep if alive is None else alive & ~keep
+    rows = np.flatnonzero(dropped)
+    report = OpReport("drop-nonfinite", count_in, count_in - len(rows))
+    if len(rows):
+        report.counts = _nonfinite_counts(columns, rows)
+        groups = ", ".join(f"{g} {c:,}" for g, c in report.counts.items())
+        report.notes.append(f"drop-nonfinite: removed {len(rows):,} of {count_in:,} splats with a NaN or infinite "
+                            f"value ({groups}; a splat may count in several)")
+    else:
+        report.notes.append(f"drop-nonfinite: all {count_in:,} splats finite, none removed")
+    return report
+
+
+def drop_nonfinite(scene: Scene) -> tuple[Scene, OpReport]:
+    """Remove splats the viewer cannot draw sensibly because of a NaN or infinity.
+
+    Removed: a NaN or infinite position, rotation, scale, motion, omega or trbf
+    centre value (the splat is nowhere, everywhere or shapeless); a NaN or -inf
+    trbf scale (NaN: the temporal opacity is NaN, which the viewer's 0.02 cut
+    does not hide and which blends as garbage; -inf: zero temporal width, never
+    visible); a NaN opacity (written as alpha 0: never visible, dead weight); a
+    NaN colour (written as byte 0: the splat draws as a dark blot, an artefact of
+    a diverged training step, not a colour). Kept: a trbf scale of +inf
+    ("visible at every time"), an opacity or colour of +-inf (the viewer's
+    sigmoid and clamp give them 0 or 1).
+
+    Parameters
+    ----------
+    scene : Scene
+
+    Returns
+    -------
+    (Scene, OpReport)
+        The scene without those splats (the same columns when none is removed),
+        and counts per attribute group.
+    """
+    keep = nonfinite_mask(scene.columns)
+    report = nonfinite_report(scene.columns, keep)
+    return derive(scene, keep_rows(scene, keep), report.notes), report
+
+
+# --------------------------------------------------------------------------
+# min-opacity
+
+
+def opacity_mask(columns: dict, minimum: float) -> np.ndarray:
+    """Rows :func:`min_opacity` keeps: peak opacity sigmoid(opacity) >= ``minimum``; ``(N,) bool``.
+
+    A NaN opacity is below every minimum (the writer stores it as alpha 0).
+    """
+    minimum = float(minimum)
+    return blockwise(lambda block: viewer.opacity(block) >= minimum, columns, ("opacity",))
+
+
+def _check_minimum(minimum: float) -> float:
+    minimum = float(minimum)
+    if not 0.0 <= minimum <= 1.0:
+        raise UsageError(f"--min-opacity: {minimum:g} is outside [0, 1]")
+    return minimum
+
+
+def opacity_report(keep: np.ndarray, minimum: float, alive: np.ndarray | None = None) -> OpReport:
+    """The report of :func:`min_opacity` for mask ``keep`` over the rows ``alive`` (all when None)."""
+    count_in = len(keep) if alive is None else int(alive.sum())
+    removed = int((~keep).sum() if alive is None else (alive & ~keep).sum())
+    report = OpReport("min-opacity", count_in, count_in - removed)
+    report.notes.append(f"min-opacity: removed {removed:,} of {count_in:,} splats with peak opacity below "
+                        f"{minimum:g}")
+    return report
+
+
+def min_opacity(scene: Scene, minimum: float) -> tuple[Scene, OpReport]:
+    """Remove splats whose peak opacity sigmoid(opacity) is below ``minimum``.
+
+    The peak is the stored opacity through the viewer's sigmoid, which the splat
+    reaches at its trbf centre; the temporal fade only lowers it.
+
+    Parameters
+    ----------
+    scene : Scene
+    minimum : float
+        In [0, 1].
+
+    Raises
+    ------
+    UsageError
+        When ``minimum`` is outside [0, 1].
+    """
+    minimum = _check_minimum(minimum)
+    keep = opacity_mask(scene.columns, minimum)
+    report = opacity_report(keep, minimum)
+    return derive(scene, keep_rows(scene, keep), report.notes), report
+
+
+# --------------------------------------------------------------------------
+# crop
+
+
+def peak_time(columns: dict, window=viewer.TIME_RANGE) -> np.ndarray:
+    """When each splat is most opaque within ``window``: trbf centre clamped to it, ``(N,) float64``.
+
+    The temporal opacity peaks at the trbf centre and falls away on both sides,
+    so within a time range its largest value is at the centre clamped to the
+    range. NaN where the centre is NaN.
+    """
+    centre = np.asarray(columns["trbf_center"], dtype=np.float64)
+    return np.clip(centre, window[0], window[1])
+
+
+def crop_mask(columns: dict, lo, hi, window=viewer.TIME_RANGE) -> np.ndarray:
+    """Rows :func:`crop` keeps: centre at the time of peak opacity inside the box ``lo``..``hi``; ``(N,) bool``.
+
+    Bounds are inclusive; a NaN centre is never inside. Where the time of peak
+    opacity is the trbf centre itself (dt = 0) the centre is the rest position
+    xyz: the motion terms are m dt^k = 0 there (a NaN motion value is not looked
+    at; ``drop_nonfinite`` is for those).
+    """
+    lo = [np.float64(v) for v in lo]  # compared in float64 with the float32 values
+    hi = [np.float64(v) for v in hi]
+
+    def inside(block):
+        ok = (block["x"] >= lo[0]) & (block["x"] <= hi[0])
+        for i, name in enumerate(POSITION[1:], 1):
+            ok &= block[name] >= lo[i]
+            ok &= block[name] <= hi[i]
+        # Motion terms vanish where the peak is the trbf centre itself (dt = 0, the usual
+        # case): the motion is evaluated only for the splats whose centre lies outside
+        # the window (or is NaN).
+        t = peak_time(block, window)
+        moving = np.flatnonzero(~(t == block["trbf_center"]))
+        if len(moving):
+            part = {name: block[name][moving] for name in POSITION + MOTION + ("trbf_center",)}
+            centre = viewer.position_at(part, t[moving])
+            ok[moving] = ((centre >= lo) & (centre <= hi)).all(axis=1)
+        return ok
+
+    return blockwise(inside, columns, POSITION + MOTION + ("trbf_center",))
+
+
+def check_box(lo, hi) -> tuple:
+    """Validate a crop box: two finite (3,) corners with lo <= hi; returns them as tuples of float."""
+    lo = tuple(float(v) for v in lo)
+    hi = tuple(float(v) for v in hi)
+    if len(lo) != 3 or len(hi) != 3 or not all(np.isfinite(lo + hi)):
+        raise UsageError("--crop: expected six finite numbers X0,Y0,Z0,X1,Y1,Z1")
+    for axis, a, b in zip("xyz", lo, hi):
+        if a > b:
+            raise UsageError(f"--crop: the box is empty along {axis} ({a:g} > {b:g})")
+    return lo, hi
+
+
+def crop_report(keep: np.ndarray, lo, hi, alive: np.ndarray | None = None) -> OpReport:
+    """The report of :func:`crop` for mask ``keep`` over the rows ``alive`` (all when None)."""
+    count_in = len(keep) if alive is None else int(alive.sum())
+    removed = int((~keep).sum() if alive is None else (alive & ~keep).sum())
+    report = OpReport("crop", count_in, count_in - removed)
+    box = f"({', '.join(f'{v:g}' for v in lo)}) .. ({', '.join(f'{v:g}' for v in hi)})"
+    report.notes.append(f"crop: removed {removed:,} of {count_in:,} splats whose centre at peak opacity lies "
+                        f"outside {box}")
+    return report
+
+
+def crop(scene: Scene, lo, hi) -> tuple[Scene, OpReport]:
+    """Keep splats whose centre, at their time of peak opacity, lies in an axis-aligned box.
+
+    The time of peak opacity is the trbf centre clamped to the viewer's [0, 1]
+    (:func:`peak_time`): the moment the splat is most visible in the clip. The
+    centre there includes the motion (:func:`splatconv.viewer.position_at`).
+
+    Parameters
+    ----------
+    scene : Scene
+    lo, hi : sequence of 3 float
+        Box corners; bounds inclusive.
+
+    Raises
+    ------
+    UsageError
+        When a bound is not finite or ``lo`` exceeds ``hi`` on an axis.
+    """
+    lo, hi = check_box(lo, hi)
+    keep = crop_mask(scene.columns, lo, hi)
+    report = crop_report(keep, lo, hi)
+    return derive(scene, keep_rows(scene, keep), report.notes), report
+
+
+# --------------------------------------------------------------------------
+# max-splats
+
+
+def importance_key(columns: dict) -> np.ndarray:
+    """The writer's importance key of every row, ``(N,) float64`` (:func:`splatconv.viewer.importance`)."""
+    return blockwise(viewer.importance, columns, ("opacity",) + SCALE, dtype=np.float64)
+
+
+def most_important(columns: dict, count: int, rows: np.ndarray | None = None, key: np.ndarray | None = None):
+    """The ``count`` most important of ``rows`` (all when None), in ascending row order: ``(M,) intp``.
+
+    Importance as the writer sorts by it (:func:`splatconv.viewer.importance`,
+    ties in row order, NaN last; :func:`splatconv.viewer.importance_order`).
+    ``key`` is :func:`importance_key` of ``columns`` when already computed.
+    """
+    key = importance_key(columns) if key is None else key
+    if rows is None:
+        rows = np.arange(len(key))
+    else:
+        key = key[rows]
+    if count >= len(rows):
+        return rows
+    chosen = viewer.importance_order(key)[:count]
+    chosen.sort()
+    return rows[chosen]
+
+
+def _check_count(count: int) -> int:
+    if isinstance(count, bool) or int(count) != count or count < 0:
+        raise UsageError(f"--max-splats: expected a count >= 0, got {count!r}")
+    return int(count)
+
+
+def max_splats_report(count_in: int, count_out: int, limit: int) -> OpReport:
+    """The report of :func:`max_splats`."""
+    report = OpReport("max-splats", count_in, count_out)
+    if count_out < count_in:
+        report.notes.append(f"max-splats: kept the {count_out:,} most important of {count_in:,} splats, "
+                            f"removed {count_in - count_out:,}")
+    else:
+        report.notes.append(f"max-splats: {count_in:,} splats are within {limit:,}, none removed")
+    return report
+
+
+def max_splats(scene: Scene, count: int) -> tuple[Scene, OpReport]:
+    """Keep the ``count`` most important splats, in their input order.
+
+    Importance is the key the writer sorts by: exp(scale_0) exp(scale_1)
+    exp(scale_2) sigmoid(opacity); equal keys keep the earlier row, NaN keys go last.
+
+    Parameters
+    ----------
+    scene : Scene
+    count : int
+        At least 0.
+    """
+    count = _check_count(count)
+    rows = most_important(scene.columns, count)
+    report = max_splats_report(scene.count, len(rows), count)
+    columns = scene.columns if len(rows) == scene.count else gather(scene.columns, rows)
+    return derive(scene, columns, report.notes), report
+
+
+__all__ = ["FINITE_GROUPS", "NAN_GROUPS", "nonfinite_mask", "drop_nonfinite", "opacity_mask", "min_opacity",
+           "peak_time", "crop_mask", "check_box", "crop", "importance_key", "most_important",
+           "max_splats"]

@@ -1,0 +1,104 @@
+"""Compose: several scenes in one, on the same timeline.
+
+The viewer draws every splat of a file by the same rules at the same time, so
+scenes are composed by putting their splats in one table, unchanged: each
+input looks at every time exactly as it did alone, and where they overlap
+they blend as splats of one scene do. A static input (a 3DGS PLY or a
+``.splat``: read with the model's static temporal basis, temporal opacity
+above 0.999999 over all of [0, 1]) stays at full opacity over the whole clip
+beside a moving one. Move an input before composing it with the transforms of
+:mod:`splatconv.ops.transform`.
+
+Cameras: a file holds one list of cameras, which the viewer opens with; the
+composition keeps the first input's that has any (they frame that input, as
+moved), and says which were dropped.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import model
+from ..errors import UsageError
+from ..model import Scene
+
+#: How :func:`merge` lays its inputs out in time. ``overlay``: all on the same
+#: timeline (this module). Other modes (segments end to end) belong to other modules.
+MODES = ("overlay",)
+
+
+@dataclass
+class MergeReport:
+    """What composing did.
+
+    Attributes
+    ----------
+    op : str
+        ``"merge"``.
+    count_in, count_out : int
+        Splats in all inputs together, and in the result (the same).
+    counts : dict of str to int
+        ``inputs``: how many scenes; ``cameras_from``: the 1-based input whose
+        cameras were kept (0: none had any).
+    parts : list of int
+        Splats of each input, in order (the result's rows, input by input).
+    notes : list of str
+    """
+
+    op: str
+    count_in: int
+    count_out: int
+    counts: dict = field(default_factory=dict)
+    parts: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
+
+    @property
+    def removed(self) -> int:
+        """Splats removed (none)."""
+        return self.count_in - self.count_out
+
+
+def overlay(scenes: list) -> tuple[Scene, MergeReport]:
+    """Put several scenes in one, all on the same timeline.
+
+    Parameters
+    ----------
+    scenes : list of Scene
+        At least one. Their splats are concatenated in order; values are not
+        changed.
+
+    Returns
+    -------
+    (Scene, MergeReport)
+        The composed scene: variant plain 3DGS when every input is (a
+        composition of static scenes stays static and writes as 3DGS), else
+        Spacetime Gaussians lite; the first input's cameras that has any.
+    """
+    if not scenes:
+        raise UsageError("nothing to merge: no input scenes")
+    parts = [s.count for s in scenes]
+    total = sum(parts)
+    _rows, out = model.lite_rows(total)
+    start = 0
+    for scene, n in zip(scenes, parts):
+        for name in model.COLUMNS:
+            out[name][start:start + n] = np.asarray(scene.columns[name])
+        start += n
+    with_cameras = [i for i, s in enumerate(scenes) if s.cameras]
+    cameras = list(scenes[with_cameras[0]].cameras) if with_cameras else None
+    static = all(s.variant == model.VARIANT_3DGS for s in scenes)
+    variant = model.VARIANT_3DGS if static else model.VARIANT_LITE
+    notes = [f"merged {len(scenes)} scenes on one timeline: " + " + ".join(f"{n:,}" for n in parts)
+             + f" = {total:,} splats"]
+    if with_cameras:
+        kept = with_cameras[0]
+        dropped = [i + 1 for i in with_cameras[1:]]
+        notes.append(f"cameras: input {kept + 1}'s {len(cameras)} kept"
+                     + (f"; those of input{'s' if len(dropped) > 1 else ''} "
+                        f"{', '.join(map(str, dropped))} dropped" if dropped else ""))
+    report = MergeReport("merge", total, total, {"inputs": len(scenes),
+                                                 "cameras_from": with_cameras[0] + 1 if with_cameras else 0},
+                         parts, notes)
+    return Scene(columns=out, cameras=cameras, variant=variant, meta={}), report

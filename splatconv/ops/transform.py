@@ -1,0 +1,414 @@
+"""Motion-aware rigid transforms with uniform scale: p' = R (S p) + T at every time.
+
+For the viewer's splat at time t (see :mod:`splatconv.viewer`)::
+
+    position(t) = xyz + m1 dt + m2 dt^2 + m3 dt^3
+    rotation(t) = normalize(rot + omega dt)
+    covariance  = R(rotation) diag(exp(scale))^2 R(rotation)^T
+
+the transformed splat must sit at R S position(t) + T with covariance
+S^2 R cov R^T at every t. That holds, for every t, when
+
+* xyz -> R S xyz + T and each motion vector m_k -> R S m_k (the map is affine,
+  so it passes through the polynomial term by term);
+* rot -> q (x) rot and omega -> q (x) omega, the Hamilton product on the left by
+  the rotation's unit quaternion q: q (x) (rot + omega dt) is then the new
+  rot + omega dt, left multiplication by a unit quaternion keeps norms, so the
+  viewer's normalisation commutes with it, and R(q (x) r) = R(q) R(r);
+* log scales -> log scales + log S.
+
+Time, opacity and colour do not change. Cameras (``cameras.json`` form:
+centre ``position``, camera-to-world ``rotation``) move with the scene: centre
+-> R S c + T, rotation -> R rotation, so each camera sees the same image (its
+camera-space coordinates are all multiplied by S, which a perspective
+projection does not see; only depth-dependent effects such as the near and
+far planes do).
+
+Quaternions are (w, x, y, z), the model's rot_0..3 (the shader's rotation
+matrix reads rot_0 as the real part).
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import UsageError
+from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
+from ._table import blocks, derive, gather
+from .report import OpReport
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+def quaternion_matrix(q) -> np.ndarray:
+    """Rotation matrix of a unit quaternion (w, x, y, z): ``(3, 3) float64`` (rotates column vectors)."""
+    w, x, y, z = (float(v) for v in q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def left_product_matrix(q) -> np.ndarray:
+    """The ``(4, 4) float64`` matrix L with L @ r = q (x) r (Hamilton product, (w, x, y, z) order)."""
+    w, x, y, z = (float(v) for v in q)
+    return np.array([
+        [w, -x, -y, -z],
+        [x, w, -z, y],
+        [y, z, w, -x],
+        [z, -y, x, w],
+    ])
+
+
+def _cos_sin(degrees: float) -> tuple:
+    """cos and sin of an angle in degrees, exact at multiples of 90 (so x:90 maps axes onto axes exactly)."""
+    quarter = degrees / 90.0
+    if quarter == int(quarter):
+        return ((1.0, 0.0), (0.0, 1.0), (-1.0, 0.0), (0.0, -1.0))[int(quarter) % 4]
+    r = math.radians(degrees)
+    return math.cos(r), math.sin(r)
+
+
+def axis_rotation(axis: str, degrees: float) -> tuple:
+    """Right-handed rotation by ``degrees`` about ``axis`` ("x", "y" or "z").
+
+    Returns
+    -------
+    quaternion : (4,) float64 ndarray
+        (w, x, y, z), unit.
+    matrix : (3, 3) float64 ndarray
+        Exact at multiples of 90 degrees (entries 0, 1, -1).
+    """
+    i = _AXES[axis]
+    c, s = _cos_sin(degrees)
+    j, k = (i + 1) % 3, (i + 2) % 3
+    matrix = np.eye(3)
+    matrix[j, j] = matrix[k, k] = c
+    matrix[k, j], matrix[j, k] = s, -s
+    hc, hs = _cos_sin(degrees / 2.0)
+    quaternion = np.zeros(4)
+    quaternion[0] = hc
+    quaternion[1 + i] = hs
+    return quaternion, matrix
+
+
+@dataclass(frozen=True)
+class Transform:
+    """p' = R (S p) + T: a uniform scale, then a rotation, then a translation.
+
+    Attributes
+    ----------
+    scale : float
+        S > 0.
+    rotation : (4,) tuple of float
+        Unit quaternion (w, x, y, z) of R.
+    translation : (3,) tuple of float
+        T.
+    matrix : (3, 3) tuple of tuple of float
+        R as a matrix (given by :func:`parse_rotation` exactly at multiples of 90
+        degrees; otherwise computed from ``rotation``).
+    label : str
+        How the rotation was given, for reports.
+    """
+
+    scale: float = 1.0
+    rotation: tuple = (1.0, 0.0, 0.0, 0.0)
+    translation: tuple = (0.0, 0.0, 0.0)
+    matrix: tuple = field(default=None)
+    label: str = ""
+
+    def __post_init__(self):
+        s = float(self.scale)
+        if not (math.isfinite(s) and s > 0):
+            raise UsageError(f"--scale: expected a finite number > 0, got {self.scale!r}")
+        q = np.asarray(self.rotation, dtype=np.float64)
+        norm = float(np.sqrt(q @ q)) if q.shape == (4,) else 0.0
+        if not (math.isfinite(norm) and norm > 0):
+            raise UsageError("--rotate: a rotation quaternion needs four finite numbers, not all zero")
+        t = np.asarray(self.translation, dtype=np.float64)
+        if t.shape != (3,) or not np.isfinite(t).all():
+            raise UsageError("--translate: expected three finite numbers X,Y,Z")
+        q = q / norm
+        object.__setattr__(self, "scale", s)
+        object.__setattr__(self, "rotation", tuple(float(v) for v in q))
+        object.__setattr__(self, "translation", tuple(float(v) for v in t))
+        m = quaternion_matrix(q) if self.matrix is None else np.asarray(self.matrix, dtype=np.float64)
+        object.__setattr__(self, "matrix", tuple(tuple(float(v) for v in row) for row in m))
+
+    @property
+    def is_identity(self) -> bool:
+        """Whether the transform changes nothing."""
+        return (self.scale == 1.0 and self.translation == (0.0, 0.0, 0.0)
+                and np.array_equal(np.asarray(self.matrix), np.eye(3)))
+
+    def linear(self) -> np.ndarray:
+        """R S as a ``(3, 3) float64`` matrix."""
+        return np.asarray(self.matrix) * self.scale
+
+    def apply_points(self, points) -> np.ndarray:
+        """R (S p) + T for ``(M, 3)`` points: ``(M, 3) float64``."""
+        p = np.asarray(points, dtype=np.float64)
+        with np.errstate(over="ignore", invalid="ignore"):
+            return p @ self.linear().T + np.asarray(self.translation)
+
+    def describe(self) -> str:
+        """The transform in words, e.g. ``S = 2, R = x:90, T = (1, 0, 0)``."""
+        parts = []
+        if self.scale != 1.0:
+            parts.append(f"S = {self.scale:g}")
+        if not np.array_equal(np.asarray(self.matrix), np.eye(3)):
+            q = ", ".join(f"{v:.6g}" for v in self.rotation)
+            parts.append(f"R = {self.label} (quaternion w,x,y,z {q})" if self.label else f"R = quaternion {q}")
+        if self.translation != (0.0, 0.0, 0.0):
+            parts.append(f"T = ({', '.join(f'{v:g}' for v in self.translation)})")
+        return ", ".join(parts) or "identity"
+
+
+def compose_rotation(steps) -> tuple:
+    """Rotations applied one after another, first step first.
+
+    Parameters
+    ----------
+    steps : iterable of (quaternion, matrix)
+
+    Returns
+    -------
+    quaternion : (4,) float64 ndarray
+    matrix : (3, 3) float64 ndarray
+    """
+    q = np.array([1.0, 0.0, 0.0, 0.0])
+    m = np.eye(3)
+    for sq, sm in steps:
+        q = left_product_matrix(sq) @ q
+        m = np.asarray(sm) @ m
+    return q, m
+
+
+_NUMBER = r"[-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?"
+_STEP = re.compile(rf"\s*(?:([xyzXYZ])\s*:\s*({_NUMBER})|quat\s*:\s*({_NUMBER})\s*,\s*({_NUMBER})\s*,\s*"
+                   rf"({_NUMBER})\s*,\s*({_NUMBER}))\s*(?:,|$)")
+
+
+def parse_rotation(text: str) -> tuple:
+    """A ``--rotate`` value: steps ``AXIS:DEGREES`` and ``quat:W,X,Y,Z``, comma-separated.
+
+    Steps apply left to right: ``x:90,y:45`` turns 90 degrees about x, then 45
+    about y (R = R_y R_x). Angles are right-handed: ``x:90`` takes (0, 1, 0) to
+    (0, 0, 1). A quaternion step is normalised.
+
+    Returns
+    -------
+    quaternion : (4,) float64 ndarray
+        Unit (w, x, y, z).
+    matrix : (3, 3) float64 ndarray
+
+    Raises
+    ------
+    UsageError
+        When the text is not a list of such steps, a number is not finite, or a
+        quaternion is zero.
+    """
+    steps, pos = [], 0
+    text = text.strip()
+    if not text:
+        raise UsageError("--rotate: expected steps such as x:90,y:-45 or quat:W,X,Y,Z")
+    while pos < len(text):
+        match = _STEP.match(text, pos)
+        if match is None:
+            raise UsageError(f"--rotate: cannot read {text[pos:]!r}; expected steps such as x:90,y:-45 "
+                             f"or quat:W,X,Y,Z")
+        axis, degrees, *quat = match.groups()
+        if axis is not None:
+            degrees = float(degrees)
+            if not math.isfinite(degrees):
+                raise UsageError(f"--rotate: {axis}:{match.group(2)} is not a finite angle")
+            steps.append(axis_rotation(axis.lower(), degrees))
+        else:
+            q = np.array([float(v) for v in quat])
+            norm = float(np.sqrt(q @ q))
+            if not (np.isfinite(q).all() and math.isfinite(norm) and norm > 0):
+                raise UsageError("--rotate: quat:W,X,Y,Z needs four finite numbers, not all zero")
+            q = q / norm
+            steps.append((q, quaternion_matrix(q)))
+        pos = match.end()
+        if text.endswith(",") and pos >= len(text):
+            raise UsageError("--rotate: trailing comma")
+    return compose_rotation(steps)
+
+
+def make_transform(translate=None, rotate: str | None = None, scale: float | None = None) -> Transform:
+    """The :class:`Transform` of the command-line options, whatever order they came in.
+
+    Parameters
+    ----------
+    translate : sequence of 3 float, optional
+    rotate : str, optional
+        As :func:`parse_rotation` reads it.
+    scale : float, optional
+    """
+    q, m = parse_rotation(rotate) if rotate else (np.array([1.0, 0, 0, 0]), np.eye(3))
+    return Transform(scale=1.0 if scale is None else scale, rotation=tuple(q),
+                     translation=tuple(translate) if translate is not None else (0.0, 0.0, 0.0),
+                     matrix=m, label=(rotate or "").replace(" ", ""))
+
+
+def _combine(terms, add: float, acc: np.ndarray, tmp: np.ndarray) -> np.ndarray:
+    """sum of value * coefficient over ``terms`` (+ ``add``) into ``acc``, float64."""
+    np.multiply(terms[0][0], terms[0][1], out=acc)
+    for value, c in terms[1:]:
+        np.multiply(value, c, out=tmp)
+        acc += tmp
+    if add:
+        acc += add
+    return acc
+
+
+def _affine_block(block: dict, names, matrix: np.ndarray, offset=None) -> int:
+    """Replace the vectors in columns ``names`` by ``matrix @ v + offset``, computed in float64.
+
+    Written out term by term: numpy's matmul on (k, 3) @ (3, 3) goes through BLAS,
+    whose thread start-up costs more than the arithmetic at this size. Zero
+    coefficients are left out (x:90 keeps x exactly, whatever y and z hold).
+    Runs under ``np.errstate(over="raise")`` (see :func:`_block_transformer`): a
+    value that outgrows float32 (or float64) raises, and only then is the column
+    redone and the values that became infinite counted.
+
+    Returns
+    -------
+    int
+        Finite values that became infinite.
+    """
+    v = [block[name].astype(np.float64) for name in names]
+    acc, tmp = np.empty_like(v[0]), np.empty_like(v[0])
+    grown = 0
+    for i, name in enumerate(names):
+        terms = [(v[j], c) for j, c in enumerate(matrix[i]) if c != 0.0]
+        add = 0.0 if offset is None else float(offset[i])
+        try:
+            block[name][...] = _combine(terms, add, acc, tmp)
+        except FloatingPointError:
+            with np.errstate(over="ignore"):
+                block[name][...] = _combine(terms, add, acc, tmp)
+            finite = np.logical_and.reduce([np.isfinite(value) for value, _c in terms])
+            grown += int((np.isinf(block[name]) & finite).sum())
+    return grown
+
+
+def transform_columns(columns: dict, transform: Transform) -> int:
+    """Apply ``transform`` to writeable ``columns`` in place.
+
+    Parameters
+    ----------
+    columns : dict of str to (N,) float32 ndarray
+        Writeable; positions, motion, rotations, omega and scales are rewritten.
+    transform : Transform
+
+    Returns
+    -------
+    int
+        Values that were finite and no longer fit float32 (now infinite).
+    """
+    apply = _block_transformer(transform)
+    return sum(apply(block) for _part, block in blocks(columns))
+
+
+def _block_transformer(transform: Transform):
+    """A function that transforms one block of rows in place and returns its overflow count."""
+    linear = transform.linear()
+    rotates = not np.array_equal(np.asarray(transform.matrix), np.eye(3))
+    scales = transform.scale != 1.0
+    offset = np.asarray(transform.translation)
+    left = left_product_matrix(transform.rotation)
+    log_scale = math.log(transform.scale)
+
+    identity = np.eye(len(SCALE))
+
+    def apply(block: dict) -> int:
+        grown = 0
+        # NaN and inf go through as they are; an overflow raises and is counted where it happens.
+        with np.errstate(over="raise", invalid="ignore"):
+            if rotates or scales:
+                grown += _affine_block(block, POSITION, linear, offset)
+                for k in range(3):
+                    grown += _affine_block(block, MOTION[3 * k:3 * k + 3], linear)
+            elif offset.any():
+                grown += _affine_block(block, POSITION, identity, offset)
+            if rotates:
+                grown += _affine_block(block, ROTATION, left)
+                grown += _affine_block(block, OMEGA, left)
+            if scales:
+                grown += _affine_block(block, SCALE, identity, np.full(len(SCALE), log_scale))
+        return grown
+
+    return apply
+
+
+def transform_cameras(cameras, transform: Transform):
+    """Cameras (``cameras.json`` form) moved with the scene: centre R S c + T, rotation R @ rotation.
+
+    Returns new dicts (other keys copied); None stays None.
+    """
+    if cameras is None:
+        return None
+    out = []
+    r = np.asarray(transform.matrix)
+    for cam in cameras:
+        moved = dict(cam)
+        moved["position"] = [float(v) for v in transform.apply_points(np.asarray([cam["position"]]))[0]]
+        moved["rotation"] = [[float(v) for v in row] for row in r @ np.asarray(cam["rotation"], dtype=np.float64)]
+        out.append(moved)
+    return out
+
+
+def apply_transform(scene: Scene, transform: Transform) -> tuple[Scene, OpReport]:
+    """Move, turn and scale a scene and its cameras: p' = R (S p) + T at every time.
+
+    Positions, all nine motion coefficients, rest rotations, angular velocities
+    (omega), scales and stored cameras are transformed so that the new scene
+    drawn from the moved camera at any time is the old scene drawn from the old
+    camera (see the module docstring). Non-finite values stay non-finite.
+
+    Parameters
+    ----------
+    scene : Scene
+    transform : Transform
+        From :func:`make_transform` or built directly.
+
+    Returns
+    -------
+    (Scene, OpReport)
+        A new scene (no splat removed).
+    """
+    apply = _block_transformer(transform)
+    grown = [0]
+
+    def each(block):
+        grown[0] += apply(block)
+
+    columns = gather(scene.columns, each=each)
+    grown = grown[0]
+    cameras = transform_cameras(scene.cameras, transform)
+    report = transform_report(scene.count, len(cameras or []), transform, grown)
+    return derive(scene, columns, report.notes, cameras=cameras), report
+
+
+def transform_report(count: int, cameras: int, transform: Transform, grown: int) -> OpReport:
+    """The report of :func:`apply_transform`."""
+    report = OpReport("transform", count, count)
+    moved = f" and {cameras:,} camera{'' if cameras == 1 else 's'}" if cameras else ""
+    report.notes.append(f"transform: p' = R(S p) + T with {transform.describe()} applied to {count:,} splats"
+                        f"{moved} (positions, motion, rotations, omega, scales)")
+    if grown:
+        report.notes.append(f"transform: {grown:,} finite values grew beyond float32 and are now infinite")
+    report.counts = {"cameras": cameras, "overflow": grown}
+    return report
+
+
+__all__ = ["Transform", "make_transform", "parse_rotation", "axis_rotation", "compose_rotation",
+           "quaternion_matrix", "left_product_matrix", "transform_columns", "transform_cameras",
+           "apply_transform"]

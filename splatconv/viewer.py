@@ -1,0 +1,319 @@
+"""What the splaTV viewer computes from a splat, written once.
+
+Every part of splatconv that needs the viewer's per-splat maths calls this
+module: attribute comparison and stats, the float reference renderer, and the
+scene operations (transforms, trim, bake, merge, frame sequences). Values are
+float64 where bit-exactness is not the point; the ``.splatv`` writer's packing
+(which must match the viewer's converter bit for bit) keeps its own float32
+arithmetic in :mod:`splatconv.formats.splatv_engine`.
+
+The viewer's vertex shader (``splatconv/render/shaders/splat_main.glsl``), for a
+splat at scene time ``t``::
+
+    dt        = t - trbf_center
+    topacity  = exp(-(dt / exp(trbf_scale))^2)        hidden when < 0.02
+    position  = xyz + motion_0..2 dt + motion_3..5 dt^2 + motion_6..8 dt^3
+    rotation  = normalize(rot + omega dt)
+    scale     = exp(scale_0..2)
+    colour    = clamp(f_dc_0..2, 0, 1)                (stored as bytes)
+    opacity   = sigmoid(opacity) * topacity           (alpha stored as a byte)
+
+No I/O, no printing. Column arguments are the :class:`splatconv.model.Scene`
+columns dict (``(N,) float32`` arrays named as in :data:`splatconv.model.COLUMNS`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .model import COLOR, GROUPS, MOTION, OMEGA, POSITION, ROTATION, SCALE
+
+#: Temporal opacity below which the viewer skips a splat.
+TEMPORAL_CUTOFF = 0.02
+#: |dt| / exp(trbf_scale) at which the temporal opacity falls to the cutoff:
+#: a splat is drawn while |t - trbf_center| <= VISIBLE_RADIUS * exp(trbf_scale).
+VISIBLE_RADIUS = math.sqrt(-math.log(TEMPORAL_CUTOFF))
+#: The viewer's time range.
+TIME_RANGE = (0.0, 1.0)
+
+
+def _f64(cols: dict, names) -> np.ndarray:
+    """Columns ``names`` stacked as ``(N, k) float64``."""
+    return np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
+
+
+def sigmoid(x: np.ndarray) -> np.ndarray:
+    """1 / (1 + exp(-x)) in float64, without overflow warnings (NaN stays NaN)."""
+    x = np.asarray(x, dtype=np.float64)
+    with np.errstate(over="ignore"):
+        return 1.0 / (1.0 + np.exp(-x))
+
+
+def logit(p: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`sigmoid` in float64: 0 -> -inf, 1 -> inf."""
+    p = np.asarray(p, dtype=np.float64)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.log(p) - np.log1p(-p)
+
+
+def exp(x: np.ndarray) -> np.ndarray:
+    """exp in float64 without overflow warnings (large values become inf)."""
+    with np.errstate(over="ignore"):
+        return np.exp(np.asarray(x, dtype=np.float64))
+
+
+def scales(cols: dict) -> np.ndarray:
+    """Linear scales exp(scale_0..2): ``(N, 3) float64``."""
+    return exp(_f64(cols, SCALE))
+
+
+def opacity(cols: dict) -> np.ndarray:
+    """Peak opacity sigmoid(opacity): ``(N,) float64`` in [0, 1] (NaN stays NaN)."""
+    return sigmoid(cols["opacity"])
+
+
+def colors(cols: dict) -> np.ndarray:
+    """Colour as the viewer uses it, clamped to [0, 1]: ``(N, 3) float64`` (NaN stays NaN)."""
+    return np.clip(_f64(cols, COLOR), 0.0, 1.0)
+
+
+def trbf_scale(cols: dict) -> np.ndarray:
+    """Linear temporal scale exp(trbf_scale): ``(N,) float64``."""
+    return exp(cols["trbf_scale"])
+
+
+def importance(cols: dict) -> np.ndarray:
+    """The order key of importance sorting, ``(N,) float64``.
+
+    exp(scale_0) * exp(scale_1) * exp(scale_2) * sigmoid(opacity), each factor
+    in double as splaTV's converter computes it.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        size = (exp(cols["scale_0"]) * exp(cols["scale_1"])) * exp(cols["scale_2"])
+        return size * opacity(cols)
+
+
+def temporal_opacity(cols: dict, t: float, *, cut: bool = True) -> np.ndarray:
+    """Temporal opacity exp(-(dt / exp(trbf_scale))^2) at time ``t``: ``(N,) float64``.
+
+    With ``cut`` (default) values below :data:`TEMPORAL_CUTOFF` are 0, as the
+    viewer hides those splats. An infinite temporal scale gives 1 at every time.
+    A NaN result (NaN centre or scale, or a zero scale at dt = 0) compares false
+    with the cutoff, so the viewer does not hide it: it stays NaN here.
+    """
+    dt = float(t) - np.asarray(cols["trbf_center"], dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        u = dt / trbf_scale(cols)
+        value = np.exp(-(u * u))
+    if cut:
+        value[value < TEMPORAL_CUTOFF] = 0.0
+    return value
+
+
+def visible(cols: dict, t: float) -> np.ndarray:
+    """Whether the viewer draws each splat at time ``t`` (temporal cut only): ``(N,) bool``."""
+    return ~(temporal_opacity(cols, t, cut=False) < TEMPORAL_CUTOFF)
+
+
+def visible_interval(cols: dict) -> tuple[np.ndarray, np.ndarray]:
+    """Times between which each splat passes the temporal cut: two ``(N,) float64``.
+
+    ``trbf_center -+ VISIBLE_RADIUS * exp(trbf_scale)``; an infinite scale gives
+    (-inf, inf). NaN where the centre or scale is NaN.
+    """
+    centre = np.asarray(cols["trbf_center"], dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = trbf_scale(cols) * VISIBLE_RADIUS
+        return centre - reach, centre + reach
+
+
+def motion(cols: dict) -> np.ndarray:
+    """Motion coefficients ``(N, 3, 3) float64``: ``[:, k]`` multiplies dt^(k+1)."""
+    return _f64(cols, MOTION).reshape(-1, 3, 3)
+
+
+def positions(cols: dict) -> np.ndarray:
+    """Rest positions (at dt = 0): ``(N, 3) float64``."""
+    return _f64(cols, POSITION)
+
+
+def position_at(cols: dict, t) -> np.ndarray:
+    """Centre at time ``t`` (a float, or ``(N,)`` times, one a splat): ``(N, 3) float64``.
+
+    xyz + m0 dt + m1 dt^2 + m2 dt^3 with dt = t - trbf_center, the terms summed in
+    the viewer's order.
+    """
+    dt = (np.asarray(t, dtype=np.float64) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
+    m = motion(cols)
+    with np.errstate(over="ignore", invalid="ignore"):
+        return positions(cols) + (m[:, 0] * dt + m[:, 1] * dt * dt + m[:, 2] * dt * dt * dt)
+
+
+def rotation_at(cols: dict, t: float, *, normalize: bool = True) -> np.ndarray:
+    """Rotation quaternion (w, x, y, z) at time ``t``: ``(N, 4) float64``.
+
+    rot + omega dt, normalised as the viewer does (a zero quaternion gives NaN,
+    as it does in the shader).
+    """
+    dt = (float(t) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
+    with np.errstate(over="ignore", invalid="ignore"):
+        q = _f64(cols, ROTATION) + _f64(cols, OMEGA) * dt
+        if normalize:
+            q = q / np.sqrt((q * q).sum(axis=1, keepdims=True))
+    return q
+
+
+def group_values(cols: dict, group: str) -> np.ndarray:
+    """A group's columns as the viewer uses them: ``(N, k) float64``.
+
+    Scales and the temporal scale linear (exp), colour clamped to [0, 1],
+    opacity through the sigmoid; everything else as stored.
+    """
+    if group == "scale":
+        return scales(cols)
+    if group == "color":
+        return colors(cols)
+    if group == "opacity":
+        return opacity(cols)[:, None]
+    v = _f64(cols, GROUPS[group])
+    if group == "trbf":
+        v[:, 1] = exp(v[:, 1])
+    return v
+
+
+def float_record(cols: dict) -> dict:
+    """Every value the shader reads of a splat, unquantized: name -> ``(N,) float64``.
+
+    Keys are the shader's inputs as :data:`splatconv.render.layout.FLOAT_TEXELS`
+    names them: positions, trbf centre, rotation, linear scales, linear trbf
+    scale, clamped colour, sigmoid opacity, motion and omega.
+    """
+    s = scales(cols)
+    c = colors(cols)
+    out = {name: np.asarray(cols[name], dtype=np.float64) for name in POSITION + ROTATION + MOTION + OMEGA}
+    out["trbf_center"] = np.asarray(cols["trbf_center"], dtype=np.float64)
+    out["trbf_scale"] = trbf_scale(cols)
+    for i in range(3):
+        out[f"scale_{i}"] = s[:, i]
+        out[f"f_dc_{i}"] = c[:, i]
+    out["opacity"] = opacity(cols)
+    return out
+
+
+# --------------------------------------------------------------------------
+# Importance order: the record order of splatv (and of --max-splats).
+
+
+def importance_order(key: np.ndarray) -> np.ndarray:
+    """Row order by descending ``key``, equal keys in input order, NaN last.
+
+    The same permutation as ``np.argsort(-key, kind="stable")`` (NaN keys all
+    compare equal, as do +0 and -0), from one SIMD value sort instead of a merge
+    sort: each key is mapped to an unsigned integer that sorts the same way, and
+    the row number goes in the low bits, so the packed values are distinct and
+    any sort of them is stable. A float32 key fits whole beside the row number.
+    A float64 key gives its lowest bits to the row number; runs of rows whose
+    kept bits tie but whose full keys differ are then re-sorted by the full key,
+    so the result is exact either way.
+
+    Parameters
+    ----------
+    key : (N,) float32 or float64 ndarray
+
+    Returns
+    -------
+    (N,) intp ndarray
+    """
+    key = np.asarray(key)
+    if key.dtype not in (np.float32, np.float64):
+        key = key.astype(np.float64)
+    return importance_order_into(key, np.empty(len(key), dtype=np.uint64), lambda rows: key[rows])
+
+
+#: Elements per step of whole-array passes that would otherwise need N-sized
+#: temporaries; small enough that the temporaries come from the heap, not mmap.
+_CHUNK = 1 << 13
+#: Exponent and sign bits of a float64: the row number may take the rest.
+_FLOAT64_KEPT_BITS = 1 + 11 + 1
+
+
+def importance_order_into(key: np.ndarray, packed: np.ndarray, key_of) -> np.ndarray:
+    """:func:`importance_order` computed in ``packed``, ``(N,) uint64``, which may be ``key``'s own memory.
+
+    ``key_of(rows)`` gives the full keys of some rows again, for kept-bit ties
+    (``key`` may be overwritten by then). The order returned is a view of ``packed``.
+    """
+    n = len(key)
+    wide = key.dtype == np.float64
+    row_bits = max(1, (n - 1).bit_length())
+    limit = 64 - _FLOAT64_KEPT_BITS if wide else 32
+    if row_bits > limit or np.dtype(np.intp).itemsize != 8:  # pragma: no cover
+        with np.errstate(invalid="ignore"):
+            return np.argsort(-key, kind="stable")
+    low = np.uint64((1 << row_bits) - 1)
+    # A chunk at a time, without N-sized temporaries: on some machines touching
+    # fresh memory costs about as much as the sort.
+    for start in range(0, n, _CHUNK):
+        part = _descending_bits(key[start:start + _CHUNK]).astype(np.uint64)
+        if wide:
+            part &= ~low
+        else:
+            part <<= np.uint64(row_bits)
+        part |= np.arange(start, start + len(part), dtype=np.uint64)
+        packed[start:start + _CHUNK] = part
+    packed.sort()
+    ties = _kept_bit_ties(packed, low) if wide else ()
+    packed &= low
+    order = packed.view(np.intp)
+    if len(ties):
+        _resort_ties(order, ties, key_of)
+    return order
+
+
+def _descending_bits(key: np.ndarray) -> np.ndarray:
+    """Unsigned integers that ascend as ``key`` descends: -0 as +0, NaN the largest (last)."""
+    itype, utype = (np.int64, np.uint64) if key.dtype == np.float64 else (np.int32, np.uint32)
+    with np.errstate(invalid="ignore"):
+        bits = (key + key.dtype.type(0.0)).view(itype)  # -0 + 0 is +0
+    # Non-negative keys: flip all but the sign bit (larger key, smaller pattern);
+    # negative keys keep their bits (sign set: after all others, larger magnitude later).
+    flip = np.right_shift(bits, itype(8 * key.dtype.itemsize - 1))  # all ones for negatives
+    np.invert(flip, out=flip)
+    flip &= itype(np.iinfo(itype).max)
+    bits ^= flip
+    out = bits.view(utype)
+    nan = np.isnan(key)
+    if nan.any():
+        out[nan] = np.iinfo(utype).max
+    return out
+
+
+def _kept_bit_ties(packed: np.ndarray, low: np.uint64) -> np.ndarray:
+    """Positions i of sorted ``packed`` whose bits above ``low`` equal those at i + 1."""
+    ties = []
+    for start in range(0, len(packed) - 1, _CHUNK):
+        a = packed[start:start + _CHUNK + 1]
+        ties.append(np.flatnonzero((a[1:] ^ a[:-1]) <= low) + start)
+    return np.concatenate(ties) if ties else np.zeros(0, np.intp)
+
+
+def _resort_ties(order: np.ndarray, ties: np.ndarray, key_of) -> None:
+    """Order runs of kept-bit ties by the full key, then row, where full keys differ."""
+    full = _descending_bits(key_of(order[ties])), _descending_bits(key_of(order[ties + 1]))
+    wrong = full[0] != full[1]
+    if not wrong.any():
+        return  # whole-key ties only: already in row order
+    # Runs of consecutive tie positions; each spans positions first .. last + 1.
+    new_run = np.concatenate([[True], ties[1:] != ties[:-1] + 1])
+    run = np.cumsum(new_run) - 1
+    firsts = ties[new_run]
+    lasts = np.append(ties[np.flatnonzero(new_run)[1:] - 1], ties[-1]) + 1
+    bad = np.unique(run[wrong])
+    lengths = lasts[bad] - firsts[bad] + 1
+    at = np.repeat(firsts[bad] - np.cumsum(lengths) + lengths, lengths) + np.arange(lengths.sum())
+    # Runs are contiguous and already in kept-bit order, so sorting their union by
+    # (full key, row) puts every member back inside its own run.
+    rows = order[at]
+    order[at] = rows[np.lexsort((rows, _descending_bits(key_of(rows))))]

@@ -1,0 +1,122 @@
+"""The package's shape, checked: imports run one way, formats are asked, not named.
+
+Reads the source with :mod:`ast`; nothing is imported or run.
+"""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parent.parent / "splatconv"
+#: Imports allowed inside functions: moderngl is loaded only when something is drawn.
+LAZY_ALLOWED = {"moderngl"}
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+def _modules() -> dict:
+    return {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+
+
+def _resolve(module: str, path: Path, node: ast.ImportFrom) -> list:
+    """Absolute names a ``from ... import ...`` statement may load."""
+    if node.level:
+        package = module.split(".") if path.name == "__init__.py" else module.split(".")[:-1]
+        base = ".".join(package[:len(package) - node.level + 1])
+        target = f"{base}.{node.module}" if node.module else base
+    else:
+        target = node.module or ""
+    return [target] + [f"{target}.{alias.name}" for alias in node.names]
+
+
+def _imports(modules: dict) -> dict:
+    """Module -> splatconv modules it imports (top level and inside functions)."""
+    graph = {}
+    for module, path in modules.items():
+        found = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            names = []
+            if isinstance(node, ast.Import):
+                names = [alias.name for alias in node.names]
+            elif isinstance(node, ast.ImportFrom):
+                names = _resolve(module, path, node)
+            found.update(n for n in names if n in modules and n != module)
+        graph[module] = found
+    return graph
+
+
+def _ancestors(module: str) -> set:
+    parts = module.split(".")
+    return {".".join(parts[:i]) for i in range(1, len(parts))}
+
+
+def test_no_module_imports_one_that_imports_it_back():
+    modules = _modules()
+    graph = _imports(modules)
+    # Importing a.b.c runs a and a.b first: a package's __init__ importing a module
+    # below it is the package's own business, not a cycle through that module.
+    cycles = []
+    for start in graph:
+        stack, seen = [(start, [start])], set()
+        while stack:
+            node, trail = stack.pop()
+            for nxt in graph[node]:
+                if nxt in _ancestors(start) or nxt in _ancestors(node):
+                    continue
+                if nxt == start:
+                    cycles.append(" -> ".join(trail + [nxt]))
+                elif nxt not in seen:
+                    seen.add(nxt)
+                    stack.append((nxt, trail + [nxt]))
+    assert not cycles, cycles[:5]
+
+
+def test_imports_are_at_the_top_of_each_file_except_moderngl():
+    late = []
+    for module, path in _modules().items():
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        top = set(id(n) for n in tree.body)
+        for node in ast.walk(tree):
+            if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
+                names = [a.name for a in node.names] if isinstance(node, ast.Import) else [node.module or ""]
+                if not all(n.split(".")[0] in LAZY_ALLOWED for n in names):
+                    late.append(f"{module}:{node.lineno}")
+    assert not late, late
+
+
+def test_nothing_outside_formats_names_a_format_to_decide_what_to_do():
+    """No ``is splatv`` / ``NAME == "..."`` outside formats/: callers ask a module what it supports."""
+    offenders = []
+    for module, path in _modules().items():
+        if module.startswith("splatconv.formats"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Compare):
+                text = ast.unparse(node)
+                if any(f"{word} " in text or f"'{word}'" in text or f'"{word}"' in text
+                       for word in ("is splatv", "is ply", "NAME ==", "NAME !=")):
+                    offenders.append(f"{module}:{node.lineno}: {text}")
+                for side in [node.left, *node.comparators]:
+                    if isinstance(side, ast.Constant) and side.value in ("splatv", "ply", "splat"):
+                        offenders.append(f"{module}:{node.lineno}: {text}")
+    assert not offenders, offenders
+
+
+def test_the_library_never_imports_click_and_the_cli_holds_no_numpy():
+    graph_sources = {m: p.read_text(encoding="utf-8") for m, p in _modules().items()}
+    for module, text in graph_sources.items():
+        tree = ast.parse(text)
+        names = set()
+        for node in ast.walk(tree):
+            if isinstance(node, ast.Import):
+                names.update(a.name.split(".")[0] for a in node.names)
+            elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                names.add(node.module.split(".")[0])
+        if module.startswith("splatconv.cli"):
+            assert "numpy" not in names, module
+        else:
+            assert "click" not in names, module
