@@ -140,10 +140,11 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
         pass
 
 
-def test_segments_play_as_one_clip(browser, sample, nonfinite):
-    """Two segments: clip time 0.25 is the first at 0.5, 0.75 the second at 0.5."""
-    with serving([sample, nonfinite]) as server:
-        for clip_time, path in ((0.25, sample), (0.75, nonfinite)):
+@pytest.mark.parametrize("durations, times", [(None, (0.25, 0.75)), ("50,150", (0.125, 0.625))])
+def test_segments_play_as_one_clip(browser, sample, nonfinite, durations, times):
+    """Two segments: equal shares (or 1:3): each clip time shows one segment at its local 0.5."""
+    with serving([sample, nonfinite], durations=durations) as server:
+        for clip_time, path in zip(times, (sample, nonfinite)):
             page = open_page(browser, server.url + f"#t={clip_time}&ui=0", W, H)
             status = page.evaluate("window.splatconvPlayer.status()")
             assert status["drawn"]["segment"] == (0 if path is sample else 1)
@@ -165,6 +166,7 @@ def test_segment_boundary_has_the_next_segment_ready(browser, sample, nonfinite)
                       " document.getElementById('play').click(); }")
         page.wait_for_function("() => window.splatconvPlayer.status().drawn.segment === 1", timeout=30000)
         status = page.evaluate("window.splatconvPlayer.status()")
+        assert status["drawn"]["clipTime"] >= 0.5 and status["drawn"]["time"] < 0.2
         # The first frame of segment 1 already drew all of it (its sort was done ahead).
         assert status["drawn"]["count"] == status["segments"][1]["total"]
         page.close()

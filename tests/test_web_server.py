@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import http.client
+import json
 import os
 import re
 import signal
@@ -206,3 +207,36 @@ def test_convert_html_refusals(sample, tmp_path):
     assert r.exit_code == 2 and r.stderr == f"Error: {tmp_path / 'x.html'}: html files can be written, not read\n"
     r = run("convert", sample, sample, tmp_path / "c.html", "--sort", "none")
     assert r.exit_code == 2 and not (tmp_path / "c.html").exists()
+
+
+@pytest.mark.parametrize("durations, message", [
+    ("1", "--durations gives 1 value(s) for 2 segment(s)"),
+    ("1,x", "--durations: expected comma-separated numbers, got '1,x'"),
+    ("1,0", "--durations: every duration must be a positive finite number"),
+    ("1,nan", "--durations: every duration must be a positive finite number"),
+])
+def test_bad_durations_are_usage_errors(sample, tmp_path, durations, message):
+    for args in (("view", sample, sample, "--no-open"), ("convert", sample, sample, tmp_path / "c.html")):
+        r = run(*args, "--durations", durations)
+        assert r.exit_code == 2 and r.stderr == f"Error: {message}\n", r.output
+    assert not (tmp_path / "c.html").exists()
+
+
+def test_durations_reach_the_page(sample, tmp_path):
+    out = tmp_path / "c.html"
+    assert run("convert", sample, sample, out, "--durations", "50,150").exit_code == 0
+    config = re.search(r'data-asset="config">(.*?)</script>', out.read_text()).group(1)
+    assert [s["duration"] for s in json.loads(config)["scenes"]] == [50.0, 150.0]
+
+
+def test_specs_player_md_states_what_the_code_does(sample):
+    spec = (ROOT / "specs" / "player.md").read_text()
+    player = (ROOT / "splatconv" / "web" / "assets" / "player.js").read_text()
+    seconds = re.search(r"SECONDS_PER_SEGMENT = (\d+);", player).group(1)
+    assert f"The clip plays for {seconds} s per\nsegment at 1× speed" in spec
+    with serving([sample, sample]) as server:
+        routes = sorted(server.routes)
+    assert routes == ["/", "/index.html", "/scene/0.splatv", "/scene/1.splatv"]
+    assert "`GET` and `HEAD` for exactly `/`,\n`/index.html` and `/scene/I.splatv`" in spec
+    for name in SHADERS:
+        assert name in spec

@@ -16,6 +16,8 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 
+from splatconv.web.server import ViewServer
+
 #: WebGL2 on SwiftShader (ANGLE's Vulkan CPU driver), nothing fetched from the network.
 CHROMIUM_ARGS = (
     "--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox",
@@ -98,11 +100,9 @@ def view_hash(matrix, t=None, ui=False) -> str:
 
 
 @contextmanager
-def serving(paths):
+def serving(paths, **options):
     """A :class:`splatconv.web.server.ViewServer` for ``paths``, running in a thread."""
-    from splatconv.web.server import ViewServer
-
-    server = ViewServer(paths)
+    server = ViewServer(paths, **options)
     thread = threading.Thread(target=server.serve, kwargs={"open_browser": False}, daemon=True)
     thread.start()
     try:

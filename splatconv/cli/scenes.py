@@ -29,6 +29,9 @@ def _zstd_option(what: str):
     click.option("--external", is_flag=True,
                  help="For an .html OUTPUT: write the scene beside the page (OUT.splatv) instead of "
                       "embedding it, for scenes too large to embed; the page must then be served over HTTP."),
+    click.option("--durations", metavar="D0,D1,...",
+                 help="For several INPUTs to .html: each segment's share of the clip's timeline, e.g. its "
+                      "frames [default: equal shares]."),
     click.option("--compat", type=click.Choice(io.COMPAT_MODES),
                  help="splatv-js: texture bytes identical to splaTV's in-browser converter "
                       "(truncating halves). Default: accurate rounding."),
@@ -48,7 +51,7 @@ def _zstd_option(what: str):
 )
 @edit_options()
 @library_errors
-def convert(input_path, output_path, external, compat, sort, cameras, layout, color, zstd_level, force, quiet,
+def convert(input_path, output_path, external, durations, compat, sort, cameras, layout, color, zstd_level, force, quiet,
             **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
@@ -64,10 +67,10 @@ def convert(input_path, output_path, external, compat, sort, cameras, layout, co
       splatconv convert scene.splatv scene.html
     """
     # Player pages of several segments or with --external: splatconv.web.publish.
-    if external or len(input_path) > 1:
+    if external or durations or len(input_path) > 1:
         if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
-            raise Failure("--external and several inputs take no other options but --force", 2)
-        report = publish(input_path, output_path, external=external, force=force)
+            raise Failure("--external and several inputs take no other options but --durations and --force", 2)
+        report = publish(input_path, output_path, external=external, force=force, durations=durations)
         notes(report.notes)
         for path, size in report.written:
             click.echo(f"wrote {path}: {size:,} bytes")

@@ -14,9 +14,11 @@ from ._base import library_errors, main, notes, options
     click.option("--port", type=click.IntRange(0, 65535), default=0,
                  help="Port on 127.0.0.1 [default: a free one]."),
     click.option("--no-open", is_flag=True, help="Do not open a browser; just print the address."),
+    click.option("--durations", metavar="D0,D1,...",
+                 help="Each segment's share of the clip's timeline, e.g. its frames [default: equal shares]."),
 )
 @library_errors
-def view(files, port, no_open):
+def view(files, port, no_open, durations):
     """Play FILE in the browser: serves the player page and the scene on 127.0.0.1 only.
 
     Several FILEs play as the segments of one clip. A PLY, .splat or .zst input is
@@ -27,7 +29,7 @@ def view(files, port, no_open):
       splatconv view scene.splatv
       splatconv view seg0.splatv seg1.splatv seg2.splatv --no-open
     """
-    server = ViewServer(files, port=port)
+    server = ViewServer(files, port=port, durations=durations)
     notes(server.notes)
     click.echo(f"serving {', '.join(files)} at {server.url} (Ctrl-C to stop)")
     server.serve(open_browser=not no_open)

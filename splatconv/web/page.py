@@ -11,9 +11,12 @@ from __future__ import annotations
 import base64
 import html
 import json
+import math
 import re
 from dataclasses import dataclass
 from importlib import resources
+
+from ..errors import UsageError
 
 #: The vertex shader is these three files joined, as ``render.preview.vertex_source("splatv")``.
 SHADERS = ("splat_head.glsl", "fetch_splatv.glsl", "splat_main.glsl", "splat.frag")
@@ -25,15 +28,35 @@ class SceneRef:
     """One segment of the clip the page plays.
 
     Exactly one of ``url`` (fetched, relative to the page) and ``data`` (the
-    ``.splatv`` bytes, embedded as base64) is set. ``duration`` (seconds, optional)
-    sets the segment's share of the timeline; without durations every segment
-    gets an equal share.
+    ``.splatv`` bytes, embedded as base64) is set. ``duration`` (optional, any
+    positive unit, e.g. frames) sets the segment's share of the timeline: its
+    duration over the sum of all. Without durations every segment gets an equal share.
     """
 
     name: str
     url: str | None = None
     data: bytes | None = None
     duration: float | None = None
+
+
+def parse_durations(text: str | None, count: int) -> list:
+    """``--durations D0,D1,...``: one positive finite number per segment; None gives ``[None] * count``.
+
+    Raises
+    ------
+    UsageError
+    """
+    if text is None:
+        return [None] * count
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        raise UsageError(f"--durations: expected comma-separated numbers, got {text!r}") from None
+    if len(values) != count:
+        raise UsageError(f"--durations gives {len(values)} value(s) for {count} segment(s)")
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        raise UsageError("--durations: every duration must be a positive finite number")
+    return values
 
 
 def _asset(name: str) -> str:

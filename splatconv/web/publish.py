@@ -8,7 +8,7 @@ from urllib.parse import quote
 
 from ..errors import UsageError
 from ..fsutil import atomic_group, check_output
-from .page import SceneRef, build_page
+from .page import SceneRef, build_page, parse_durations
 from .scenes import splatv_bytes
 
 
@@ -20,14 +20,16 @@ class PublishReport:
     notes: list = field(default_factory=list)
 
 
-def publish(inputs, output, *, external: bool = False, force: bool = False) -> PublishReport:
+def publish(inputs, output, *, external: bool = False, force: bool = False,
+            durations: str | None = None) -> PublishReport:
     """Write ``output`` (``.html``): the player with ``inputs`` as one clip.
 
     Parameters
     ----------
     inputs : list of path
         Scene files (any format ``convert`` reads); several are the segments of one
-        clip, played in this order, each an equal share of the timeline.
+        clip, played in this order, each an equal share of the timeline unless
+        ``durations`` says otherwise.
     output : path
         The page; must end in ``.html``.
     external : bool
@@ -38,6 +40,8 @@ def publish(inputs, output, *, external: bool = False, force: bool = False) -> P
         from disk).
     force : bool
         Replace existing outputs (never an input).
+    durations : str, optional
+        ``"D0,D1,..."``: each segment's share of the timeline (any unit, e.g. frames).
 
     Returns
     -------
@@ -49,6 +53,7 @@ def publish(inputs, output, *, external: bool = False, force: bool = False) -> P
         raise UsageError("a player page must be written to an .html file", output)
     if not inputs:
         raise UsageError("give at least one scene file")
+    shares = parse_durations(durations, len(inputs))
     stem = output[: -len(".html")]
     names = [f"{stem}.splatv"] if len(inputs) == 1 else [f"{stem}.{i}.splatv" for i in range(len(inputs))]
     outputs = [output] + (names if external else [])
@@ -60,16 +65,16 @@ def publish(inputs, output, *, external: bool = False, force: bool = False) -> P
     refs = []
     # All files or none: a page never points at a scene file that was not written.
     with atomic_group(replace=force) as group:
-        for path, name in zip(inputs, names):
+        for path, name, share in zip(inputs, names, shares):
             data, notes = splatv_bytes(path)
             report.notes.extend(f"{path}: {n}" for n in notes)
             if external:
                 with group.open(name) as stream:
                     stream.write(data)
                 report.written.append((name, len(data)))
-                refs.append(SceneRef(name=os.path.basename(path), url=quote(os.path.basename(name))))
+                refs.append(SceneRef(name=os.path.basename(path), url=quote(os.path.basename(name)), duration=share))
             else:
-                refs.append(SceneRef(name=os.path.basename(path), data=data))
+                refs.append(SceneRef(name=os.path.basename(path), data=data, duration=share))
         page = build_page(refs, title=os.path.basename(stem))
         with group.open(output) as stream:
             stream.write(page)

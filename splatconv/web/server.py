@@ -18,7 +18,7 @@ from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import urlsplit
 
 from ..errors import UsageError
-from .page import SceneRef, build_page
+from .page import SceneRef, build_page, parse_durations
 from .scenes import check_splatv, is_plain_splatv, splatv_bytes
 
 HOST = "127.0.0.1"
@@ -34,13 +34,14 @@ class _Resource:
     path: str | None = None
 
 
-def scene_resources(paths) -> tuple[dict, list, list]:
+def scene_resources(paths, durations=None) -> tuple[dict, list, list]:
     """The scene URLs for ``paths``: ``({url: _Resource}, [SceneRef], notes)``.
 
     A plain ``.splatv`` is served from disk as it is; a PLY or ``.zst`` input is
     converted in memory first (its notes returned).
     """
     resources, refs, notes = {}, [], []
+    shares = durations or [None] * len(paths)
     for i, path in enumerate(paths):
         path = os.fspath(path)
         url = f"scene/{i}.splatv"
@@ -51,7 +52,7 @@ def scene_resources(paths) -> tuple[dict, list, list]:
             data, lost = splatv_bytes(path)
             notes.extend(f"{path}: {n}" for n in lost)
             resources["/" + url] = _Resource("application/octet-stream", data=data)
-        refs.append(SceneRef(name=os.path.basename(path), url=url))
+        refs.append(SceneRef(name=os.path.basename(path), url=url, duration=shares[i]))
     return resources, refs, notes
 
 
@@ -119,6 +120,8 @@ class ViewServer:
         The scene, or the segments of one clip in playing order.
     port : int
         0 picks a free port.
+    durations : str, optional
+        ``"D0,D1,..."``: each segment's share of the timeline (default equal shares).
 
     Raises
     ------
@@ -126,12 +129,12 @@ class ViewServer:
         When the port is taken or cannot be bound.
     """
 
-    def __init__(self, paths, port: int = 0):
+    def __init__(self, paths, port: int = 0, durations: str | None = None):
         paths = [os.fspath(p) for p in paths]
         if not paths:
             raise UsageError("give a scene file to view")
         self.paths = paths
-        scenes, refs, self.notes = scene_resources(paths)
+        scenes, refs, self.notes = scene_resources(paths, parse_durations(durations, len(paths)))
         title = os.path.basename(paths[0]) + (f" + {len(paths) - 1} segments" if len(paths) > 1 else "")
         page = _Resource("text/html; charset=utf-8", data=build_page(refs, title=title))
         self.routes = {"/": page, "/index.html": page, **scenes}

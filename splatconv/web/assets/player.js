@@ -9,7 +9,7 @@
   const SPLATS_PER_ROW = 1024;
   const RECORD_BYTES = 64;
   const ZNEAR = 0.2, ZFAR = 200.0;
-  const SECONDS_PER_SEGMENT = 4; // one segment's [0, 1] at 1x speed, when no durations are given
+  const SECONDS_PER_SEGMENT = 4; // the clip plays this long per segment at 1x speed
   const QUAD = new Float32Array([-2, -2, 2, -2, 2, 2, -2, 2]);
 
   const $ = (id) => document.getElementById(id);
@@ -171,8 +171,7 @@
   }
 
   function clipSeconds() {
-    const given = state.segments.every((s) => s.duration > 0);
-    return given ? state.segments.reduce((a, s) => a + s.duration, 0) : SECONDS_PER_SEGMENT * state.segments.length;
+    return SECONDS_PER_SEGMENT * Math.max(1, state.segments.length);
   }
 
   // Which segment plays at clip time t, and the time inside it.
