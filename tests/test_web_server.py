@@ -240,3 +240,17 @@ def test_specs_player_md_states_what_the_code_does(sample):
     assert "`GET` and `HEAD` for exactly `/`,\n`/index.html` and `/scene/I.splatv`" in spec
     for name in SHADERS:
         assert name in spec
+
+
+def test_without_a_display_view_does_not_start_a_text_browser(sample):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "BROWSER")}
+    proc = subprocess.Popen([sys.executable, "-m", "splatconv", "view", str(sample)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=dict(env, PYTHONUNBUFFERED="1"), text=True)
+    try:
+        assert proc.stdout.readline().startswith(f"serving {sample} at http://127.0.0.1:")
+        assert proc.stderr.readline() == "note: no display to open a browser on: open the address above in a browser\n"
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()

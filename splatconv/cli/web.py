@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..web.server import ViewServer
+from ..web.server import ViewServer, can_open_browser
 from ._base import library_errors, main, notes, options
 
 
@@ -30,6 +30,14 @@ def view(files, port, no_open, durations):
       splatconv view seg0.splatv seg1.splatv seg2.splatv --no-open
     """
     server = ViewServer(files, port=port, durations=durations)
-    notes(server.notes)
-    click.echo(f"serving {', '.join(files)} at {server.url} (Ctrl-C to stop)")
-    server.serve(open_browser=not no_open)
+    try:
+        notes(server.notes)
+        click.echo(f"serving {', '.join(files)} at {server.url} (Ctrl-C to stop)")
+        opening = not no_open and can_open_browser()
+        if not no_open and not opening:
+            notes(["no display to open a browser on: open the address above in a browser"])
+        server.serve(open_browser=opening)
+    except KeyboardInterrupt:
+        pass  # Ctrl-C just before serving began: the same clean stop
+    finally:
+        server.close()

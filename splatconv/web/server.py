@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 import shutil
 import signal
+import sys
 import threading
 import webbrowser
 from dataclasses import dataclass
@@ -111,6 +112,17 @@ def _handler(routes: dict, port_holder: list):
     return Handler
 
 
+def can_open_browser() -> bool:
+    """Whether a graphical browser can be opened here.
+
+    On Linux without a display, :mod:`webbrowser` falls back to text browsers in
+    the terminal (lynx, w3m), which would take it over and cannot run the page.
+    """
+    if sys.platform.startswith("linux"):
+        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return True
+
+
 class ViewServer:
     """The player and its scenes on ``http://127.0.0.1:PORT/``.
 
@@ -174,6 +186,10 @@ class ViewServer:
             thread.join()
             for sig, handler in previous.items():
                 signal.signal(sig, handler)
+
+    def close(self) -> None:
+        """Close the listening socket (:meth:`serve` does so when it returns)."""
+        self.httpd.server_close()
 
     def stop(self) -> None:
         """Ask a running :meth:`serve` to return."""

@@ -364,6 +364,8 @@
     if (seg.index === 0 && seg.uploaded === 0 && !state.userMoved) framePivot(seg, records);
     seg.uploaded = records;
     seg.sortable = records;
+    // The texture and the worker hold it all now: free the page's copy.
+    if (seg.done && records === seg.total) seg.data = seg.words = seg.floats = null;
   }
 
   // Orbit about the scene's middle depth, from the first records (the most important).
@@ -703,7 +705,7 @@
   function updatePanel() {
     if (!$("time").matches(":active")) $("time").value = String(state.time);
     $("time-label").textContent = state.time.toFixed(3);
-    const total = state.segments.reduce((a, s) => a + (s.header ? s.data.length : 0), 0);
+    const total = state.segments.reduce((a, s) => a + s.total * RECORD_BYTES, 0);
     const got = state.segments.reduce((a, s) => a + s.received, 0);
     const done = state.segments.length && state.segments.every((s) => s.done);
     const where = locate(state.time);
