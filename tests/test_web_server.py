@@ -20,7 +20,7 @@ from click.testing import CliRunner
 import splatconv
 from splatconv.cli import main
 from splatconv.transport import plain_input
-from splatconv.web.page import SHADERS
+from splatconv.web.page import SHADERS, SceneRef, build_page
 from splatconv.web.server import HOST, ViewServer
 
 from .web_support import serving
@@ -254,3 +254,13 @@ def test_without_a_display_view_does_not_start_a_text_browser(sample):
     finally:
         if proc.poll() is None:
             proc.kill()
+
+
+def test_a_hostile_file_name_cannot_break_out_of_the_page():
+    name = 'x</script><script>alert(1)</script><!--"&.splatv'
+    page = build_page([SceneRef(name=name, url="scene/0.splatv")], title=name).decode()
+    config = re.search(r'data-asset="config">(.*?)</script>', page).group(1)
+    assert json.loads(config)["scenes"][0]["name"] == name
+    assert "<script>alert(1)" not in page
+    # Every script element closes where the builder closed it.
+    assert page.count("<script") == page.count("</script>")

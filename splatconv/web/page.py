@@ -67,15 +67,21 @@ def _shader(name: str) -> str:
     return resources.files("splatconv.render").joinpath("shaders", name).read_text(encoding="utf-8")
 
 
-def _script_text(text: str) -> str:
-    """Text safe inside a <script> element: no ``</`` can end it early."""
-    return text.replace("</", "<\\/")
+def _json_text(text: str) -> str:
+    """JSON safe inside a <script> element: every ``<`` (only ever inside a string) as ``\\u003c``."""
+    return text.replace("<", "\\u003c")
+
+
+def _checked(name: str, text: str) -> str:
+    """Package source that goes into a <script> element as it is: refuse what would end it early."""
+    lower = text.lower()
+    if "</script" in lower or "<!--" in lower:  # our sources never hold these; refuse rather than mangle
+        raise ValueError(f"{name} contains '</script' or '<!--'")
+    return text
 
 
 def _text_block(name: str, text: str, kind: str = "text/plain") -> str:
-    if "</script" in text.lower():  # shader and worker sources never hold it; refuse rather than mangle
-        raise ValueError(f"{name} contains '</script'")
-    return f'<script type="{kind}" data-asset="{html.escape(name)}">{text}</script>'
+    return f'<script type="{kind}" data-asset="{html.escape(name)}">{_checked(name, text)}</script>'
 
 
 def build_page(scenes: list, title: str = "splatconv player") -> bytes:
@@ -112,9 +118,9 @@ def build_page(scenes: list, title: str = "splatconv player") -> bytes:
     fields = {
         "TITLE": html.escape(title),
         "CSS": _asset("player.css"),
-        "CONFIG": _script_text(config),
+        "CONFIG": _json_text(config),
         "ASSETS": "\n".join(blocks),
-        "PLAYER": _script_text(_asset("player.js")),
+        "PLAYER": _checked("player.js", _asset("player.js")),
     }
     page = _TEMPLATE_FIELD.sub(lambda m: fields[m.group(1)], _asset("player.html"))
     return page.encode("utf-8")
