@@ -264,3 +264,27 @@ def test_a_hostile_file_name_cannot_break_out_of_the_page():
     assert "<script>alert(1)" not in page
     # Every script element closes where the builder closed it.
     assert page.count("<script") == page.count("</script>")
+
+
+def test_readme_player_commands(sample, tmp_path, monkeypatch):
+    """The README's two player commands, as written, in a folder holding dancers.splatv."""
+    section = (ROOT / "README.md").read_text().split("### Play it in the browser", 1)[1]
+    view_line, convert_line = re.search(r"```\n(.*?)```", section, re.S).group(1).strip().splitlines()
+    (tmp_path / "dancers.splatv").write_bytes(sample.read_bytes())
+    monkeypatch.chdir(tmp_path)
+    words = convert_line.split()
+    assert words[0] == "splatconv"
+    r = run(*words[1:])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "dancers.html").stat().st_size > sample.stat().st_size
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = subprocess.Popen([sys.executable, "-m", *view_line.split()], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, env=dict(env, PYTHONUNBUFFERED="1"), text=True)
+    try:
+        port = int(re.search(r"127\.0\.0\.1:(\d+)/", proc.stdout.readline()).group(1))
+        assert get(port, "/scene/0.splatv")[1] == sample.read_bytes()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
