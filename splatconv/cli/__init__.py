@@ -6,7 +6,7 @@ usage. Commands live a module per family and register on :data:`main`.
 
 from __future__ import annotations
 
-from . import drawing, edit, scenes  # noqa: F401  (registers the commands)
+from . import drawing, edit, scenes, web  # noqa: F401  (registers the commands)
 from ._base import main
 
 __all__ = ["main"]

@@ -12,6 +12,7 @@ from ..ops.sequence import SAME_SPLATS_MODES
 from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
 from ..stats import describe, stats_report
 from ..transport import DEFAULT_LEVEL
+from ..web.publish import publish
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, quiet_option)
 from ._edit import edit_options, scene_editor
@@ -64,6 +65,12 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 @click.argument("input_paths", metavar="INPUT...", nargs=-1, required=True, type=click.Path())
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
 @options(
+    click.option("--external", is_flag=True,
+                 help="For an .html OUTPUT: write the scene beside the page (OUT.splatv) instead of "
+                      "embedding it, for scenes too large to embed; the page must then be served over HTTP."),
+    click.option("--durations", metavar="D0,D1,...",
+                 help="For several INPUTs to .html: each segment's share of the clip's timeline, e.g. its "
+                      "frames [default: equal shares]."),
     click.option("--compat", type=click.Choice(io.COMPAT_MODES),
                  help="splatv-js: texture bytes identical to splaTV's in-browser converter "
                       "(truncating halves). Default: accurate rounding."),
@@ -84,20 +91,31 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 )
 @edit_options()
 @library_errors
-def convert(input_paths, output_path, compat, sort, cameras, layout, color, zstd_level, frame_times, same_splats,
-            max_error, force, quiet, **edits):
-    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst).
+def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, color, zstd_level,
+            frame_times, same_splats, max_error, force, quiet, **edits):
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
     reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
-    compressed while it is written.
+    compressed while it is written. Several INPUTs make one .html page that
+    plays them as the segments of one clip.
 
     \b
     Example:
       splatconv convert scene.ply scene.splatv --cameras cameras.json
       splatconv convert scene.splatv scene.ply
       splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
+      splatconv convert scene.splatv scene.html
     """
+    # Player pages of several segments or with --external: splatconv.web.publish.
+    if external or durations or (len(input_paths) > 1 and output_path.lower().endswith(".html")):
+        if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
+            raise Failure("--external and several inputs take no other options but --durations and --force", 2)
+        report = publish(input_paths, output_path, external=external, force=force, durations=durations)
+        notes(report.notes)
+        for path, size in report.written:
+            click.echo(f"wrote {path}: {size:,} bytes")
+        return
     if clips.is_sequence(input_paths):
         _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
                         color=color, zstd_level=zstd_level, frame_times=frame_times, same_splats=same_splats,

@@ -15,9 +15,9 @@ import os
 
 from ..errors import UsageError
 from ..transport import inner_name
-from . import ply, splat, splatv
+from . import html, ply, splat, splatv
 
-_MODULES = (ply, splatv, splat)
+_MODULES = (ply, splatv, splat, html)
 REGISTRY = {suffix: module for module in _MODULES for suffix in module.SUFFIXES}
 
 

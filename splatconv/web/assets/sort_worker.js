@@ -1,0 +1,73 @@
+// Depth sort for the splatconv player, run in a web worker.
+//
+// The order is the one splaTV's viewer computes (and splatconv/render/sort.py
+// reproduces for `splatconv render`): key = ToInt32((vp[2]*x + vp[6]*y + vp[10]*z) * 4096)
+// in double precision from float32 positions, rescaled to 65,536 buckets by
+// ToInt32((key - min) * 65536 / (max - min)), then a stable counting sort, nearest
+// first. Splats that land in bucket 65,536 (the farthest) are dropped and the tail
+// of the index list stays 0, as in the viewer, so both renderers blend the same list.
+"use strict";
+
+const BUCKETS = 65536;
+const positions = new Map(); // segment -> Float32Array of x, y, z per record
+let counts = new Uint32Array(BUCKETS);
+let keys = new Int32Array(0);
+
+function depthOrder(pos, count, vp) {
+  if (keys.length < count) keys = new Int32Array(count);
+  const out = new Uint32Array(count);
+  if (count === 0) return out;
+  const a = vp[2], b = vp[6], c = vp[10];
+  let lo = 2147483647, hi = -2147483648;
+  for (let i = 0, j = 0; i < count; i++, j += 3) {
+    const key = ((a * pos[j] + b * pos[j + 1] + c * pos[j + 2]) * 4096) | 0;
+    keys[i] = key;
+    if (key < lo) lo = key;
+    if (key > hi) hi = key;
+  }
+  // hi == lo gives Infinity, and 0 * Infinity is NaN, whose ToInt32 is 0: one bucket.
+  const inv = BUCKETS / (hi - lo);
+  counts.fill(0);
+  for (let i = 0; i < count; i++) {
+    const bucket = ((keys[i] - lo) * inv) | 0;
+    keys[i] = bucket;
+    if (bucket < BUCKETS) counts[bucket]++;
+  }
+  // Exclusive prefix sums: where each bucket's run starts.
+  let sum = 0;
+  for (let k = 0; k < BUCKETS; k++) {
+    const n = counts[k];
+    counts[k] = sum;
+    sum += n;
+  }
+  for (let i = 0; i < count; i++) {
+    const bucket = keys[i];
+    if (bucket < BUCKETS) out[counts[bucket]++] = i;
+  }
+  return out;
+}
+
+self.onmessage = (event) => {
+  const msg = event.data;
+  if (msg.type === "append") {
+    // Positions of records [start, start + n) of a segment, as they stream in.
+    let pos = positions.get(msg.segment);
+    if (!pos || pos.length < msg.total * 3) {
+      const grown = new Float32Array(msg.total * 3);
+      if (pos) grown.set(pos.subarray(0, Math.min(pos.length, grown.length)));
+      pos = grown;
+      positions.set(msg.segment, pos);
+    }
+    pos.set(msg.positions, msg.start * 3);
+  } else if (msg.type === "forget") {
+    positions.delete(msg.segment);
+  } else if (msg.type === "sort") {
+    const pos = positions.get(msg.segment) || new Float32Array(0);
+    const count = Math.min(msg.count, pos.length / 3);
+    const t0 = performance.now();
+    const index = depthOrder(pos, count, msg.viewProj);
+    const ms = performance.now() - t0;
+    self.postMessage({type: "sorted", segment: msg.segment, id: msg.id, key: msg.key, count, ms, index},
+                     [index.buffer]);
+  }
+};

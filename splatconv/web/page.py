@@ -1,0 +1,126 @@
+"""Build the player page: one HTML file holding the player, its shaders and its scenes.
+
+The page is the same whether ``splatconv view`` serves it or ``convert OUT.html``
+writes it: the CSS, the player, the sort worker, the shader sources of
+:mod:`splatconv.render` and a JSON configuration are inlined, so the page makes no
+request except for a scene that is not embedded.
+"""
+
+from __future__ import annotations
+
+import base64
+import html
+import json
+import math
+import re
+from dataclasses import dataclass
+from importlib import resources
+
+from ..errors import UsageError
+
+#: The vertex shader is these three files joined, as ``render.preview.vertex_source("splatv")``.
+SHADERS = ("splat_head.glsl", "fetch_splatv.glsl", "splat_main.glsl", "splat.frag")
+_TEMPLATE_FIELD = re.compile(r"\{\{([A-Z]+)\}\}")
+
+
+@dataclass
+class SceneRef:
+    """One segment of the clip the page plays.
+
+    Exactly one of ``url`` (fetched, relative to the page) and ``data`` (the
+    ``.splatv`` bytes, embedded as base64) is set. ``duration`` (optional, any
+    positive unit, e.g. frames) sets the segment's share of the timeline: its
+    duration over the sum of all. Without durations every segment gets an equal share.
+    """
+
+    name: str
+    url: str | None = None
+    data: bytes | None = None
+    duration: float | None = None
+
+
+def parse_durations(text: str | None, count: int) -> list:
+    """``--durations D0,D1,...``: one positive finite number per segment; None gives ``[None] * count``.
+
+    Raises
+    ------
+    UsageError
+    """
+    if text is None:
+        return [None] * count
+    try:
+        values = [float(part) for part in text.split(",")]
+    except ValueError:
+        raise UsageError(f"--durations: expected comma-separated numbers, got {text!r}") from None
+    if len(values) != count:
+        raise UsageError(f"--durations gives {len(values)} value(s) for {count} segment(s)")
+    if not all(math.isfinite(v) and v > 0 for v in values):
+        raise UsageError("--durations: every duration must be a positive finite number")
+    return values
+
+
+def _asset(name: str) -> str:
+    return resources.files(__package__).joinpath("assets", name).read_text(encoding="utf-8")
+
+
+def _shader(name: str) -> str:
+    return resources.files("splatconv.render").joinpath("shaders", name).read_text(encoding="utf-8")
+
+
+def _json_text(text: str) -> str:
+    """JSON safe inside a <script> element: every ``<`` (only ever inside a string) as ``\\u003c``."""
+    return text.replace("<", "\\u003c")
+
+
+def _checked(name: str, text: str) -> str:
+    """Package source that goes into a <script> element as it is: refuse what would end it early."""
+    lower = text.lower()
+    if "</script" in lower or "<!--" in lower:  # our sources never hold these; refuse rather than mangle
+        raise ValueError(f"{name} contains '</script' or '<!--'")
+    return text
+
+
+def _text_block(name: str, text: str, kind: str = "text/plain") -> str:
+    return f'<script type="{kind}" data-asset="{html.escape(name)}">{_checked(name, text)}</script>'
+
+
+def build_page(scenes: list, title: str = "splatconv player") -> bytes:
+    """The player page for ``scenes``, as UTF-8 HTML bytes.
+
+    Parameters
+    ----------
+    scenes : list of SceneRef
+        The clip's segments in playing order (one for a single scene).
+    title : str
+        Shown in the page's title and panel.
+
+    Returns
+    -------
+    bytes
+    """
+    blocks = [_text_block(name, _shader(name)) for name in SHADERS]
+    blocks.append(_text_block("sort_worker.js", _asset("sort_worker.js")))
+    entries = []
+    for i, scene in enumerate(scenes):
+        entry = {"name": scene.name}
+        if scene.duration is not None:
+            entry["duration"] = scene.duration
+        if scene.data is not None:
+            entry["embedded"] = f"scene-{i}"
+            encoded = base64.b64encode(scene.data).decode("ascii")
+            # Lines of 76 characters keep editors and diff tools responsive.
+            lines = "\n".join(encoded[k:k + 76] for k in range(0, len(encoded), 76))
+            blocks.append(f'<script type="application/octet-stream" data-asset="scene-{i}">\n{lines}\n</script>')
+        else:
+            entry["url"] = scene.url
+        entries.append(entry)
+    config = json.dumps({"scenes": entries}, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    fields = {
+        "TITLE": html.escape(title),
+        "CSS": _asset("player.css"),
+        "CONFIG": _json_text(config),
+        "ASSETS": "\n".join(blocks),
+        "PLAYER": _checked("player.js", _asset("player.js")),
+    }
+    page = _TEMPLATE_FIELD.sub(lambda m: fields[m.group(1)], _asset("player.html"))
+    return page.encode("utf-8")

@@ -1,0 +1,196 @@
+"""``splatconv view``: serve the player and the scene on 127.0.0.1, nothing else.
+
+The standard library's threading HTTP server is enough: one user, a handful of
+requests. The handler answers from a fixed table of paths (the page, and one URL
+per scene segment); any other request path, including traversal in any encoding,
+is a 404, and a request naming another host (DNS rebinding) is refused.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import sys
+import threading
+import webbrowser
+from dataclasses import dataclass
+from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from urllib.parse import urlsplit
+
+from ..errors import UsageError
+from .page import SceneRef, build_page, parse_durations
+from .scenes import check_splatv, is_plain_splatv, splatv_bytes
+
+HOST = "127.0.0.1"
+_COPY_CHUNK = 1 << 20
+
+
+@dataclass
+class _Resource:
+    """What one whitelisted path answers: bytes in memory or a file on disk."""
+
+    content_type: str
+    data: bytes | None = None
+    path: str | None = None
+
+
+def scene_resources(paths, durations=None) -> tuple[dict, list, list]:
+    """The scene URLs for ``paths``: ``({url: _Resource}, [SceneRef], notes)``.
+
+    A plain ``.splatv`` is served from disk as it is; a PLY or ``.zst`` input is
+    converted in memory first (its notes returned).
+    """
+    resources, refs, notes = {}, [], []
+    shares = durations or [None] * len(paths)
+    for i, path in enumerate(paths):
+        path = os.fspath(path)
+        url = f"scene/{i}.splatv"
+        if is_plain_splatv(path):
+            check_splatv(path)
+            resources["/" + url] = _Resource("application/octet-stream", path=path)
+        else:
+            data, lost = splatv_bytes(path)
+            notes.extend(f"{path}: {n}" for n in lost)
+            resources["/" + url] = _Resource("application/octet-stream", data=data)
+        refs.append(SceneRef(name=os.path.basename(path), url=url, duration=shares[i]))
+    return resources, refs, notes
+
+
+def _handler(routes: dict, port_holder: list):
+    class Handler(BaseHTTPRequestHandler):
+        server_version = "splatconv"
+        sys_version = ""
+
+        def _resource(self):
+            host = (self.headers.get("Host") or "").lower()
+            allowed = {f"{HOST}:{port_holder[0]}", f"localhost:{port_holder[0]}"}
+            if host not in allowed:
+                self.send_error(403, "Forbidden")
+                return None
+            # The raw path, compared exactly (no decoding, no normalising): only
+            # the listed URLs exist; a query string is ignored.
+            path = urlsplit(self.path).path if self.path.startswith("/") else ""
+            resource = routes.get(path)
+            if resource is None:
+                self.send_error(404, "Not Found")
+            return resource
+
+        def _headers(self, resource, length):
+            self.send_response(200)
+            self.send_header("Content-Type", resource.content_type)
+            self.send_header("Content-Length", str(length))
+            self.send_header("Cache-Control", "no-store")
+            self.send_header("X-Content-Type-Options", "nosniff")
+            self.end_headers()
+
+        def do_GET(self):  # noqa: N802 (the http.server protocol)
+            resource = self._resource()
+            if resource is None:
+                return
+            try:
+                if resource.data is not None:
+                    self._headers(resource, len(resource.data))
+                    self.wfile.write(resource.data)
+                else:
+                    with open(resource.path, "rb") as f:
+                        self._headers(resource, os.fstat(f.fileno()).st_size)
+                        shutil.copyfileobj(f, self.wfile, _COPY_CHUNK)
+            except (BrokenPipeError, ConnectionResetError):
+                pass  # the browser went away mid-file (a reload): nothing to tell anyone
+
+        def do_HEAD(self):  # noqa: N802
+            resource = self._resource()
+            if resource is None:
+                return
+            size = len(resource.data) if resource.data is not None else os.path.getsize(resource.path)
+            self._headers(resource, size)
+
+        def log_message(self, format, *args):  # noqa: A002
+            pass  # quiet: the terminal shows the one line `view` prints
+
+    return Handler
+
+
+def can_open_browser() -> bool:
+    """Whether a graphical browser can be opened here.
+
+    On Linux without a display, :mod:`webbrowser` falls back to text browsers in
+    the terminal (lynx, w3m), which would take it over and cannot run the page.
+    """
+    if sys.platform.startswith("linux"):
+        return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+    return True
+
+
+class ViewServer:
+    """The player and its scenes on ``http://127.0.0.1:PORT/``.
+
+    Parameters
+    ----------
+    paths : list of path
+        The scene, or the segments of one clip in playing order.
+    port : int
+        0 picks a free port.
+    durations : str, optional
+        ``"D0,D1,..."``: each segment's share of the timeline (default equal shares).
+
+    Raises
+    ------
+    UsageError
+        When the port is taken or cannot be bound.
+    """
+
+    def __init__(self, paths, port: int = 0, durations: str | None = None):
+        paths = [os.fspath(p) for p in paths]
+        if not paths:
+            raise UsageError("give a scene file to view")
+        self.paths = paths
+        scenes, refs, self.notes = scene_resources(paths, parse_durations(durations, len(paths)))
+        title = os.path.basename(paths[0]) + (f" + {len(paths) - 1} segments" if len(paths) > 1 else "")
+        page = _Resource("text/html; charset=utf-8", data=build_page(refs, title=title))
+        self.routes = {"/": page, "/index.html": page, **scenes}
+        port_holder = [port]
+        try:
+            self.httpd = ThreadingHTTPServer((HOST, port), _handler(self.routes, port_holder))
+        except OSError as e:
+            raise UsageError(f"--port {port}: cannot listen on {HOST}:{port} ({e.strerror or e})") from None
+        self.httpd.daemon_threads = True
+        self.port = port_holder[0] = self.httpd.server_address[1]
+        self.url = f"http://{HOST}:{self.port}/"
+        self._stop = threading.Event()
+
+    def serve(self, open_browser: bool = True) -> None:
+        """Serve until SIGINT or SIGTERM (or :meth:`stop`), then close the socket."""
+        stop = self._stop
+
+        def on_signal(signum, frame):
+            stop.set()
+
+        previous = {}
+        if threading.current_thread() is threading.main_thread():
+            for sig in (signal.SIGINT, signal.SIGTERM):
+                previous[sig] = signal.signal(sig, on_signal)
+        thread = threading.Thread(target=self.httpd.serve_forever, kwargs={"poll_interval": 0.2}, daemon=True)
+        thread.start()
+        try:
+            if open_browser:
+                webbrowser.open(self.url)
+            # wait() with a timeout so the main thread returns to Python often
+            # enough for the signal handler to run.
+            while not stop.wait(0.2):
+                pass
+        finally:
+            self.httpd.shutdown()
+            self.httpd.server_close()
+            thread.join()
+            for sig, handler in previous.items():
+                signal.signal(sig, handler)
+
+    def close(self) -> None:
+        """Close the listening socket (:meth:`serve` does so when it returns)."""
+        self.httpd.server_close()
+
+    def stop(self) -> None:
+        """Ask a running :meth:`serve` to return."""
+        self._stop.set()

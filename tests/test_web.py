@@ -1,0 +1,334 @@
+"""The player page in headless Chromium (SwiftShader), against `splatconv render`.
+
+The page runs the same shader sources as the headless renderer; its frame at a
+pinned time and view must match the renderer's of the same file, time, view and
+size at >= 40 dB PSNR. Interaction tests drive it as a user would.
+"""
+
+from __future__ import annotations
+
+import base64
+import http.server
+import json
+import shutil
+import threading
+from functools import partial
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+import splatconv
+from splatconv.model import Scene
+from splatconv.render import camera as cam
+from splatconv.render.diff import compare
+from splatconv.render.frames import cameras_of, load, render_frames, resolve_view
+from splatconv.web.page import SceneRef, build_page
+from splatconv.web.publish import publish
+
+from .conftest import random_columns
+from .web_support import capture, launched, open_page, serving, view_hash, wait_settled
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLE = ROOT / "sample_data" / "dancers.ply"
+CAMERAS = json.loads((ROOT / "sample_data" / "cameras.json").read_text())
+W, H = 640, 360
+MIN_PSNR = 40.0
+#: docs/player.png: the page as a user sees it (controls shown), paused at this time.
+SCREENSHOT_TIME = 0.4
+
+
+@pytest.fixture(scope="module")
+def browser():
+    with launched() as b:
+        yield b
+
+
+@pytest.fixture(scope="module")
+def sample(tmp_path_factory):
+    path = tmp_path_factory.mktemp("web") / "dancers.splatv"
+    splatconv.convert(SAMPLE, path, cameras=str(ROOT / "sample_data" / "cameras.json"))
+    return path
+
+
+@pytest.fixture(scope="module")
+def nonfinite(tmp_path_factory):
+    """A scene where some splats hold NaN and infinite values, as trained scenes do."""
+    cols = random_columns(3000, seed=7)
+    rng = np.random.default_rng(3)
+    for name, value in (("x", np.nan), ("z", np.inf), ("scale_0", np.inf), ("scale_1", -np.inf),
+                        ("opacity", np.nan), ("motion_0", np.inf), ("motion_4", np.nan), ("rot_2", np.nan),
+                        ("omega_1", np.inf), ("trbf_scale", np.inf), ("trbf_center", np.nan),
+                        ("f_dc_0", np.nan), ("f_dc_2", np.inf)):
+        cols[name][rng.choice(3000, 60, replace=False)] = value
+    path = tmp_path_factory.mktemp("web") / "nonfinite.splatv"
+    splatconv.write(Scene(columns=cols), path)
+    return path
+
+
+def rendered(path, time, view=None, size=(W, H)) -> np.ndarray:
+    """`splatconv render PATH --time T [--view V] --size WxH`, as an array."""
+    source = load(path)
+    v = resolve_view(cameras_of(source), view=view, size=size)
+    return list(render_frames(source.texture(), v, [time]))[0]
+
+
+def assert_matches(page_frame, reference, what):
+    diff = compare(reference, page_frame)
+    print(f"{what}: {diff.psnr:.2f} dB PSNR, largest error {diff.max_abs_error}/255")
+    assert diff.psnr >= MIN_PSNR, f"{what}: {diff.psnr:.2f} dB < {MIN_PSNR}"
+    # Not a blank pair: the frame shows the scene.
+    assert reference[..., :3].max() > 64
+
+
+@pytest.mark.parametrize("camera, time", [(None, 0.5), (1, 0.35), (2, 0.0), (0, 1.0)])
+def test_served_frame_matches_render(browser, sample, camera, time):
+    view = None if camera is None else cam.view_matrix(CAMERAS[camera])
+    with serving([sample]) as server:
+        url = server.url + (view_hash(view, time) if view else f"#t={time}&ui=0")
+        page = open_page(browser, url, W, H)
+        status = page.evaluate("window.splatconvPlayer.status()")
+        assert (status["width"], status["height"]) == (W, H)
+        assert status["drawn"]["count"] == 5 * 1024  # every record, padding included, as render draws
+        frame = capture(page)
+        page.close()
+    assert_matches(frame, rendered(sample, time, view), f"sample camera {camera} t={time}")
+
+
+def test_nonfinite_scene_matches_render(browser, nonfinite):
+    with serving([nonfinite]) as server:
+        for time in (0.25, 0.6):
+            page = open_page(browser, server.url + f"#t={time}&ui=0", W, H)
+            frame = capture(page)
+            page.close()
+            assert_matches(frame, rendered(nonfinite, time), f"non-finite scene t={time}")
+
+
+def test_self_contained_html_from_disk_matches_render(browser, sample, tmp_path):
+    out = tmp_path / "dancers.html"
+    report = publish([sample], out)
+    assert report.written == [(str(out), out.stat().st_size)]
+    view = cam.view_matrix(CAMERAS[1])
+    page = open_page(browser, out.as_uri() + view_hash(view, 0.7), W, H)
+    frame = capture(page)
+    page.close()
+    assert_matches(frame, rendered(sample, 0.7, view), "self-contained .html from file://")
+
+
+def test_external_html_from_a_static_host(browser, sample, tmp_path):
+    site = tmp_path / "site"
+    site.mkdir()
+    report = publish([sample], site / "my scene.html", external=True)
+    assert [Path(p).name for p, _ in report.written] == ["my scene.html", "my scene.splatv"]
+    assert (site / "my scene.splatv").read_bytes() == sample.read_bytes()
+    handler = partial(_QuietHandler, directory=str(site))
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    try:
+        url = f"http://127.0.0.1:{httpd.server_address[1]}/my%20scene.html#t=0.5&ui=0"
+        frame = capture(open_page(browser, url, W, H))
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    assert_matches(frame, rendered(sample, 0.5), "--external page from a static host")
+
+
+class _QuietHandler(http.server.SimpleHTTPRequestHandler):
+    def log_message(self, *args):
+        pass
+
+
+@pytest.mark.parametrize("durations, times", [(None, (0.25, 0.75)), ("50,150", (0.125, 0.625))])
+def test_segments_play_as_one_clip(browser, sample, nonfinite, durations, times):
+    """Two segments: equal shares (or 1:3): each clip time shows one segment at its local 0.5."""
+    with serving([sample, nonfinite], durations=durations) as server:
+        for clip_time, path in zip(times, (sample, nonfinite)):
+            page = open_page(browser, server.url + f"#t={clip_time}&ui=0", W, H)
+            status = page.evaluate("window.splatconvPlayer.status()")
+            assert status["drawn"]["segment"] == (0 if path is sample else 1)
+            assert status["drawn"]["time"] == pytest.approx(0.5)
+            assert all(s["done"] for s in status["segments"])
+            frame = capture(page)
+            page.close()
+            # Both are drawn with segment 0's camera (the clip's), as render --view does.
+            view = cam.view_matrix(CAMERAS[0])
+            assert_matches(frame, rendered(path, 0.5, view), f"segment at clip time {clip_time}")
+
+
+def test_segment_boundary_has_the_next_segment_ready(browser, sample, nonfinite):
+    """Playing across the boundary switches to a segment that is already sorted."""
+    with serving([sample, nonfinite]) as server:
+        page = open_page(browser, server.url + "#t=0.49&ui=0", W, H)
+        page.evaluate("() => { document.getElementById('speed').value = '0.25';"
+                      " document.getElementById('speed').dispatchEvent(new Event('change'));"
+                      " document.getElementById('play').click(); }")
+        page.wait_for_function("() => window.splatconvPlayer.status().drawn.segment === 1", timeout=30000)
+        status = page.evaluate("window.splatconvPlayer.status()")
+        assert status["drawn"]["clipTime"] >= 0.5 and status["drawn"]["time"] < 0.2
+        # The first frame of segment 1 already drew all of it (its sort was done ahead).
+        assert status["drawn"]["count"] == status["segments"][1]["total"]
+        page.close()
+
+
+def test_drag_changes_view_and_hash_reproduces_frame_after_reload(browser, sample):
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.3", W, H)
+        before = page.evaluate("window.splatconvPlayer.status()")
+        first = capture(page)
+        page.mouse.move(320, 180)
+        page.mouse.down()
+        page.mouse.move(380, 200, steps=5)
+        page.mouse.up()
+        page.wait_for_function("() => location.hash.startsWith('#view=')")
+        after = wait_settled(page)
+        assert after["view"] != before["view"]
+        moved = capture(page)
+        assert compare(first, moved).psnr < 30  # the picture really changed
+        # Right-drag pans, the wheel zooms: each moves the camera too.
+        page.mouse.move(320, 180)
+        page.mouse.down(button="right")
+        page.mouse.move(300, 170, steps=3)
+        page.mouse.up(button="right")
+        page.mouse.wheel(0, 200)
+        page.wait_for_timeout(300)
+        later = wait_settled(page)
+        assert later["view"] != after["view"]
+        frame = capture(page)
+        url = page.url
+        assert "&t=0.3" in url  # paused time is part of the shareable hash
+        page.close()
+        again = open_page(browser, url, W, H)
+        assert again.evaluate("window.splatconvPlayer.status()")["view"] == later["view"]
+        assert np.array_equal(capture(again), frame)
+        again.close()
+
+
+def test_keys_move_the_camera_and_toggle_play(browser, sample):
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.5", W, H)
+        start = page.evaluate("window.splatconvPlayer.status()")
+        page.keyboard.press("ArrowLeft")
+        page.keyboard.press("w")
+        assert page.evaluate("window.splatconvPlayer.status()")["view"] != start["view"]
+        page.keyboard.press(" ")
+        assert page.evaluate("window.splatconvPlayer.status()")["playing"] is True
+        page.close()
+
+
+def test_slider_sets_the_time_and_pauses(browser, sample):
+    with serving([sample]) as server:
+        page = open_page(browser, server.url, W, H, settle=False)
+        page.wait_for_function("() => window.splatconvPlayer.status().loaded")
+        assert page.evaluate("window.splatconvPlayer.status()")["playing"] is True
+        page.locator("#time").fill("0.8")
+        status = wait_settled(page)
+        assert status["playing"] is False
+        assert status["time"] == pytest.approx(0.8)
+        assert status["drawn"]["time"] == pytest.approx(0.8)
+        frame = capture(page)
+        view = page.evaluate("window.splatconvPlayer.status()")["view"]
+        page.close()
+    assert_matches(frame, rendered(sample, 0.8, view), "after moving the slider to 0.8")
+
+
+def test_choosing_a_camera_moves_to_it(browser, sample):
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.5", W, H)
+        options = page.locator("#camera option").all_text_contents()
+        assert len(options) == len(CAMERAS)
+        page.select_option("#camera", "2")
+        status = wait_settled(page)
+        assert status["view"] == cam.view_matrix(CAMERAS[2])
+        page.close()
+
+
+def test_bare_splatv_hash_form(browser, sample):
+    view = cam.view_matrix(CAMERAS[2])
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#" + json.dumps(view).replace(" ", ""), W, H, settle=False)
+        page.wait_for_function("() => window.splatconvPlayer.status().loaded")
+        assert page.evaluate("window.splatconvPlayer.status()")["view"] == view
+        page.close()
+
+
+@pytest.mark.parametrize("data, message", [
+    (b"not a scene at all", "not a .splatv file"),
+    (b"ply\nformat binary_little_endian 1.0\n", "this is a PLY file"),
+    (b"\x4b\x67\x00\x00\x05\x00\x00\x00[{]}x", "header is damaged"),
+    (b"\x4b\x67\x00\x00\x02\x00\x00\x00[]", "holds no splats"),
+    (b"\x4b\x67\x00\x00", "ends inside its header"),
+])
+def test_bad_file_shows_a_message(browser, tmp_path, data, message):
+    page_path = tmp_path / "bad.html"
+    page_path.write_bytes(build_page([SceneRef(name="bad.splatv", data=data)]))
+    page = open_page(browser, page_path.as_uri(), W, H)
+    box = page.locator("#message")
+    assert box.is_visible()
+    text = box.text_content()
+    assert text.startswith("Cannot show bad.splatv: ")
+    assert message in text
+    page.close()
+
+
+def test_missing_external_scene_shows_a_message(browser, tmp_path):
+    page_path = tmp_path / "lonely.html"
+    page_path.write_bytes(build_page([SceneRef(name="gone.splatv", url="gone.splatv")]))
+    page = open_page(browser, page_path.as_uri(), W, H)
+    assert "serve the folder with a web server" in page.locator("#message").text_content()
+    page.close()
+
+
+def test_drop_a_file(browser, sample, tmp_path):
+    page_path = tmp_path / "empty.html"
+    page_path.write_bytes(build_page([]))
+    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H, settle=False)
+    assert "Drop a .splatv file" in page.locator("#message").text_content()
+    data = base64.b64encode(sample.read_bytes()).decode("ascii")
+    page.evaluate("""(text) => {
+        const bytes = Uint8Array.from(atob(text), (c) => c.charCodeAt(0));
+        const dt = new DataTransfer();
+        dt.items.add(new File([bytes], 'dropped.splatv'));
+        window.dispatchEvent(new DragEvent('drop', {dataTransfer: dt, cancelable: true}));
+    }""", data)
+    wait_settled(page)
+    assert page.locator("#message").is_hidden()
+    frame = capture(page)
+    page.close()
+    assert_matches(frame, rendered(sample, 0.5), "dropped file")
+
+
+def test_ui_shows_count_frame_time_and_hides_with_ui_0(browser, sample):
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.5", W, H)
+        page.wait_for_timeout(200)
+        stats = page.locator("#stats").text_content()
+        assert "5,120 splat slots" in stats and "ms/frame" in stats
+        assert page.locator("#bar").is_visible()
+        page.close()
+        page = open_page(browser, server.url + "#t=0.5&ui=0", W, H)
+        assert page.locator("#bar").is_hidden() and page.locator("#panel").is_hidden()
+        page.close()
+
+
+def test_readme_screenshot_is_the_page(browser, sample, tmp_path):
+    """docs/player.png is this page as the test browser shows it (controls included).
+
+    Set SPLATCONV_UPDATE_DOCS=1 to rewrite it.
+    """
+    import os
+
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + f"#t={SCREENSHOT_TIME}", 960, 540)
+        page.evaluate("document.getElementById('stats').style.visibility = 'hidden'")  # timings vary
+        shot = tmp_path / "player.png"
+        page.screenshot(path=str(shot))
+        page.close()
+    target = ROOT / "docs" / "player.png"
+    if os.environ.get("SPLATCONV_UPDATE_DOCS"):
+        shutil.copyfile(shot, target)
+    fresh = np.asarray(Image.open(shot).convert("RGB"))
+    stored = np.asarray(Image.open(target).convert("RGB"))
+    assert compare(fresh, stored).psnr >= 30
+    assert "docs/player.png" in (ROOT / "README.md").read_text()

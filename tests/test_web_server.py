@@ -1,0 +1,291 @@
+"""`splatconv view`'s server and `convert OUT.html`: no browser needed."""
+
+from __future__ import annotations
+
+import base64
+import http.client
+import json
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from click.testing import CliRunner
+
+import splatconv
+from splatconv.cli import main
+from splatconv.transport import plain_input
+from splatconv.web.page import SHADERS, SceneRef, build_page
+from splatconv.web.server import HOST, ViewServer
+
+from .web_support import serving
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLE = ROOT / "sample_data" / "dancers.ply"
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def sample(tmp_path_factory):
+    path = tmp_path_factory.mktemp("srv") / "dancers.splatv"
+    splatconv.convert(SAMPLE, path, cameras=str(ROOT / "sample_data" / "cameras.json"))
+    return path
+
+
+def get(port, path, host=None, method="GET"):
+    """A request with ``path`` sent exactly as given (no normalising)."""
+    conn = http.client.HTTPConnection(HOST, port, timeout=10)
+    conn.putrequest(method, path, skip_host=True, skip_accept_encoding=True)
+    conn.putheader("Host", host or f"{HOST}:{port}")
+    conn.endheaders()
+    response = conn.getresponse()
+    body = response.read()
+    conn.close()
+    return response.status, body, response
+
+
+def test_serves_the_page_and_the_scene_only_on_loopback(sample):
+    with serving([sample]) as server:
+        assert server.httpd.server_address[0] == "127.0.0.1"
+        assert server.url == f"http://127.0.0.1:{server.port}/"
+        status, page, response = get(server.port, "/")
+        assert status == 200 and response.getheader("Content-Type") == "text/html; charset=utf-8"
+        assert get(server.port, "/index.html")[1] == page
+        status, scene, response = get(server.port, "/scene/0.splatv")
+        assert status == 200 and scene == sample.read_bytes()
+        assert int(response.getheader("Content-Length")) == len(scene)
+        status, body, response = get(server.port, "/scene/0.splatv", method="HEAD")
+        assert status == 200 and body == b"" and int(response.getheader("Content-Length")) == len(scene)
+        assert get(server.port, "/", host=f"localhost:{server.port}")[0] == 200
+    # Not listening on any other address of this machine.
+    assert sorted(server.routes) == ["/", "/index.html", "/scene/0.splatv"]
+
+
+@pytest.mark.parametrize("path", [
+    "/../../etc/passwd", "/scene/../../../etc/passwd", "/%2e%2e/%2e%2e/etc/passwd", "/..%2f..%2fetc%2fpasswd",
+    "/%252e%252e/etc/passwd", "//etc/passwd", "/scene/0.splatv/..", "/scene/1.splatv", "/scene/",
+    "/scene", "/assets/player.js", "/player.js", "/sort_worker.js", "/favicon.ico", "/index.html/",
+    "/./index.html", "/INDEX.HTML", "/%69ndex.html", "/scene\\0.splatv", "/etc/passwd",
+    "http://127.0.0.1/etc/passwd", "*", "/" + str(ROOT / "README.md"),
+])
+def test_every_other_path_is_404(sample, path):
+    with serving([sample]) as server:
+        status, body, _ = get(server.port, path)
+        assert status == 404, path
+        assert b"root:" not in body and b"<canvas" not in body
+
+
+def test_other_hosts_are_refused(sample):
+    """A page elsewhere that rebinds its DNS name to 127.0.0.1 cannot read the scene."""
+    with serving([sample]) as server:
+        for host in ("evil.example", f"evil.example:{server.port}", "127.0.0.1", f"127.0.0.1:{server.port + 1}"):
+            assert get(server.port, "/scene/0.splatv", host=host)[0] == 403, host
+
+
+def test_a_second_view_picks_another_port(sample):
+    with serving([sample]) as first, serving([sample]) as second:
+        assert first.port != second.port
+        assert get(second.port, "/")[0] == 200
+
+
+def test_a_taken_port_is_a_usage_error(sample):
+    with serving([sample]) as server:
+        r = run("view", sample, "--port", server.port, "--no-open")
+        assert r.exit_code == 2
+        assert r.stderr.startswith(f"Error: --port {server.port}: cannot listen on 127.0.0.1:{server.port} (")
+
+
+def test_bad_inputs_are_one_error_line(tmp_path):
+    bad = tmp_path / "bad.splatv"
+    bad.write_bytes(b"nope, not a scene")
+    r = run("view", bad, "--no-open")
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {bad}: not a .splatv file: magic 0x65706f6e, expected 0x0000674b\n"
+    r = run("view", tmp_path / "scene.obj", "--no-open")
+    assert r.exit_code == 2 and r.stderr.startswith(f"Error: {tmp_path / 'scene.obj'}: unknown file type")
+    r = run("view", tmp_path / "missing.splatv", "--no-open")
+    assert r.exit_code == 1 and "missing.splatv" in r.stderr and "Traceback" not in r.output
+    assert run("view").exit_code == 2
+
+
+def test_ply_and_zst_inputs_are_converted_in_memory(sample, tmp_path):
+    zst = tmp_path / "dancers.splatv.zst"
+    splatconv.convert(sample, zst)
+    with serving([SAMPLE, zst]) as server:
+        converted = get(server.port, "/scene/0.splatv")[1]
+        with plain_input(zst) as plain:
+            assert get(server.port, "/scene/1.splatv")[1] == Path(plain).read_bytes()
+    # The PLY becomes exactly what convert writes (cameras aside: none in the PLY).
+    direct = tmp_path / "direct.splatv"
+    splatconv.convert(SAMPLE, direct)
+    assert converted == direct.read_bytes()
+
+
+def _start_view(path, port=0):
+    env = dict(os.environ, PYTHONUNBUFFERED="1")
+    proc = subprocess.Popen([sys.executable, "-m", "splatconv", "view", str(path), "--no-open",
+                             "--port", str(port)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env,
+                            text=True)
+    line = proc.stdout.readline()
+    match = re.search(r"http://127\.0\.0\.1:(\d+)/", line)
+    assert match, (line, proc.stderr.read() if proc.poll() is not None else "")
+    return proc, int(match.group(1)), line
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_view_process_exits_cleanly_on_signal(sample, sig):
+    proc, port, line = _start_view(sample)
+    try:
+        assert line == f"serving {sample} at http://127.0.0.1:{port}/ (Ctrl-C to stop)\n"
+        assert get(port, "/")[0] == 200
+        proc.send_signal(sig)
+        assert proc.wait(timeout=10) == 0
+        assert proc.stderr.read() == ""
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    with pytest.raises(OSError):
+        socket.create_connection((HOST, port), timeout=2)
+
+
+def test_page_holds_the_render_shaders_and_makes_no_external_request(sample):
+    with serving([sample]) as server:
+        page = get(server.port, "/")[1].decode()
+    for name in SHADERS:
+        source = (ROOT / "splatconv" / "render" / "shaders" / name).read_text()
+        assert f'data-asset="{name}">{source}</script>' in page
+    # No http(s) URL, no protocol-relative URL, no src/href to load anything.
+    assert not re.search(r"https?://|\bsrc=|\bhref=|@import|url\(", page)
+
+
+def test_convert_to_html_embeds_the_splatv(tmp_path):
+    out = tmp_path / "dancers.html"
+    r = run("convert", SAMPLE, out, "--cameras", ROOT / "sample_data" / "cameras.json")
+    assert r.exit_code == 0, r.output
+    assert r.stdout.startswith(f"wrote {out}: 5,000 splats")
+    ref = tmp_path / "dancers.splatv"
+    assert run("convert", SAMPLE, ref, "--cameras", ROOT / "sample_data" / "cameras.json").exit_code == 0
+    page = out.read_text()
+    embedded = re.search(r'data-asset="scene-0">\n(.*?)\n</script>', page, re.S).group(1)
+    assert base64.b64decode(embedded.replace("\n", "")) == ref.read_bytes()
+    assert run("convert", SAMPLE, out).exit_code == 1  # exists; --force replaces
+    assert run("convert", SAMPLE, out, "--force").exit_code == 0
+
+
+def test_convert_external_and_segments(sample, tmp_path):
+    out = tmp_path / "clip.html"
+    r = run("convert", sample, SAMPLE, out, "--external")
+    assert r.exit_code == 0, r.output
+    parts = [tmp_path / "clip.0.splatv", tmp_path / "clip.1.splatv"]
+    assert r.stdout.splitlines() == [f"wrote {p}: {p.stat().st_size:,} bytes" for p in [out] + parts]
+    assert (tmp_path / "clip.0.splatv").read_bytes() == sample.read_bytes()
+    page = out.read_text()
+    assert '"url":"clip.0.splatv"' in page and '"url":"clip.1.splatv"' in page
+    one = tmp_path / "one.html"
+    assert run("convert", sample, one, "--external").exit_code == 0
+    assert (tmp_path / "one.splatv").read_bytes() == sample.read_bytes()
+    assert '"url":"one.splatv"' in one.read_text()
+
+
+def test_convert_html_refusals(sample, tmp_path):
+    # Several INPUTs to a scene file are a frame sequence (README "Frame sequences"), not a page.
+    r = run("convert", sample, tmp_path / "one.splatv", "--external")
+    assert r.exit_code == 2
+    assert r.stderr == f"Error: {tmp_path / 'one.splatv'}: a player page must be written to an .html file\n"
+    (tmp_path / "taken.splatv").write_bytes(b"keep")
+    r = run("convert", sample, tmp_path / "taken.html", "--external")
+    assert r.exit_code == 1 and "taken.splatv: already exists" in r.stderr
+    assert not (tmp_path / "taken.html").exists() and (tmp_path / "taken.splatv").read_bytes() == b"keep"
+    r = run("convert", tmp_path / "x.html", tmp_path / "x.splatv")
+    assert r.exit_code == 2 and r.stderr == f"Error: {tmp_path / 'x.html'}: html files can be written, not read\n"
+    r = run("convert", sample, sample, tmp_path / "c.html", "--sort", "none")
+    assert r.exit_code == 2 and not (tmp_path / "c.html").exists()
+
+
+@pytest.mark.parametrize("durations, message", [
+    ("1", "--durations gives 1 value(s) for 2 segment(s)"),
+    ("1,x", "--durations: expected comma-separated numbers, got '1,x'"),
+    ("1,0", "--durations: every duration must be a positive finite number"),
+    ("1,nan", "--durations: every duration must be a positive finite number"),
+])
+def test_bad_durations_are_usage_errors(sample, tmp_path, durations, message):
+    for args in (("view", sample, sample, "--no-open"), ("convert", sample, sample, tmp_path / "c.html")):
+        r = run(*args, "--durations", durations)
+        assert r.exit_code == 2 and r.stderr == f"Error: {message}\n", r.output
+    assert not (tmp_path / "c.html").exists()
+
+
+def test_durations_reach_the_page(sample, tmp_path):
+    out = tmp_path / "c.html"
+    assert run("convert", sample, sample, out, "--durations", "50,150").exit_code == 0
+    config = re.search(r'data-asset="config">(.*?)</script>', out.read_text()).group(1)
+    assert [s["duration"] for s in json.loads(config)["scenes"]] == [50.0, 150.0]
+
+
+def test_specs_player_md_states_what_the_code_does(sample):
+    spec = (ROOT / "specs" / "player.md").read_text()
+    player = (ROOT / "splatconv" / "web" / "assets" / "player.js").read_text()
+    seconds = re.search(r"SECONDS_PER_SEGMENT = (\d+);", player).group(1)
+    assert f"The clip plays for {seconds} s per\nsegment at 1× speed" in spec
+    with serving([sample, sample]) as server:
+        routes = sorted(server.routes)
+    assert routes == ["/", "/index.html", "/scene/0.splatv", "/scene/1.splatv"]
+    assert "`GET` and `HEAD` for exactly `/`,\n`/index.html` and `/scene/I.splatv`" in spec
+    for name in SHADERS:
+        assert name in spec
+
+
+def test_without_a_display_view_does_not_start_a_text_browser(sample):
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY", "BROWSER")}
+    proc = subprocess.Popen([sys.executable, "-m", "splatconv", "view", str(sample)], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, env=dict(env, PYTHONUNBUFFERED="1"), text=True)
+    try:
+        assert proc.stdout.readline().startswith(f"serving {sample} at http://127.0.0.1:")
+        assert proc.stderr.readline() == "note: no display to open a browser on: open the address above in a browser\n"
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
+def test_a_hostile_file_name_cannot_break_out_of_the_page():
+    name = 'x</script><script>alert(1)</script><!--"&.splatv'
+    page = build_page([SceneRef(name=name, url="scene/0.splatv")], title=name).decode()
+    config = re.search(r'data-asset="config">(.*?)</script>', page).group(1)
+    assert json.loads(config)["scenes"][0]["name"] == name
+    assert "<script>alert(1)" not in page
+    # Every script element closes where the builder closed it.
+    assert page.count("<script") == page.count("</script>")
+
+
+def test_readme_player_commands(sample, tmp_path, monkeypatch):
+    """The README's two player commands, as written, in a folder holding dancers.splatv."""
+    section = (ROOT / "README.md").read_text().split("### Play it in the browser", 1)[1]
+    view_line, convert_line = re.search(r"```\n(.*?)```", section, re.S).group(1).strip().splitlines()
+    (tmp_path / "dancers.splatv").write_bytes(sample.read_bytes())
+    monkeypatch.chdir(tmp_path)
+    words = convert_line.split()
+    assert words[0] == "splatconv"
+    r = run(*words[1:])
+    assert r.exit_code == 0, r.output
+    assert (tmp_path / "dancers.html").stat().st_size > sample.stat().st_size
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    proc = subprocess.Popen([sys.executable, "-m", *view_line.split()], stdout=subprocess.PIPE,
+                            stderr=subprocess.DEVNULL, env=dict(env, PYTHONUNBUFFERED="1"), text=True)
+    try:
+        port = int(re.search(r"127\.0\.0\.1:(\d+)/", proc.stdout.readline()).group(1))
+        assert get(port, "/scene/0.splatv")[1] == sample.read_bytes()
+        proc.send_signal(signal.SIGINT)
+        assert proc.wait(timeout=10) == 0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
