@@ -6,6 +6,7 @@ Used by ``verify`` (is every error explained by quantization?) and by ``stats``
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,13 +23,15 @@ HALF_REL = 2.0**-10
 HALF_ABS = 2.0**-24
 #: One 8-bit step.
 BYTE = 1.0 / 255.0
+#: Groups stored as bytes (the rest of the attributes are halves, positions float32).
+BYTE_GROUPS = ("color", "opacity")
 
 
 def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
     """Largest error a faithful .splatv conversion may introduce, per value."""
     if group == "position":
         return np.zeros_like(values)
-    if group in ("color", "opacity"):
+    if group in BYTE_GROUPS:
         return np.full_like(values, BYTE * (1 + 1e-6))
     with np.errstate(invalid="ignore"):
         return np.maximum(np.abs(values) * HALF_REL, HALF_ABS)
@@ -108,30 +111,79 @@ class GroupError:
     nonfinite_changed: int = 0  # NaN or infinite source values stored as something else (part of unexplained)
     nan_stored: int = 0  # NaN source values stored as numbers by a byte that cannot hold NaN (explained)
 
+    def merge(self, other: "GroupError") -> "GroupError":
+        """The errors of both sets of rows together (``other`` another block of the same group)."""
+        n = self.compared + other.compared
+        top = max(self.rmse, other.rmse)
+        # Scaled by the larger: a saturated value's error (up to 1e308) squared would overflow.
+        rmse = 0.0
+        if n and top:
+            rmse = top if math.isinf(top) else top * math.sqrt(
+                ((self.rmse / top) ** 2 * self.compared + (other.rmse / top) ** 2 * other.compared) / n)
+        return GroupError(self.group, max(self.max_abs_error, other.max_abs_error),
+                          max(self.max_rel_error, other.max_rel_error), rmse,
+                          self.unexplained + other.unexplained, max(self.worst_bound, other.worst_bound), n,
+                          values=self.values + other.values,
+                          became_infinite=self.became_infinite + other.became_infinite,
+                          nonfinite_changed=self.nonfinite_changed + other.nonfinite_changed,
+                          nan_stored=self.nan_stored + other.nan_stored)
+
 
 def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupError:
     """Error statistics of one group over finite pairs; NaN must stay NaN.
 
     Colour and opacity are stored as bytes, which cannot hold NaN: a NaN there
     stored as a number is explained (and counted in ``nan_stored``).
+
+    Parameters
+    ----------
+    source_cols, converted_cols : dict of str to (N,) ndarray
+        Model columns, row i of one matching row i of the other.
+    group : str
+        A key of :data:`splatconv.model.GROUPS`.
     """
-    a = viewer.group_values(source_cols, group)
-    b = viewer.group_values(converted_cols, group)
+    return value_errors(viewer.group_values(source_cols, group), viewer.group_values(converted_cols, group), group)
+
+
+def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
+    """:func:`group_errors` of values already in viewer units.
+
+    Parameters
+    ----------
+    a, b : (N, k) float64 ndarray
+        ``viewer.group_values`` of source and converted rows.
+    group : str
+
+    Notes
+    -----
+    Differences and ratios are taken only where both values are finite (``where=``
+    masks): computing inf - inf and masking it afterwards would warn.
+    """
     both = np.isfinite(a) & np.isfinite(b)
-    with np.errstate(invalid="ignore", over="ignore", divide="ignore"):  # inf - inf before the mask
-        err = np.abs(np.where(both, a - b, 0.0))
-        rel = np.where(both & (a != 0), err / np.abs(a), 0.0)
+    err = np.zeros(a.shape, dtype=np.float64)
+    with np.errstate(over="ignore"):  # a difference past 1.8e308 is infinite, which is the truth
+        np.subtract(a, b, out=err, where=both)
+    np.abs(err, out=err)
+    rel = np.zeros(a.shape, dtype=np.float64)
+    with np.errstate(over="ignore"):  # an error over a float64-subnormal value may pass 1.8e308: inf is the truth
+        np.divide(err, np.abs(a), out=rel, where=both & (a != 0))
     bound = quantization_bound(group, np.where(both, a, 0.0))
     # Finite values past the half range saturate (or become infinite in splaTV's
-    # converter); NaN stays NaN. Both are lossy but expected, counted elsewhere.
-    over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) if group != "position" else False
+    # converter), keeping their sign; NaN stays NaN. Both are lossy but expected, counted elsewhere.
+    over = False
+    if group != "position":
+        over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) & (np.signbit(a) == np.signbit(b))
     same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
-    nan_stored = np.isnan(a) & np.isfinite(b) if group in ("color", "opacity") else np.zeros(a.shape, bool)
+    nan_stored = np.isnan(a) & np.isfinite(b) if group in BYTE_GROUPS else np.zeros(a.shape, bool)
     bad = ~(both & (err <= bound)) & ~over & ~same_special & ~nan_stored
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
-    return GroupError(group, float(err.max()) if err.size else 0.0, float(rel.max()) if rel.size else 0.0,
-                      float(np.sqrt((err[both] ** 2).mean())) if n else 0.0, int(bad.sum()), worst, n,
+    top = float(err.max()) if err.size else 0.0
+    # Scaled by the largest error: a saturated value's error (up to 1e308) squared would overflow.
+    rmse = 0.0
+    if n and top:
+        rmse = top if math.isinf(top) else top * math.sqrt(float(np.square(err[both] / top).mean()))
+    return GroupError(group, top, float(rel.max()) if rel.size else 0.0, rmse, int(bad.sum()), worst, n,
                       values=int(a.size), became_infinite=int((bad & np.isfinite(a) & np.isinf(b)).sum()),
                       nonfinite_changed=int((bad & ~np.isfinite(a)).sum()), nan_stored=int(nan_stored.sum()))
 
@@ -160,13 +212,7 @@ def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = N
 
 def _merge(parts: list) -> GroupError:
     """One GroupError from those of consecutive row ranges."""
-    if len(parts) == 1:
-        return parts[0]
-    compared = sum(p.compared for p in parts)
-    square_sum = sum(p.rmse ** 2 * p.compared for p in parts)
-    return GroupError(parts[0].group, max(p.max_abs_error for p in parts), max(p.max_rel_error for p in parts),
-                      float(np.sqrt(square_sum / compared)) if compared else 0.0,
-                      sum(p.unexplained for p in parts), max(p.worst_bound for p in parts), compared,
-                      values=sum(p.values for p in parts), became_infinite=sum(p.became_infinite for p in parts),
-                      nonfinite_changed=sum(p.nonfinite_changed for p in parts),
-                      nan_stored=sum(p.nan_stored for p in parts))
+    merged = parts[0]
+    for part in parts[1:]:
+        merged = merged.merge(part)
+    return merged

@@ -113,30 +113,71 @@ def remove_stale_parts(output: str | os.PathLike) -> list:
         The paths removed.
     """
     output = os.fspath(output)
-    parent = os.path.dirname(os.path.abspath(output))
-    pattern = _part_pattern(output)
+    return _remove_unlocked(os.path.dirname(os.path.abspath(output)), _part_pattern(output))
+
+
+def _remove_unlocked(folder: str, pattern) -> list:
+    """Remove this user's regular files in ``folder`` whose names match ``pattern`` and whose lock is free."""
     removed = []
     try:
-        names = [n for n in os.listdir(parent) if pattern.fullmatch(n)]
+        names = [n for n in os.listdir(folder) if pattern.fullmatch(n)]
     except OSError:
         return removed
     for name in names:
-        part = os.path.join(parent, name)
+        path = os.path.join(folder, name)
         try:
-            fd = os.open(part, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
+            fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0) | getattr(os, "O_NONBLOCK", 0))
         except OSError:
             continue
         try:
-            if not stat.S_ISREG(os.fstat(fd).st_mode):
+            info = os.fstat(fd)
+            if not stat.S_ISREG(info.st_mode) or info.st_uid != os.getuid():
                 continue
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # raises while a writer holds it
-            os.unlink(part)
-            removed.append(part)
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # raises while its writer holds it
+            os.unlink(path)
+            removed.append(path)
         except OSError:
             pass
         finally:
             os.close(fd)
     return removed
+
+
+#: Names of the temporary files decompressed inputs go to (in the temporary folder).
+TEMP_PREFIX = "splatconv-"
+_TEMP_PATTERN = re.compile(re.escape(TEMP_PREFIX) + r"[a-z0-9_]{8}\.[A-Za-z0-9_]{1,16}")
+
+
+@contextlib.contextmanager
+def locked_temporary(suffix: str):
+    """A locked temporary file for a decompressed input: yields ``(fd, path)``; removed on exit.
+
+    Those that killed runs left (unlocked) in the temporary folder are removed
+    first, as :func:`remove_stale_parts` does for outputs. The lock is held
+    until the file is removed; ``fd`` is the caller's to close.
+    """
+    held = hold_signals()  # a signal between creating a file and the try would leave it behind
+    lock = None
+    try:
+        # Held here too: the first call probes the folder with a file of its own.
+        folder = tempfile.gettempdir()
+        _remove_unlocked(folder, _TEMP_PATTERN)
+        fd, tmp = tempfile.mkstemp(prefix=TEMP_PREFIX, suffix=suffix)
+        lock = os.dup(fd)
+        with contextlib.suppress(OSError):
+            fcntl.flock(lock, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BaseException:
+        if lock is not None:
+            os.close(lock)
+        release_signals(held)
+        raise
+    try:
+        release_signals(held)
+        yield fd, tmp
+    finally:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        os.close(lock)
 
 
 def _link_into_place(tmp: str, output: str) -> None:
@@ -316,18 +357,21 @@ class AtomicGroup:
     def __init__(self, replace: bool = True):
         self.replace = replace
         self._staged = []  # (temporary path, output path)
+        self._locks = []  # descriptors holding the part files' locks
 
     @contextlib.contextmanager
     def open(self, output: str | os.PathLike):
         """A binary file to write ``output``'s content to: a temporary file beside it until the group ends."""
         output = os.fspath(output)
         parent = os.path.dirname(os.path.abspath(output))
+        remove_stale_parts(output)
         held = hold_signals()  # a signal between creating the part and recording it would leave it behind
         try:
-            fd, tmp = tempfile.mkstemp(dir=parent, prefix="." + os.path.basename(output) + ".", suffix=".part")
-        except OSError as e:
+            fd, tmp = _locked_part(output, parent)
+            # Held (locked) until the group ends, so no other run takes it for a dead one's.
+            self._locks.append(os.dup(fd))
+        except BaseException:
             release_signals(held)
-            e.filename, e.filename2 = output, None
             raise
         self._staged.append((tmp, output))
         release_signals(held)
@@ -382,6 +426,9 @@ def atomic_group(replace: bool = True):
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
         raise
+    finally:
+        for lock in group._locks:
+            os.close(lock)
 
 
 #: madvise(2) MADV_POPULATE_READ (Linux 5.14+): map every page of a file mapping now.

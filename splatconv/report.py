@@ -11,20 +11,46 @@ def to_json(data) -> str:
     return json.dumps(data, indent=2, allow_nan=False)
 
 
+def plural(count: int, noun: str, nouns: str | None = None) -> str:
+    """``"1 splat"``, ``"2 splats"``, ``"1,000 splats"``: the count with thousands separators and the noun
+    agreeing with it (``nouns``: an irregular plural)."""
+    return f"{count:,} {noun if count == 1 else nouns or noun + 's'}"
+
+
 def _fmt_range(r) -> str:
     if r is None:
         return "none finite"
-    return " .. ".join("always" if v is None else f"{v:.6g}" for v in r)
+    return " .. ".join(f"{v:.6g}" for v in r)
+
+
+def _visible_text(info: dict) -> str:
+    """When the viewer draws some splat: the union of the splats' visible intervals."""
+    r, always = info["visible_time_range"], info.get("visible_always", 0)
+    if r is None:
+        return "never (no splat has a finite time centre)"
+    if None in r:  # some splat is drawn at every time: the union has no end
+        return f"at every time ({plural(always, 'splat')} with an infinite temporal scale)"
+    return _fmt_range(r)
+
+
+def _detail_text(value) -> str:
+    if isinstance(value, list):
+        return ", ".join(_detail_text(v) for v in value) if value else "none"
+    if isinstance(value, dict):
+        return " ".join(f"{k} {_detail_text(v)}" for k, v in value.items())
+    return str(value)
 
 
 def info_text(info: dict) -> str:
     """Human-readable ``info`` output, one fact per line."""
+    details = dict(info["details"])
+    ply_format, color = details.pop("ply_format", None), details.pop("color", None)
     lines = [
-        f"file:      {info['path']} ({info['file_bytes']:,} bytes"
+        f"file:      {info['path']} ({plural(info['file_bytes'], 'byte')}"
         + (f", {info['compressed_bytes']:,} zstd-compressed)" if info.get("compressed_bytes") else ")"),
-        f"format:    {info['format']}" + (f" ({info['ply_format']})" if info.get("ply_format") else ""),
-        f"variant:   {info['variant']}" + (f", colour read as {info['color']}" if info.get("color") else ""),
-        f"count:     {info['count']:,} splats",
+        f"format:    {info['format']}" + (f" ({ply_format})" if ply_format else ""),
+        f"variant:   {info['variant']}" + (f", colour read as {color}" if color else ""),
+        f"count:     {plural(info['count'], 'splat')}",
     ]
     tex = info["texture"]
     actual = tex["actual_bytes"]
@@ -34,9 +60,7 @@ def info_text(info: dict) -> str:
     cams = info["cameras"]
     names = ", ".join(str(c["img_name"]) for c in cams[:4]) + (", ..." if len(cams) > 4 else "")
     lines.append(f"cameras:   {len(cams)}" + (f" ({names})" if cams else ""))
-    lines.append(f"time:      centres {_fmt_range(info['time_range'])}, "
-                 f"visible {_fmt_range(info['visible_time_range'])}"
-                 + (f" ({info['visible_always']:,} splats visible always)" if info.get("visible_always") else ""))
+    lines.append(f"time:      centres {_fmt_range(info['time_range'])}, visible {_visible_text(info)}")
     b = info["bounds"]
     if b is None:
         lines.append("bounds:    no finite positions")
@@ -45,13 +69,17 @@ def info_text(info: dict) -> str:
         hi = ", ".join(f"{v:.4g}" for v in b["max"])
         lines.append(f"bounds:    min ({lo})  max ({hi})")
     bad = {k: v for k, v in info["nonfinite"].items() if v}
-    lines.append("nonfinite: " + (", ".join(f"{k} {v}" for k, v in bad.items()) if bad else "none"))
-    if info.get("ignored_properties"):
-        lines.append("ignored:   " + ", ".join(info["ignored_properties"]))
-    if info.get("extra_elements"):
-        lines.append("elements:  also " + ", ".join(info["extra_elements"]) + " (ignored)")
-    if info.get("chunks") and len(info["chunks"]) > 1:
-        lines.append("chunks:    " + ", ".join(f"{c['type']} ({c['size']:,} bytes)" for c in info["chunks"]))
+    lines.append("nonfinite: " + (", ".join(f"{k} {v:,}" for k, v in bad.items()) if bad else "none"))
+    ignored, extra = details.pop("ignored_properties", None), details.pop("extra_elements", None)
+    if ignored:
+        lines.append("ignored:   " + ", ".join(ignored))
+    if extra:
+        lines.append("elements:  also " + ", ".join(extra) + " (ignored)")
+    chunks = details.pop("chunks", None)
+    if chunks and len(chunks) > 1:
+        lines.append("chunks:    " + ", ".join(f"{c['type']} ({plural(c['size'], 'byte')})" for c in chunks))
+    for key, value in details.items():  # a format's other facts, as they come
+        lines.append(f"{key + ':':<10} {_detail_text(value)}")
     for note in info["notes"]:
         lines.append(f"note:      {note}")
     return "\n".join(lines)
@@ -175,16 +203,26 @@ def _stats_tables(data: dict) -> list:
     m = data["motion"]
     tables.append(("motion and rotation speed (per unit time)", ["magnitude", "p50", "p90", "p99", "max"],
                    [[k, _g(v["p50"]), _g(v["p90"]), _g(v["p99"]), _g(v["max"])] for k, v in m.items()], 1))
-    keys = ["max_abs_error", "max_rel_error", "rmse", "nonfinite", "overflow", "underflow", "subnormal", "clamped"]
-    heads = ["attribute", "max abs err", "max rel err", "rmse", "nonfinite", "overflow", "underflow", "subnormal",
-             "clamped"]
-    rows = [[g] + [_g(a[k]) if k in keys[:3] else _num(a[k]) for k in keys] for g, a in data["attributes"].items()]
-    tables.append(("attributes (converted against source, in viewer units)", heads, rows, 1))
+    if data["attributes"] is not None:
+        keys = ["max_abs_error", "max_rel_error", "rmse", "nonfinite", "overflow", "underflow", "subnormal",
+                "clamped"]
+        heads = ["attribute", "max abs err", "max rel err", "rmse", "nonfinite", "overflow", "underflow",
+                 "subnormal", "clamped"]
+        rows = [[g] + [_g(a[k]) if k in keys[:3] else _num(a[k]) for k in keys]
+                for g, a in data["attributes"].items()]
+        title = ("attributes (the conversion against source, in viewer units)" if data["files"][-1]["path"] is None
+                 else "attributes (converted against source, in viewer units)")
+        tables.append((title, heads, rows, 1))
     return tables
 
 
 def _summary_lines(data: dict) -> list:
-    lines = [f"count: {data['count']:,} splats"]
+    lines = [f"count: {plural(data['count'], 'splat')}"]
+    if data["attributes"] is None:
+        source = data["files"][0]
+        why = ("SOURCE holds no splats" if data["count"] == 0
+               else f"SOURCE alone is a {source['format']} file, which the viewer loads as stored")
+        lines.append(f"attributes: none compared ({why})")
     b = data["bounds"]
     if b:
         lo = ", ".join(f"{v:.4g}" for v in b["min"])
@@ -193,8 +231,11 @@ def _summary_lines(data: dict) -> list:
     t = data["time"]
     vis = t["visible"]
     lo_i, hi_i = vis.index(min(vis)), vis.index(max(vis))
-    lines.append(f"time: {len(vis)} steps over [0, 1]: {min(vis):,} to {max(vis):,} splats drawn "
-                 f"(fewest at t={t['times'][lo_i]:.3g}, most at t={t['times'][hi_i]:.3g})")
+    if min(vis) == max(vis):
+        lines.append(f"time: {len(vis)} steps over [0, 1]: {plural(min(vis), 'splat')} drawn at each")
+    else:
+        lines.append(f"time: {len(vis)} steps over [0, 1]: {min(vis):,} to {plural(max(vis), 'splat')} drawn "
+                     f"(fewest at t={t['times'][lo_i]:.3g}, most at t={t['times'][hi_i]:.3g})")
     v = data["viewer"]
     fits = ", ".join(f"{k}: {'yes' if ok else 'NO'}" for k, ok in v["fits_max_texture_size"].items())
     lines.append(f"viewer: texture 4096x{v['texture_height']} (fits {fits}); "
@@ -285,3 +326,55 @@ def images_verdict_text(data: dict) -> str:
     word, relation = ("FAIL", "below") if bad else ("PASS", "at or above")
     w = data["worst"]
     return f"{word}: {w['a']} vs {w['b']}: {_psnr(w['psnr'])} dB, {relation} {data['min_psnr']:g} dB"
+
+
+def _dist(d: dict, fmt: str) -> str:
+    return "  ".join(f"{k} {fmt.format(d[k])}" for k in ("p50", "p90", "p99", "max"))
+
+
+def sequence_text(data: dict) -> str:
+    """A frame-sequence fit (:class:`splatconv.ops.sequence.SequenceReport` as a dict) as text."""
+    n = data["frames"]
+    times = data["times"]
+    span = f"t {times[0]:g} .. {times[-1]:g}" if times else ""
+    if not data["same_splats"]:
+        per = data["splats_per_frame"]
+        return (f"{n} frames ({span}), different splats per frame: {sum(per):,} splats, each frame shown "
+                "around its own time")
+    lines = [f"{n} frames ({span}), the same {data['splats_per_frame'][0]:,} splats in each: motion fitted"]
+    lines.append(f"  position error ({data['max_error']:.3g} allowed): {_dist(data['position_error'], '{:.3g}')}")
+    lines.append(f"  rotation error (degrees):  {_dist(data['rotation_error_deg'], '{:.3g}')}")
+    lines.append(f"  opacity error:             {_dist(data['opacity_error'], '{:.3g}')}")
+    if data["split_splats"]:
+        lines.append(f"  split into pieces: {data['split_splats']:,} splats, {data['pieces_added']:+,} splats")
+    return "\n".join(lines)
+
+
+def _db(v) -> str:
+    return "identical" if v is None else f"{v:.2f} dB"
+
+
+def segments_text(data: dict) -> str:
+    """``merge --segments``'s report (:meth:`SegmentReport.as_dict` + frames + fidelity) as text."""
+    lines = [f"{len(data['segments'])} segments on one timeline: {data['splats_in']:,} splats -> "
+             f"{data['splats_out']:,} ({data['ratio']:.2f}x; budget {data['budget']:g}x), "
+             f"long-lived splats fade over {data['leak_frames']} frame(s) of the neighbours"]
+    for i, s in enumerate(data["segments"]):
+        given = sorted(s["pieces_per_long_lived"].items(), key=lambda kv: int(kv[0]))
+        pieces = ", ".join(f"{n:,} x {k}" for k, n in given)
+        lines.append(f"  segment {i}: frames {s['first_frame']}..{s['first_frame'] + s['frames'] - 1} "
+                     f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {s['splats_out']:,} splats, "
+                     f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else ""))
+    frames = data.get("frames") or []
+    if frames:
+        lines.append("frame  time      segment  local    PSNR vs the segment alone")
+        for f in frames:
+            lines.append(f"{f['frame']:5d}  {f['time']:.5f}  {f['segment']:7d}  {f['local_time']:.4f}  "
+                         f"{_db(f['psnr'])}")
+        s = data["fidelity"]
+        lines.append(f"fidelity over {s['frames']} frame(s): median {_db(s['median_psnr'])}, "
+                     f"min {_db(s['min_psnr'])}; {s['below_40']} below 40 dB, {s['below_30']} below 30 dB")
+    out = data.get("output")
+    if out:
+        lines.append(f"wrote {out['path']}: {out['splats']:,} splats")
+    return "\n".join(lines)

@@ -9,15 +9,15 @@ import os
 import numpy as np
 
 from . import viewer
-from .compare import HALF_MAX, align, group_errors
-from .io import read
 from .cameras import framing_camera
-from .packing import float_to_half, float_to_half_splatvjs
-from .transport import DEFAULT_LEVEL, compressed_size, plain_input, written_sizes
+from .compare import GroupError, align, value_errors
 from .formats import format_for, splatv
 from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
+from .io import read
 from .model import COLOR, COLUMNS, GROUPS, Scene
-from .viewer import TEMPORAL_CUTOFF
+from .packing import float_to_half, float_to_half_splatvjs
+from .progress import SILENT
+from .transport import DEFAULT_LEVEL, compressor, plain_input
 
 
 def _finite_range(values: np.ndarray):
@@ -28,60 +28,68 @@ def _finite_range(values: np.ndarray):
     return [float(v.min()), float(v.max())]
 
 
+#: Version of the ``info`` JSON (``specs/json.md``); raised when a key changes meaning or goes.
+INFO_SCHEMA = "splatconv.info/1"
+
+
 def describe(scene: Scene, path: str, module) -> dict:
-    """Facts about a scene file, as JSON-able data.
+    """Facts about a scene file, as JSON-able data (keys documented in ``specs/json.md``).
+
+    The same keys for every format, in the same order; what only the file's
+    format has (its module's ``info_fields``) is under ``details``.
 
     Parameters
     ----------
     scene : Scene
     path : str
     module : format module
-        The file's format (see :mod:`splatconv.formats`); its ``info_fields``
-        add what only that format has.
+        The file's format (see :mod:`splatconv.formats`).
 
     Returns
     -------
     dict
-        Keys: path, format, variant, count, file_bytes (uncompressed),
-        compressed_bytes (on disk, for .zst files, else None), cameras,
-        time_range, visible_time_range, bounds, nonfinite, the format's own
-        fields, notes.
+        Keys: schema, path, format, variant, count, file_bytes (uncompressed),
+        compressed_bytes (on disk, for .zst files, else None), cameras, texture,
+        time_range, visible_time_range, visible_always, bounds, nonfinite,
+        details, notes.
     """
     cols = scene.columns
-    n = scene.count
     meta = scene.meta
     bounds = None
     pos = viewer.positions(cols)
     pos = pos[np.isfinite(pos).all(axis=1)]
     if len(pos):
         bounds = {"min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()}
-    centre = np.asarray(cols["trbf_center"], dtype=np.float64)
+    centre = viewer.wide(cols["trbf_center"])
     lo, hi = viewer.visible_interval(cols)
-    info = {
+    # A splat with an infinite or NaN centre, or a NaN scale, has no interval
+    # on the time axis (counted under ``nonfinite``).
+    timed = np.isfinite(centre) & ~np.isnan(lo) & ~np.isnan(hi)
+    return {
+        "schema": INFO_SCHEMA,
         "path": path,
         "format": module.NAME,
         "variant": scene.variant,
-        "count": n,
+        "count": scene.count,
         "file_bytes": meta.get("file_bytes"),
         "compressed_bytes": meta.get("compressed_bytes"),
         "cameras": [{"id": c.get("id"), "img_name": c.get("img_name"), "width": c.get("width"),
                      "height": c.get("height")} for c in (scene.cameras or [])],
         "texture": _texture(scene),
         "time_range": _finite_range(centre),
-        "visible_time_range": _visible_range(lo, hi),
-        "visible_always": int(np.count_nonzero(np.isinf(hi) & np.isinf(lo))),
+        "visible_time_range": _visible_range(lo[timed], hi[timed]),
+        "visible_always": int(np.count_nonzero(timed & np.isinf(hi))),
         "bounds": bounds,
         "nonfinite": {name: int(np.count_nonzero(~np.isfinite(cols[name]))) for name in COLUMNS},
+        "details": module.info_fields(scene),
+        "notes": list(scene.notes),
     }
-    info.update(module.info_fields(scene))
-    info["notes"] = list(scene.notes)
-    return info
 
 
 def _visible_range(lo: np.ndarray, hi: np.ndarray):
-    """[earliest, latest] time any splat is drawn; an end is None (JSON null) where some
-    splat is drawn at every time (infinite temporal scale: see ``visible_always``)."""
-    lo, hi = lo[~np.isnan(lo)], hi[~np.isnan(hi)]
+    """[earliest, latest] time any splat is drawn, over splats with a finite centre; both ends are
+    None (JSON null) when some splat is drawn at every time (an infinite temporal scale: see
+    ``visible_always``); None when no splat has a finite centre."""
     if lo.size == 0:
         return None
     first, last = float(lo.min()), float(hi.max())
@@ -99,12 +107,34 @@ def _texture(scene: Scene) -> dict:
 # --------------------------------------------------------------------------
 # ``stats``: sizes, transport size and what a conversion loses.
 
+#: Version of the ``stats`` JSON (``specs/json.md``); raised when a key changes meaning or goes.
+STATS_SCHEMA = "splatconv.stats/1"
 #: Time steps at which the number of drawn splats is counted.
 TIME_STEPS = 20
 #: GPU texture size limits the report checks the texture height against.
 MAX_TEXTURE_SIZES = (8192, 16384)
 #: Groups stored as halves (colour and opacity are bytes, positions float32).
 HALF_GROUPS = ("rotation", "scale", "motion", "omega", "trbf")
+#: Rows compared at a time: a block's float64 temporaries stay a few MB, whatever the scene's size.
+BLOCK = 1 << 16
+#: Bytes read at a time while a file's zstd size is measured.
+_READ_BYTES = 1 << 22
+#: Smallest normal half: converted values below it (and not zero) are subnormal.
+_HALF_MIN_NORMAL = 2.0**-14
+#: float32 magnitude from which the nearest half is infinite: the largest half,
+#: 65504, plus half its step of 32. Below it a value rounds to a finite half:
+#: ordinary rounding, not overflow (a .splatv's 65504 read back through exp() is
+#: 65504.000000000015, which must not count).
+HALF_ROUNDS_TO_INF = 65520.0
+#: Magnitudes of the motion summary, and the columns each is the norm of.
+MOTION_TERMS = {
+    "velocity": ("motion_0", "motion_1", "motion_2"),
+    "acceleration": ("motion_3", "motion_4", "motion_5"),
+    "jerk": ("motion_6", "motion_7", "motion_8"),
+    "omega": tuple(f"omega_{i}" for i in range(4)),
+}
+#: Per-group counts of the ``attributes`` block, in report order.
+COUNT_KEYS = ("nonfinite", "overflow", "underflow", "subnormal", "clamped")
 
 
 def _percentiles(v: np.ndarray) -> dict:
@@ -115,57 +145,62 @@ def _percentiles(v: np.ndarray) -> dict:
     return {"p50": float(p[0]), "p90": float(p[1]), "p99": float(p[2]), "max": float(v.max())}
 
 
-def time_coverage(cols: dict, steps: int = TIME_STEPS) -> dict:
-    """How many splats the viewer draws at each of ``steps`` times over [0, 1]."""
-    centre = np.asarray(cols["trbf_center"], dtype=np.float64)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        scale = np.exp(np.asarray(cols["trbf_scale"], dtype=np.float64))
-        times = np.linspace(0.0, 1.0, steps)
-        visible = [int(np.count_nonzero(np.exp(-(((t - centre) / scale) ** 2)) >= TEMPORAL_CUTOFF)) for t in times]
-    return {"times": [round(float(t), 6) for t in times], "visible": visible}
+def _times(steps: int = TIME_STEPS) -> np.ndarray:
+    return np.linspace(viewer.TIME_RANGE[0], viewer.TIME_RANGE[1], steps)
 
 
-def motion_summary(cols: dict) -> dict:
-    """Percentiles of |velocity|, |acceleration|, |jerk| (motion_0..8) and |omega|."""
+def _visible_counts(cols: dict, times: np.ndarray) -> np.ndarray:
+    """Splats the viewer draws at each time: ``(steps,) int64``.
 
-    def norm(names):
-        return np.sqrt(sum(np.asarray(cols[n], dtype=np.float64) ** 2 for n in names))
-
-    return {
-        "velocity": _percentiles(norm(("motion_0", "motion_1", "motion_2"))),
-        "acceleration": _percentiles(norm(("motion_3", "motion_4", "motion_5"))),
-        "jerk": _percentiles(norm(("motion_6", "motion_7", "motion_8"))),
-        "omega": _percentiles(norm(tuple(f"omega_{i}" for i in range(4)))),
-    }
+    A splat is drawn unless its temporal opacity is below the viewer's cut
+    (:func:`splatconv.viewer.visible`: a NaN temporal opacity is drawn, as the
+    viewer's test does not reject it).
+    """
+    return np.array([np.count_nonzero(viewer.visible(cols, t)) for t in times], dtype=np.int64)
 
 
-#: Smallest normal half: converted values below it (and not zero) are subnormal.
-_HALF_MIN_NORMAL = 2.0**-14
+def _magnitudes(cols: dict, names) -> np.ndarray:
+    """Euclidean norm of columns ``names`` per row: ``(N,) float64`` (float64 squares cannot overflow
+    from float32 values)."""
+    total = np.zeros(len(cols[names[0]]), dtype=np.float64)
+    for name in names:
+        v = np.asarray(cols[name], dtype=np.float64)
+        total += v * v
+    return np.sqrt(total)
 
 
-def _counts(source_cols: dict, converted_cols: dict, group: str) -> dict:
-    """Per-group counts: nonfinite, overflow, underflow, subnormal, clamped."""
+def _counts(a: np.ndarray, b: np.ndarray, raw: dict, group: str) -> dict:
+    """Per-group counts: nonfinite, overflow, underflow, subnormal, clamped.
 
-    a = viewer.group_values(source_cols, group)
-    b = viewer.group_values(converted_cols, group)
-    raw = np.stack([np.asarray(source_cols[n], dtype=np.float64) for n in GROUPS[group]], axis=1)
+    Parameters
+    ----------
+    a, b : (N, k) float64 ndarray
+        Source and converted values in viewer units (``viewer.group_values``).
+    raw : dict of str to (N,) ndarray
+        The source's model columns (colour and opacity as stored, before clamping).
+    """
     finite = np.isfinite(a)
-    out = {"nonfinite": int(np.count_nonzero(~np.isfinite(b))), "overflow": 0, "underflow": 0, "subnormal": 0,
-           "clamped": 0}
+    out = dict.fromkeys(COUNT_KEYS, 0)
+    out["nonfinite"] = int(np.count_nonzero(~np.isfinite(b)))
     if group in HALF_GROUPS:
-        out["overflow"] = int(np.count_nonzero(finite & (np.abs(a) > HALF_MAX)))
+        # Both writers round to float32 first; compared there, a value a hair past
+        # 65504 in double (exp of a stored half's logarithm) is 65504 again.
+        with np.errstate(over="ignore"):
+            a32 = np.abs(a.astype(np.float32))
+            b32 = np.abs(b.astype(np.float32))
+        out["overflow"] = int(np.count_nonzero(finite & (a32 >= HALF_ROUNDS_TO_INF)))
         # Compared in float32: a half read back through exp() may land a hair
         # below 2^-14 in double, never in float32.
-        with np.errstate(over="ignore"):
-            b32 = np.abs(b.astype(np.float32))
         out["subnormal"] = int(np.count_nonzero((b32 != 0) & (b32 < _HALF_MIN_NORMAL)))
-    if group != "position":
+        # Halves keep relative precision, so a nonzero value becoming zero is lost; a colour or
+        # alpha below half a byte step becoming byte 0 is the bytes' ordinary rounding.
         out["underflow"] = int(np.count_nonzero(finite & (a != 0) & (b == 0)))
     if group == "color":
         # NaN is clamped too: the writers store it as 0.
-        out["clamped"] = int(np.count_nonzero((raw < 0) | (raw > 1) | np.isnan(raw)))
+        stored = np.stack([np.asarray(raw[n]) for n in GROUPS[group]], axis=1)
+        out["clamped"] = int(np.count_nonzero((stored < 0) | (stored > 1) | np.isnan(stored)))
     elif group == "opacity":
-        out["clamped"] = int(np.count_nonzero(np.isnan(raw)))  # sigmoid(NaN): stored as alpha 0
+        out["clamped"] = int(np.count_nonzero(np.isnan(raw["opacity"])))  # sigmoid(NaN): stored as alpha 0
     return out
 
 
@@ -231,12 +266,43 @@ def _texture_columns(cols: dict) -> dict:
     return out
 
 
-def _sizes(path: str, level: int) -> tuple:
+class _Sink:
+    """Counts the compressed bytes and keeps none."""
+
+    def __init__(self):
+        self.count = 0
+
+    def write(self, data) -> int:
+        n = memoryview(data).nbytes
+        self.count += n
+        return n
+
+
+def _zstd_size(pieces, size: int, level: int, label: str, progress) -> int:
+    """Bytes of the ``size`` bytes ``pieces`` yields (buffers), zstd-compressed at ``level`` as one frame.
+
+    The frame declares its content size, as ``zstd FILE`` writes it; nothing is kept.
+    """
+    sink = _Sink()
+    with progress.stage(label, size, "byte") as advance, \
+            compressor(level).stream_writer(sink, size=size, closefd=False) as z:
+        for piece in pieces:
+            z.write(piece)
+            advance(memoryview(piece).nbytes)
+    return sink.count
+
+
+def _file_pieces(path: str):
+    with open(path, "rb") as f:
+        while chunk := f.read(_READ_BYTES):
+            yield chunk
+
+
+def _sizes(path: str, level: int, progress) -> tuple:
     """(bytes, zstd bytes at ``level``) of a file's content: a ``.zst`` file's decompressed."""
-
-
     with plain_input(path) as plain:
-        return os.path.getsize(plain), compressed_size(plain, level)
+        size = os.path.getsize(plain)
+        return size, _zstd_size(_file_pieces(plain), size, level, f"zstd-{level} {os.path.basename(path)}", progress)
 
 
 def _file_entry(role: str, path, fmt: str, size: int, count: int, zstd_bytes: int, level: int,
@@ -254,19 +320,20 @@ def _file_entry(role: str, path, fmt: str, size: int, count: int, zstd_bytes: in
     }
 
 
-def _simulated_conversion(source: Scene, level: int) -> tuple:
+def _simulated_conversion(source: Scene, level: int, progress) -> tuple:
     """What ``convert`` would write for ``source``: (scene it decodes to, bytes, zstd bytes).
 
-    The file is written once through the zstd counter, which keeps none of it,
-    then encoded again in memory to decode: two uncompressed copies of it never
-    exist at once.
+    The texture is encoded once, in memory; its zstd size is measured from that
+    copy (with the header ``convert`` would write) and the scene decoded from it.
     """
-
-    size, zstd_bytes = written_sizes(lambda out: splatv.write(source, out), level)
     records, _ = splatv.encode(source)
+    cameras = source.cameras or [framing_camera(source.columns["x"], source.columns["y"], source.columns["z"])]
+    header = splatv.header_bytes(source.count, cameras)
+    rows = max(1, _READ_BYTES // splatv.RECORD_BYTES)
+    pieces = [header] + [memoryview(records[start:start + rows]) for start in range(0, len(records), rows)]
+    size = len(header) + records.nbytes
+    zstd_bytes = _zstd_size(pieces, size, level, f"zstd-{level} (as converted)", progress)
     columns, _ = splatv.decode_records(records[:source.count])
-    cols = source.columns
-    cameras = source.cameras or [framing_camera(cols["x"], cols["y"], cols["z"])]
     return Scene(columns=columns, cameras=cameras), size, zstd_bytes
 
 
@@ -275,66 +342,155 @@ def _viewer_limits(scene: Scene) -> dict:
     # A .splatv's texture is as tall as its header says, whatever it holds;
     # anything else is as tall as converting it would declare.
     texheight = scene.meta.get("texheight", splatv.texture_height(scene.count))
-    xyz = np.stack([scene.columns[c] for c in ("x", "y", "z")])
+    nan = np.zeros(scene.count, dtype=bool)
+    for c in ("x", "y", "z"):
+        nan |= ~np.isfinite(scene.columns[c])
     return {
         "texture_height": texheight,
         "fits_max_texture_size": {str(s): texheight <= s for s in MAX_TEXTURE_SIZES},
         "cameras": len(scene.cameras or []),
         "empty_cameras": not scene.cameras,
-        "nan_positions": int(np.count_nonzero((~np.isfinite(xyz)).any(axis=0))),
+        "nan_positions": int(np.count_nonzero(nan)),
     }
 
 
+#: Rows gathered at a time by row number: their cache lines (a PLY row is 128
+#: bytes) stay in cache while each column picks its value from them.
+_GATHER = 1 << 12
+
+
+def _rows(cols: dict, index, as_texture: bool) -> dict:
+    """Rows ``index`` (a slice, or row numbers in any order) of every column; a texture's as it stores them."""
+    if isinstance(index, slice):
+        block = {name: np.asarray(cols[name])[index] for name in COLUMNS}
+    else:
+        # Column by column over all of ``index`` would fetch every row's cache
+        # lines once per column: a few thousand rows at a time fetch them once.
+        block = {name: np.empty(len(index), dtype=np.asarray(cols[name]).dtype) for name in COLUMNS}
+        for start in range(0, len(index), _GATHER):
+            part = index[start:start + _GATHER]
+            for name in COLUMNS:
+                # Indexing, not np.take: take copies a strided (memory-mapped PLY) column whole first.
+                block[name][start:start + _GATHER] = np.asarray(cols[name])[part]
+    return _texture_columns(block) if as_texture else block
+
+
+class _Tally:
+    """What the ``stats`` report adds up over blocks of rows."""
+
+    def __init__(self, n: int, compare: bool, damage: bool):
+        self.times = _times()
+        self.visible = np.zeros(len(self.times), dtype=np.int64)
+        self.magnitudes = {term: np.empty(n, dtype=np.float64) for term in MOTION_TERMS}
+        self.lo = np.full(3, np.inf)
+        self.hi = np.full(3, -np.inf)
+        self.errors = {} if compare else None
+        self.counts = {g: dict.fromkeys(COUNT_KEYS, 0) for g in GROUPS} if compare else None
+        self.damage = {g: {"infinity": 0, "garbled": 0} for g in HALF_GROUPS} if damage else None
+
+    def add(self, rows: slice, src: dict, conv: dict) -> None:
+        """Rows ``rows`` of the converted scene (``conv``) and the source rows matching them (``src``)."""
+        self.visible += _visible_counts(conv, self.times)
+        for term, names in MOTION_TERMS.items():
+            self.magnitudes[term][rows] = _magnitudes(conv, names)
+        pos = viewer.positions(conv)
+        pos = pos[np.isfinite(pos).all(axis=1)]
+        if len(pos):
+            self.lo = np.minimum(self.lo, pos.min(axis=0))
+            self.hi = np.maximum(self.hi, pos.max(axis=0))
+        if self.errors is not None:
+            for group in GROUPS:
+                a, b = viewer.group_values(src, group), viewer.group_values(conv, group)
+                e = value_errors(a, b, group)
+                self.errors[group] = self.errors[group].merge(e) if group in self.errors else e
+                for key, count in _counts(a, b, src, group).items():
+                    self.counts[group][key] += count
+        if self.damage is not None:
+            for group, d in splatvjs_damage(src).items():
+                for key, count in d.items():
+                    self.damage[group][key] += count
+
+    def bounds(self):
+        if not np.isfinite(self.lo).all():
+            return None
+        return {"min": self.lo.tolist(), "max": self.hi.tolist()}
+
+    def attributes(self):
+        if self.errors is None:
+            return None
+        return {g: {"max_abs_error": _finite(e.max_abs_error), "max_rel_error": _finite(e.max_rel_error),
+                    "rmse": _finite(e.rmse), **self.counts[g]}
+                for g, e in ((g, self.errors.get(g) or _NO_ERRORS[g]) for g in GROUPS)}
+
+
+def _finite(v: float):
+    """``v``, or None (JSON null) where it is infinite: JSON has no infinity."""
+    return v if math.isfinite(v) else None
+
+
+_NO_ERRORS = {g: GroupError(g, 0.0, 0.0, 0.0, 0, 0.0, 0) for g in GROUPS}
+
+
 def stats_report(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
-                 color: str = "auto") -> dict:
-    """The ``stats`` report as JSON-able data (keys documented in ``specs/stats.md``).
+                 color: str = "auto", progress=SILENT) -> dict:
+    """The ``stats`` report as JSON-able data (keys documented in ``specs/json.md``).
 
     With one file, the conversion it would get (default writer) is simulated in
-    memory and reported as ``converted``, with ``path`` null; a ``.splatv`` (or
-    an empty PLY, which ``convert`` refuses) is reported as what it is.
+    memory and reported as ``converted``, with ``path`` null; a file the viewer
+    loads as it is (a ``.splatv``), or an empty PLY (which ``convert`` refuses), is
+    reported as stored, with no comparison (``attributes`` null).
+
+    Rows are compared a block at a time, so memory beyond the two scenes stays
+    a few MB (plus 32 bytes a splat for the motion percentiles).
+
+    Parameters
+    ----------
+    source_path, converted_path : str
+    zstd_level : int, optional
+        Level of the transport sizes (default :data:`splatconv.transport.DEFAULT_LEVEL`).
+    color : {"auto", "rgb", "sh"}
+    progress : splatconv.progress.Progress
+        Receives a stage per file compressed and one for the comparison.
     """
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     source = read(source_path, color=color)
     src_mod = format_for(source_path)
-    src_bytes, src_zstd = _sizes(source_path, level)
+    src_bytes, src_zstd = _sizes(source_path, level, progress)
     files = [_file_entry("source", source_path, src_mod.NAME, src_bytes, source.count, src_zstd, level, src_bytes)]
+    compare = True
     if converted_path is not None:
         converted = read(converted_path, color=color)
         conv_mod = format_for(converted_path)
         order = align(source, converted, source_path, converted_path)
-        conv_bytes, conv_zstd = _sizes(converted_path, level)
+        conv_bytes, conv_zstd = _sizes(converted_path, level, progress)
         files.append(_file_entry("converted", converted_path, conv_mod.NAME, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
     elif src_mod.STORES_TEXTURE or source.count == 0:
-        converted, conv_mod, order = source, src_mod, None  # already what the viewer reads
+        converted, conv_mod, order, compare = source, src_mod, None, False  # reported as stored
     else:
-        converted, size, zstd_bytes = _simulated_conversion(source, level)
+        converted, size, zstd_bytes = _simulated_conversion(source, level, progress)
         conv_mod = splatv
         order = align(source, converted)
         files.append(_file_entry("converted", None, conv_mod.NAME, size, source.count, zstd_bytes, level, src_bytes))
-    src_cols = source.columns if order is None else source.take(order)
-    conv_cols = converted.columns
-    if src_mod.STORES_TEXTURE:
-        src_cols = _texture_columns(src_cols)
-    if conv_mod.STORES_TEXTURE:
-        conv_cols = _texture_columns(conv_cols)
-    attributes = {}
-    for group in GROUPS:
-        e = group_errors(src_cols, conv_cols, group)
-        attributes[group] = {"max_abs_error": e.max_abs_error, "max_rel_error": e.max_rel_error, "rmse": e.rmse,
-                             **_counts(src_cols, conv_cols, group)}
-    info = describe(converted, files[-1]["path"] or source_path, conv_mod)
+    n = converted.count
+    tally = _Tally(n, compare, damage=not src_mod.STORES_TEXTURE)
+    with progress.stage("comparing" if compare else "reading values", n, "splat") as advance:
+        for start in range(0, n, BLOCK):
+            rows = slice(start, min(start + BLOCK, n))
+            conv = _rows(converted.columns, rows, conv_mod.STORES_TEXTURE)
+            src = conv if not compare else _rows(source.columns, rows if order is None else order[rows],
+                                                 src_mod.STORES_TEXTURE)
+            tally.add(rows, src, conv)
+            advance(rows.stop - rows.start)
     # The viewer loads the texture side; with none (PLY to PLY), the converted file as converting would make it.
     viewed = source if src_mod.STORES_TEXTURE and not conv_mod.STORES_TEXTURE else converted
     return {
+        "schema": STATS_SCHEMA,
         "files": files,
         "count": source.count,
-        "bounds": info["bounds"],
-        "time": time_coverage(conv_cols),
-        "motion": motion_summary(conv_cols),
-        "attributes": attributes,
-        "viewer": {
-            **_viewer_limits(viewed),
-            "splatv_js_damage": splatvjs_damage(source.columns) if not src_mod.STORES_TEXTURE else None,
-        },
+        "bounds": tally.bounds(),
+        "time": {"times": [round(float(t), 6) for t in tally.times], "visible": tally.visible.tolist()},
+        "motion": {term: _percentiles(v) for term, v in tally.magnitudes.items()},
+        "attributes": tally.attributes(),
+        "viewer": {**_viewer_limits(viewed), "splatv_js_damage": tally.damage},
     }

@@ -8,16 +8,19 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
 
 import zstandard
 
 from .errors import FormatError, SplatconvError, UsageError
-from .fsutil import hold_signals, open_input, release_signals
+from .fsutil import locked_temporary, open_input
 
-#: Default zstd level for reports and ``.zst`` output: 19, zstd's highest level
-#: before the "ultra" ones, worth it for files served many times.
-DEFAULT_LEVEL = 19
+#: Default zstd level for reports and ``.zst`` output: 3, zstd's own default.
+#: Measured on 1,000,000-splat scenes (``bench/bench_zstd_levels.py``, table in
+#: the README): a .splatv at level 3 is about 8% larger than at level 19 but is
+#: compressed some 90 times faster (level 19 took minutes, and ~300 MB); levels
+#: 6 and 9 save 4-6% more for two and four times the time. ``--zstd-level``
+#: chooses another.
+DEFAULT_LEVEL = 3
 SUFFIX = ".zst"
 
 
@@ -199,14 +202,7 @@ def plain_input(path, declared_size=None):
                 raise FormatError(f"its zstd frame declares {content:,} decompressed bytes, more than the "
                                   f"{_gib(ceiling)} allowed (raise it with --max-decompressed or "
                                   f"{MAX_DECOMPRESSED_ENV})", path)
-        held = hold_signals()  # a signal between creating the file and the try would leave it behind
-        try:
-            fd, tmp = tempfile.mkstemp(prefix="splatconv-", suffix=suffix)
-        except BaseException:
-            release_signals(held)
-            raise
-        try:
-            release_signals(held)
+        with locked_temporary(suffix) as (fd, tmp):
             with os.fdopen(fd, "wb") as out:
                 try:
                     _decompress(f, out, path, ceiling, declared_size)
@@ -219,9 +215,6 @@ def plain_input(path, declared_size=None):
                 if e.path == tmp:
                     e.path = path
                 raise
-        finally:
-            with contextlib.suppress(OSError):
-                os.unlink(tmp)
 
 
 def _decompress(f, out, path: str, ceiling: int, declared_size) -> None:

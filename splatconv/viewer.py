@@ -39,21 +39,32 @@ VISIBLE_RADIUS = math.sqrt(-math.log(TEMPORAL_CUTOFF))
 TIME_RANGE = (0.0, 1.0)
 
 
+def wide(values) -> np.ndarray:
+    """``values`` as float64, the way every column is widened for the viewer's maths.
+
+    A signalling NaN (trained scenes and hostile files carry them) raises the
+    "invalid" flag when float32 is cast to float64: the value becomes a quiet
+    NaN, which is all the maths needs, so the flag is no warning to show.
+    """
+    with np.errstate(invalid="ignore"):
+        return np.asarray(values, dtype=np.float64)
+
+
 def _f64(cols: dict, names) -> np.ndarray:
     """Columns ``names`` stacked as ``(N, k) float64``."""
-    return np.stack([np.asarray(cols[n], dtype=np.float64) for n in names], axis=1)
+    return np.stack([wide(cols[n]) for n in names], axis=1)
 
 
 def sigmoid(x: np.ndarray) -> np.ndarray:
     """1 / (1 + exp(-x)) in float64, without overflow warnings (NaN stays NaN)."""
-    x = np.asarray(x, dtype=np.float64)
+    x = wide(x)
     with np.errstate(over="ignore"):
         return 1.0 / (1.0 + np.exp(-x))
 
 
 def logit(p: np.ndarray) -> np.ndarray:
     """Inverse of :func:`sigmoid` in float64: 0 -> -inf, 1 -> inf."""
-    p = np.asarray(p, dtype=np.float64)
+    p = wide(p)
     with np.errstate(divide="ignore", invalid="ignore"):
         return np.log(p) - np.log1p(-p)
 
@@ -61,7 +72,7 @@ def logit(p: np.ndarray) -> np.ndarray:
 def exp(x: np.ndarray) -> np.ndarray:
     """exp in float64 without overflow warnings (large values become inf)."""
     with np.errstate(over="ignore"):
-        return np.exp(np.asarray(x, dtype=np.float64))
+        return np.exp(wide(x))
 
 
 def scales(cols: dict) -> np.ndarray:
@@ -95,6 +106,27 @@ def importance(cols: dict) -> np.ndarray:
         return size * opacity(cols)
 
 
+def temporal_basis(dt, scale) -> np.ndarray:
+    """The viewer's temporal radial basis exp(-(dt / scale)^2), broadcast: float64.
+
+    ``scale`` is linear (exp(trbf_scale)). Time tools evaluate it over grids of
+    times and splats; :func:`temporal_opacity` is it at one time for a scene.
+    No cut is applied; an infinite scale gives 1, NaN stays NaN.
+    """
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        u = np.asarray(dt, dtype=np.float64) / np.asarray(scale, dtype=np.float64)
+        return np.exp(-(u * u))
+
+
+def apply_cut(values: np.ndarray) -> np.ndarray:
+    """Temporal opacities as the viewer uses them: values below :data:`TEMPORAL_CUTOFF` become 0 (in place).
+
+    NaN compares false with the cutoff, so it is kept, as the shader keeps it.
+    """
+    values[values < TEMPORAL_CUTOFF] = 0.0
+    return values
+
+
 def temporal_opacity(cols: dict, t: float, *, cut: bool = True) -> np.ndarray:
     """Temporal opacity exp(-(dt / exp(trbf_scale))^2) at time ``t``: ``(N,) float64``.
 
@@ -103,10 +135,7 @@ def temporal_opacity(cols: dict, t: float, *, cut: bool = True) -> np.ndarray:
     A NaN result (NaN centre or scale, or a zero scale at dt = 0) compares false
     with the cutoff, so the viewer does not hide it: it stays NaN here.
     """
-    dt = float(t) - np.asarray(cols["trbf_center"], dtype=np.float64)
-    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        u = dt / trbf_scale(cols)
-        value = np.exp(-(u * u))
+    value = temporal_basis(float(t) - wide(cols["trbf_center"]), trbf_scale(cols))
     if cut:
         value[value < TEMPORAL_CUTOFF] = 0.0
     return value
@@ -123,7 +152,7 @@ def visible_interval(cols: dict) -> tuple[np.ndarray, np.ndarray]:
     ``trbf_center -+ VISIBLE_RADIUS * exp(trbf_scale)``; an infinite scale gives
     (-inf, inf). NaN where the centre or scale is NaN.
     """
-    centre = np.asarray(cols["trbf_center"], dtype=np.float64)
+    centre = wide(cols["trbf_center"])
     with np.errstate(over="ignore", invalid="ignore"):
         reach = trbf_scale(cols) * VISIBLE_RADIUS
         return centre - reach, centre + reach
@@ -145,7 +174,7 @@ def position_at(cols: dict, t) -> np.ndarray:
     xyz + m0 dt + m1 dt^2 + m2 dt^3 with dt = t - trbf_center, the terms summed in
     the viewer's order.
     """
-    dt = (np.asarray(t, dtype=np.float64) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
+    dt = (wide(t) - wide(cols["trbf_center"]))[:, None]
     m = motion(cols)
     with np.errstate(over="ignore", invalid="ignore"):
         return positions(cols) + (m[:, 0] * dt + m[:, 1] * dt * dt + m[:, 2] * dt * dt * dt)
@@ -157,7 +186,7 @@ def rotation_at(cols: dict, t: float, *, normalize: bool = True) -> np.ndarray:
     rot + omega dt, normalised as the viewer does (a zero quaternion gives NaN,
     as it does in the shader).
     """
-    dt = (float(t) - np.asarray(cols["trbf_center"], dtype=np.float64))[:, None]
+    dt = (float(t) - wide(cols["trbf_center"]))[:, None]
     with np.errstate(over="ignore", invalid="ignore"):
         q = _f64(cols, ROTATION) + _f64(cols, OMEGA) * dt
         if normalize:
@@ -192,8 +221,8 @@ def float_record(cols: dict) -> dict:
     """
     s = scales(cols)
     c = colors(cols)
-    out = {name: np.asarray(cols[name], dtype=np.float64) for name in POSITION + ROTATION + MOTION + OMEGA}
-    out["trbf_center"] = np.asarray(cols["trbf_center"], dtype=np.float64)
+    out = {name: wide(cols[name]) for name in POSITION + ROTATION + MOTION + OMEGA}
+    out["trbf_center"] = wide(cols["trbf_center"])
     out["trbf_scale"] = trbf_scale(cols)
     for i in range(3):
         out[f"scale_{i}"] = s[:, i]

@@ -22,8 +22,8 @@ from splatconv.model import Scene
 from splatconv.ops.bake import bake, baked_opacity, frame_times
 from splatconv.render import camera as cam
 from splatconv.render.diff import compare
-from splatconv.render.layout import float_attributes
-from splatconv.render.preview import Renderer, View
+from splatconv.render.frames import render_scene
+from splatconv.render.preview import View
 
 from .conftest import random_columns
 
@@ -43,19 +43,9 @@ def sample_view(index: int = 0, width: int = W, height: int = H) -> View:
     return View(cam.view_matrix(c), fx * s, fy * s, width, height)
 
 
-@pytest.fixture(scope="module")
-def renderer():
-    r = Renderer(W, H)
-    assert r.ctx.error == "GL_NO_ERROR"
-    yield r
-    assert r.ctx.error == "GL_NO_ERROR"
-    r.release()
-
-
-def draw(renderer, scene: Scene, t: float, view: View | None = None) -> np.ndarray:
+def draw(scene: Scene, t: float, view: View | None = None) -> np.ndarray:
     """The scene at time ``t`` through the float reference path: ``(H, W, 4) uint8``."""
-    renderer.load_float(float_attributes(scene))
-    return renderer.draw(view or sample_view(), float(t))
+    return render_scene(scene, view or sample_view(), [t])[0]
 
 
 def psnr(a, b) -> float:
@@ -67,25 +57,25 @@ def sample():
     return io.read(SAMPLE)
 
 
-def test_baked_moment_matches_the_4d_scene_at_that_time_at_every_time(renderer, sample):
+def test_baked_moment_matches_the_4d_scene_at_that_time_at_every_time(sample):
     for t in TIMES:
-        want = draw(renderer, sample, t)
+        want = draw(sample, t)
         assert want[..., 3].mean() > 20  # the view sees the scene
         baked, report = bake(sample, t)
         assert report.count_out == baked.count < sample.count
         for shown in (0.0, 0.5, 1.0):
-            assert psnr(want, draw(renderer, baked, shown)) >= 50, (t, shown)
+            assert psnr(want, draw(baked, shown)) >= 50, (t, shown)
 
 
-def test_baking_differs_between_times(renderer, sample):
+def test_baking_differs_between_times(sample):
     """The test above cannot pass with a scene that does not move: the moments differ."""
-    a = draw(renderer, bake(sample, 0.0)[0], 0.5)
-    b = draw(renderer, bake(sample, 1.0)[0], 0.5)
+    a = draw(bake(sample, 0.0)[0], 0.5)
+    b = draw(bake(sample, 1.0)[0], 0.5)
     assert psnr(a, b) < 30
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".splatv", ".splat"])
-def test_baked_file_matches_the_4d_scene(renderer, sample, tmp_path, suffix):
+def test_baked_file_matches_the_4d_scene(sample, tmp_path, suffix):
     """Written and read back: floats (3DGS PLY), halves (.splatv), bytes (.splat); measured 55-61 dB."""
     for t in (0.3, 1.0):
         baked, _ = bake(sample, t)
@@ -94,9 +84,9 @@ def test_baked_file_matches_the_4d_scene(renderer, sample, tmp_path, suffix):
         back = io.read(out)
         assert back.count == baked.count
         assert not base.time_varying(back.columns).any()
-        want = draw(renderer, sample, t)
+        want = draw(sample, t)
         for shown in (0.0, 1.0):
-            assert psnr(want, draw(renderer, back, shown)) >= 50, (suffix, t, shown)
+            assert psnr(want, draw(back, shown)) >= 50, (suffix, t, shown)
 
 
 def test_baked_ply_is_plain_3dgs(sample, tmp_path):
@@ -152,7 +142,7 @@ def test_baked_opacity_is_precise_at_the_extremes():
     assert half[7] == -np.inf and np.isnan(half[8])
 
 
-def test_nan_and_infinite_values(renderer):
+def test_nan_and_infinite_values():
     """A NaN trbf centre or scale has no opacity at any time: removed and counted; an infinite scale is kept."""
     cols = random_columns(200, seed=3)
     cols["trbf_center"][:5] = np.nan
@@ -190,7 +180,7 @@ def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args])
 
 
-def test_bake_command_writes_a_3dgs_ply(tmp_path, sample_splatv, renderer, sample):
+def test_bake_command_writes_a_3dgs_ply(tmp_path, sample_splatv, sample):
     out = tmp_path / "m.ply"
     r = run("bake", sample_splatv, out, "--time", "0.77")
     assert r.exit_code == 0, r.output
@@ -200,10 +190,10 @@ def test_bake_command_writes_a_3dgs_ply(tmp_path, sample_splatv, renderer, sampl
     assert f"note: {hidden:,} splats hidden at t=0.77 (temporal opacity below 0.02) removed\n" in r.stderr
     back = io.read(out)
     assert back.variant == model.VARIANT_3DGS and len(back.cameras) == 3
-    assert psnr(draw(renderer, src, 0.77), draw(renderer, back, 0.0)) >= 50
+    assert psnr(draw(src, 0.77), draw(back, 0.0)) >= 50
 
 
-def test_bake_frames_writes_every_moment(tmp_path, sample_splatv, renderer):
+def test_bake_frames_writes_every_moment(tmp_path, sample_splatv):
     out = tmp_path / "flip"
     r = run("bake", sample_splatv, out, "--frames", "3")
     assert r.exit_code == 0, r.output
@@ -211,11 +201,12 @@ def test_bake_frames_writes_every_moment(tmp_path, sample_splatv, renderer):
     assert names == ["frame_0000.ply", "frame_0001.ply", "frame_0002.ply"]
     src = io.read(sample_splatv)
     for name, t in zip(names, (0.0, 0.5, 1.0)):
-        assert psnr(draw(renderer, src, t), draw(renderer, io.read(out / name), 0.5)) >= 50
+        assert psnr(draw(src, t), draw(io.read(out / name), 0.5)) >= 50
     # Again: refused without --force, nothing changed; with --force replaced.
     before = {p.name: p.stat().st_mtime_ns for p in out.iterdir()}
     r = run("bake", sample_splatv, out, "--frames", "3")
-    assert r.exit_code == 1 and r.stderr == f"Error: {out / 'frame_0000.ply'}: already exists (use --force to replace it)\n"
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {out / 'frame_0000.ply'}: already exists (use --force to replace it)\n"
     assert {p.name: p.stat().st_mtime_ns for p in out.iterdir()} == before
     assert run("bake", sample_splatv, out, "--frames", "3", "--force").exit_code == 0
 
@@ -285,3 +276,30 @@ def test_write_sequence_leaves_nothing_when_a_scene_fails(tmp_path, sample):
     with pytest.raises(RuntimeError, match="boom"):
         io.write_sequence(frames(), tmp_path / "keep", [f"f{k}.ply" for k in range(4)])
     assert [p.name for p in (tmp_path / "keep").iterdir()] == ["other.txt"]
+
+
+def test_bake_drop_nonfinite(tmp_path):
+    """NaN positions are drawn nowhere by the viewer but break 3DGS tools: --drop-nonfinite removes them first."""
+    cols = random_columns(100, seed=12)
+    cols["trbf_center"][:] = 0.5
+    cols["x"][:3] = np.nan
+    src = tmp_path / "nan.ply"
+    io.write(Scene(columns=cols), src)
+    kept = tmp_path / "kept.ply"
+    assert run("bake", src, kept, "--time", "0.5").exit_code == 0
+    assert np.isnan(io.read(kept).columns["x"]).sum() == 3
+    clean = tmp_path / "clean.ply"
+    r = run("bake", src, clean, "--time", "0.5", "--drop-nonfinite")
+    assert r.exit_code == 0, r.output
+    assert "note: drop-nonfinite: " in r.stderr
+    back = io.read(clean)
+    assert np.isfinite(back.columns["x"]).all() and back.count == io.read(kept).count - 3
+
+
+def test_bake_frames_notes_stale_frames(tmp_path, sample_splatv):
+    out = tmp_path / "flip"
+    assert run("bake", sample_splatv, out, "--frames", "4").exit_code == 0
+    r = run("bake", sample_splatv, out, "--frames", "2", "--force")
+    assert r.exit_code == 0
+    assert (f"note: {out} also holds 2 other frame files from before (frame_0002.ply, ...): a flipbook player "
+            "would show them too\n") in r.stderr

@@ -66,6 +66,16 @@ def test_bake_section_commands_and_picture(monkeypatch, tmp_path):
     assert compare(made[:, :half], made[:, half + 4:]).psnr >= 40
 
 
+def test_bake_section_python_example(monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    _sample(tmp_path)
+    code = re.search(r"```python\n(.*?)```", section("### Bake a moment"), re.S).group(1)
+    namespace = {}
+    exec(compile(code, "README.md", "exec"), namespace)  # noqa: S102  (the README's own example)
+    assert namespace["both"].count == 5_000 + namespace["moment"].count
+    assert (tmp_path / "moment.splat").stat().st_size == 32 * namespace["moment"].count
+
+
 def test_merge_section_commands(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     _sample(tmp_path)

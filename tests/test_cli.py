@@ -138,7 +138,7 @@ def test_info_lists_ignored_and_nonfinite(tmp_path):
     p = write_ply(tmp_path / "e.ply", cols, extra_props=("f_rest_0",))
     info = json.loads(run("info", p, "--json").stdout)
     assert info["nonfinite"]["x"] == 1 and info["nonfinite"]["trbf_scale"] == 1
-    assert info["ignored_properties"] == ["f_rest_0"]
+    assert info["details"]["ignored_properties"] == ["f_rest_0"]
     assert info["variant"] == "Spacetime Gaussians lite"
 
 

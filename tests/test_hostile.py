@@ -15,6 +15,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import warnings
 
 import numpy as np
 import plyfile
@@ -100,6 +101,16 @@ HOSTILE_CASES = [
     ("varlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
      b"property list uchar float l\nend_header\n" + struct.pack("<fB2f", 1, 2, 0, 0) + struct.pack("<fB", 1, 9),
      "element 'vertex': row 1: unexpected end of file"),
+    ("noend.ply", _LITE_HDR.replace(b"end_header\n", b"") + b"\xbf" * 64,
+     f"bad header: no end_header line in the first {len(_LITE_HDR) - 11 + 64:,} bytes"),
+    ("twovertex.ply", _LITE_HDR.replace(b"end_header\n", b"element vertex 1\nproperty float q\nend_header\n")
+     + _LITE_BODY + bytes(4), "cannot parse: two elements with same name"),
+    ("floatlen.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 1\nproperty float x\n"
+     b"property list double float l\nend_header\n" + struct.pack("<fd", 1, 1.5) + b"\0" * 8,
+     "element 'vertex': property 'l': list length type 'double' is not an integer type"),
+    ("floatlenascii.ply", b"ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\n"
+     b"property list float float l\nend_header\n1 1.5 2\n",
+     "element 'vertex': property 'l': list length type 'float' is not an integer type"),
 ]
 
 
@@ -111,6 +122,22 @@ def test_hostile_headers_give_one_error_line(tmp_path, name, data, message):
         r = run(*args)
         assert (r.exit_code, r.stderr) == (1, f"Error: {path}: {message}\n"), r.output
     assert sorted(os.listdir(tmp_path)) == [name]
+
+
+@pytest.mark.parametrize("edit", ["cr", "crlf", "comment", "separator"])
+def test_header_lines_are_split_as_plyfile_splits_them(tmp_path, edit):
+    cols = lite_columns_with_normals(random_columns(4))
+    body = np.zeros(4, ply.LITE_DTYPE)
+    for name in ply.LITE_LAYOUT:
+        body[name] = cols[name]
+    head = {"cr": _LITE_HDR.replace(b"\n", b"\r"), "crlf": _LITE_HDR.replace(b"\n", b"\r\n"),
+            "comment": _LITE_HDR.replace(b"element", b"comment not end_header\nelement", 1),
+            "separator": _LITE_HDR.replace(b"vertex 4", b"vertex 4 \x1c", 1)}[edit]
+    path = tmp_path / "h.ply"
+    path.write_bytes(head + body.tobytes())
+    scene = splatconv.read(path)
+    assert scene.count == 4 and scene.notes == []
+    np.testing.assert_array_equal(scene.columns["x"], cols["x"])
 
 
 def test_texture_without_bytes_or_height_reads_as_no_splats(tmp_path):
@@ -526,3 +553,76 @@ def test_list_properties_are_skipped_in_bulk(tmp_path, lengths, before, bo):
     assert scene.count == 300 and scene.notes == []
     for name in scene.columns:
         np.testing.assert_array_equal(scene.columns[name], want[name])
+
+
+def test_doubles_past_float32_are_noted_not_warned(tmp_path):
+    rng = np.random.default_rng(1)
+    cols = {name: rng.normal(0, 1, 10) for name in ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                                                     "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2",
+                                                     "rot_3")}
+    cols["x"][:2] = [1e300, -1e300]
+    cols["opacity"][1] = np.inf  # already infinite: not counted
+    path = write_ply(tmp_path / "d.ply", cols, dtype="f8")
+    scene = splatconv.read(path)  # RuntimeWarnings are errors under pytest
+    assert list(scene.columns["x"][:2]) == [np.inf, -np.inf]
+    assert "x: 2 finite double values past the float32 range became infinite" in scene.notes
+    assert not any(n.startswith("opacity") for n in scene.notes)
+
+
+def test_bytes_after_a_list_element_after_the_vertices_are_noted(tmp_path):
+    cols = lite_columns_with_normals(random_columns(5))
+    body = np.zeros(5, ply.LITE_DTYPE)
+    for name in ply.LITE_LAYOUT:
+        body[name] = cols[name]
+    head = ply.header_bytes(5, None).replace(b"end_header\n", b"element face 2\nproperty list uchar int v\n"
+                                                                  b"end_header\n")
+    faces = struct.pack("<B3i", 3, 0, 1, 2) * 2
+    path = tmp_path / "faces.ply"
+    path.write_bytes(head + body.tobytes() + faces + b"\x03junk")
+    assert splatconv.read(path).notes == ["5 bytes after the last element ignored"]
+    path.write_bytes(head + body.tobytes() + faces[:13] + struct.pack("<B4i", 4, 0, 1, 2, 3) + b"\x03junk")
+    assert splatconv.read(path).notes == []  # face lists vary: not walked, the tail not checked
+
+
+def test_stale_decompressed_temporaries_are_removed(tmp_path, private_tmp, lite_ply):
+    packed = tmp_path / "s.ply.zst"
+    packed.write_bytes(zstandard.compress(lite_ply.read_bytes()))
+    stale = private_tmp / "splatconv-abcd1234.ply"
+    stale.write_bytes(b"left by a killed run")
+    live = private_tmp / "splatconv-efgh5678.splatv"
+    live.write_bytes(b"being read")
+    other = private_tmp / "splatconv-notours.txt.bak"
+    other.write_bytes(b"x")
+    with open(live, "rb") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        assert run("info", packed).exit_code == 0
+    assert sorted(os.listdir(private_tmp)) == ["splatconv-efgh5678.splatv", "splatconv-notours.txt.bak"]
+
+
+def test_fuzz_finds_element_without_properties_and_signalling_nan_colour(tmp_path):
+    # Found by bench/bench_fuzz.py: an element with no property lines (rows of no bytes),
+    # and a 3DGS colour coefficient that is a signalling NaN (widening it warned).
+    rng = np.random.default_rng(2)
+    cols = {name: rng.normal(0, 1, 6).astype(np.float32) for name in ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2",
+                                                                     "opacity", "scale_0", "scale_1", "scale_2",
+                                                                     "rot_0", "rot_1", "rot_2", "rot_3")}
+    cols["f_dc_1"][2] = np.uint32(0x7FA00000).view(np.float32)  # signalling NaN
+    path = write_ply(tmp_path / "gs.ply", cols)
+    raw = path.read_bytes().replace(b"element vertex", b"element empty 3\nelement vertex", 1)
+    path.write_bytes(raw)
+    scene = splatconv.read(path)  # RuntimeWarnings are errors under pytest
+    assert scene.count == 6 and np.isnan(scene.columns["f_dc_1"][2])
+    r = run("convert", path, tmp_path / "o.splatv")
+    assert r.exit_code == 0, r.output
+
+
+def test_info_on_signalling_nan_positions_does_not_warn(tmp_path):
+    # Found by bench/bench_fuzz.py: widening a signalling NaN to float64 warned in info.
+    cols = lite_columns_with_normals(random_columns(8))
+    cols["x"][1] = np.uint32(0x7FA00000).view(np.float32)
+    path = write_ply(tmp_path / "snan.ply", cols)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r = run("info", path)
+    assert r.exit_code == 0 and r.exception is None, r.output
+    assert r.stderr == ""

@@ -315,3 +315,55 @@ def test_edits_that_leave_nothing_fail_and_write_nothing(tmp_path):
     assert result.exit_code == 1
     assert result.stderr == "Error: the edits leave no splats (crop removed 20); nothing written\n"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["in.ply"]
+
+
+def test_blocks_and_threads_change_nothing(monkeypatch):
+    """A scene of many blocks (worked on by two threads) gives what one block gives, counts included."""
+    from splatconv.ops import _table
+
+    scene = laden(40_000, seed=5)
+    for row in (3, 30_000):  # splats that survive every filter, with a jerk that outgrows float32 when scaled
+        for name in COLUMNS:
+            scene.columns[name][row] = 0.0
+        scene.columns["rot_0"][row] = 1.0
+        scene.columns["opacity"][row] = 10.0
+        scene.columns["trbf_center"][row] = 0.5
+        scene.columns["motion_7"][row] = 3.4e38
+    plan = EditPlan(drop_nonfinite=False, trim=(0.1, 0.8), crop=((-2, -2, -2), (2, 2, 2)), min_opacity=0.1,
+                    max_splats=20_000, transform=make_transform((1, 2, 3), "x:33,y:-10", 10.0))
+    assert len(_table.run_blocks(scene.count, lambda part: part)) > 2
+    many, many_reports = apply_edits(scene, plan)
+    monkeypatch.setattr(_table, "CHUNK", 1 << 20)
+    assert len(_table.run_blocks(scene.count, lambda part: part)) == 1
+    one, one_reports = apply_edits(scene, plan)
+    assert [r.notes for r in many_reports] == [r.notes for r in one_reports]
+    assert many_reports[-1].counts["overflow"] >= 2
+    for name in COLUMNS:
+        assert np.array_equal(many.columns[name], one.columns[name], equal_nan=True), name
+
+
+def test_signalling_nans_raise_no_warning():
+    """A hostile file may hold signalling NaNs, which warn when widened or compared unless handled."""
+    scene = moving_scene(3000, seed=6)
+    snan = np.array([0x7F800001, 0xFFC00001], dtype=np.uint32).view(np.float32)
+    for i, name in enumerate(COLUMNS):
+        scene.columns[name][[10 + i, 2000 + i]] = snan
+    for plan in PLANS:
+        out, _ = apply_edits(scene, plan)
+    cleaned, report = drop_nonfinite(scene)
+    assert report.removed == 2 * len(COLUMNS)
+    trim(scene, 0.2, 0.4)
+    crop(scene, (-1, -1, -1), (1, 1, 1))
+    min_opacity(scene, 0.5)
+    max_splats(scene, 10)
+    apply_transform(scene, make_transform((1, 2, 3), "y:20", 2))
+
+
+def test_convert_help_states_the_edit_order_and_an_example():
+    text = CliRunner().invoke(main, ["convert", "--help"], terminal_width=200).output
+    assert ("Edits apply in this order, whatever the order of the options: --drop-nonfinite, --trim, --crop, "
+            "--min-opacity, --max-splats, then --translate/--rotate/--scale, as p' = R(S p) + T") in text
+    assert "  splatconv convert scene.ply clean.splatv --drop-nonfinite --trim 0.25,0.75 --rotate x:180" in text
+    for option in ("--drop-nonfinite", "--trim T0,T1", "--crop X0,Y0,Z0,X1,Y1,Z1", "--min-opacity A",
+                   "--max-splats N", "--translate X,Y,Z", "--rotate STEPS", "--scale S"):
+        assert f"  {option} " in text, option

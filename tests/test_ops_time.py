@@ -143,3 +143,17 @@ def test_convert_trim_on_the_command_line(tmp_path, renderer):
     assert back.count == expected.count
     for t in (0.0, 0.5, 1.0):
         assert_same_image(draw(renderer, scene, 0.25 + 0.5 * t), draw(renderer, back, t))
+
+
+@pytest.mark.parametrize("origin, duration", [(0.2, 0.4), (-1.0, 3.0), (1.0, -1.0), (0.5, 1e-3)])
+def test_every_time_the_viewer_maths_sees_the_remapped_scene(origin, duration):
+    """At t' the remapped scene's position, rotation and temporal opacity are the original's at origin + t' d."""
+    scene = moving_scene(200, seed=7)
+    out, _ = remap_time(scene, origin, duration)
+    for t in (0.0, 0.3, 1.0):
+        u = origin + t * duration
+        assert np.allclose(viewer.position_at(out.columns, t), viewer.position_at(scene.columns, u),
+                           rtol=1e-4, atol=1e-4)
+        assert np.allclose(viewer.rotation_at(out.columns, t), viewer.rotation_at(scene.columns, u), atol=1e-4)
+        assert np.allclose(viewer.temporal_opacity(out.columns, t, cut=False),
+                           viewer.temporal_opacity(scene.columns, u, cut=False), atol=1e-5)

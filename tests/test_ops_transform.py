@@ -197,3 +197,41 @@ def test_identity_transform_changes_nothing():
     for name in scene.columns:
         assert np.array_equal(out.columns[name], scene.columns[name])
     assert Transform().is_identity and not make_transform(scale=2).is_identity
+
+
+@pytest.mark.parametrize("kwargs, changed", [
+    ({"translate": (1, 0, 0)}, "(positions)"),
+    ({"scale": 2.0}, "(positions, motion, scales)"),
+    ({"rotate": "z:10"}, "(positions, motion, rotations, omega)"),
+    ({"rotate": "z:10", "scale": 0.5, "translate": (0, 0, 1)}, "(positions, motion, rotations, omega, scales)"),
+])
+def test_transform_note_names_only_what_changed(kwargs, changed):
+    scene = moving_scene(10)
+    out, report = apply_transform(scene, make_transform(**kwargs))
+    assert report.notes[0].endswith(f"applied to 10 splats and 1 camera {changed}")
+    untouched = {"(positions)": ("motion_0", "rot_0", "omega_0", "scale_0"),
+                 "(positions, motion, scales)": ("rot_0", "omega_0")}.get(changed, ())
+    for name in untouched:
+        assert np.array_equal(out.columns[name], scene.columns[name]), name
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_every_time_the_viewer_maths_sees_the_transformed_scene(seed):
+    """position_at(t) and the rotation matrix at t of the transformed scene are R S p(t) + T and R R(t)."""
+    from splatconv import viewer
+
+    rng = np.random.default_rng(seed)
+    scene = moving_scene(100, seed=seed)
+    q = rng.normal(size=4)
+    tf = make_transform(tuple(rng.normal(size=3)), "quat:" + ",".join(repr(float(v)) for v in q),
+                        float(rng.uniform(0.3, 3)))
+    moved, _ = apply_transform(scene, tf)
+    R = np.asarray(tf.matrix)
+    for t in (-0.2, 0.0, 0.37, 1.0):
+        want = tf.apply_points(viewer.position_at(scene.columns, t))
+        assert np.allclose(viewer.position_at(moved.columns, t), want, rtol=1e-5, atol=1e-5)
+        before = viewer.rotation_at(scene.columns, t)
+        after = viewer.rotation_at(moved.columns, t)
+        for a, b in zip(before[1:], after[1:]):  # splat 0 is the still one
+            assert np.allclose(quaternion_matrix(b), R @ quaternion_matrix(a), atol=1e-5)
+        assert np.allclose(viewer.scales(moved.columns), viewer.scales(scene.columns) * tf.scale, rtol=1e-5)

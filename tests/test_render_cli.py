@@ -231,3 +231,11 @@ def test_render_scene_is_what_render_draws(tmp_path):
     assert frames[0, ..., 3].any() and not np.array_equal(frames[0], frames[1])
     empty = Scene(columns={k: v[:0] for k, v in scene.columns.items()})
     assert not render_scene(empty, cams[0], 0.5, size=(16, 9)).any()
+
+
+def test_a_contact_sheet_too_large_to_write_is_refused_before_drawing(tmp_path, sample_splatv):
+    r = run("render", sample_splatv, tmp_path / "s.png", "--frames", "200")
+    assert r.exit_code == 2 and r.stdout == ""
+    assert r.stderr == (f"Error: {tmp_path / 's.png'}: --frames 200 of 1280x720 make a 19200x10080 contact sheet, "
+                        "over 16,384 pixels a side: use fewer frames, a smaller --size, or .gif / .webp\n")
+    assert not (tmp_path / "s.png").exists()

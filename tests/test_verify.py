@@ -534,3 +534,33 @@ def test_nonfinite_values_that_splatvjs_changes_are_called_so(tmp_path):
         "FAIL: motion drifted: 20 of 27,000 values became infinite (finite in the source)",
         "FAIL: omega drifted: 50 of 12,000 values that were NaN or infinite in the source were stored as "
         "something else"]
+
+
+@pytest.mark.parametrize("cameras,message", [
+    ("3", "--cameras: no camera 3; there are 3 (0..2)"),
+    ("0,-1", "--cameras: no camera -1; there are 3 (0..2)"),
+    ("first", "--cameras: expected 'all' or comma-separated indices, got 'first'"),
+])
+def test_cameras_that_do_not_exist_are_usage_errors(faithful, cameras, message):
+    r = run("verify", SAMPLE, faithful, "--cameras", cameras)
+    assert r.exit_code == 2 and r.stdout == "" and r.stderr == f"Error: {message}\n"
+
+
+def test_one_camera_is_one_camera(tmp_path):
+    from .conftest import random_columns
+
+    src = _scene_file(tmp_path, "s.ply", random_columns(50))  # no cameras: one framing camera
+    r = run("diff", src, src, "--cameras", "1")
+    assert r.exit_code == 2 and r.stderr == "Error: --cameras: no camera 1; there is 1 (0)\n"
+
+
+def test_malformed_options_are_refused_before_any_file_is_read(tmp_path, monkeypatch):
+    # A 1M-splat verify spends seconds reading and checking: option typos fail first.
+    from splatconv.render import frames
+
+    monkeypatch.setattr(frames, "read_texture", lambda path: pytest.fail("read before the options were checked"))
+    for args in (["--cameras", "x"], ["--times", "a"], ["--size", "3"], ["--min-psnr", "nan"]):
+        r = run("verify", tmp_path / "a.ply", tmp_path / "b.splatv", *args)
+        assert r.exit_code == 2, (args, r.output)
+        r = run("diff", tmp_path / "a.ply", tmp_path / "b.splatv", *args)
+        assert r.exit_code == 2, (args, r.output)

@@ -197,9 +197,10 @@ def test_convert_external_and_segments(sample, tmp_path):
 
 
 def test_convert_html_refusals(sample, tmp_path):
-    r = run("convert", sample, SAMPLE, tmp_path / "two.splatv")
+    # Several INPUTs to a scene file are a frame sequence (README "Frame sequences"), not a page.
+    r = run("convert", sample, tmp_path / "one.splatv", "--external")
     assert r.exit_code == 2
-    assert r.stderr == f"Error: {tmp_path / 'two.splatv'}: a player page must be written to an .html file\n"
+    assert r.stderr == f"Error: {tmp_path / 'one.splatv'}: a player page must be written to an .html file\n"
     (tmp_path / "taken.splatv").write_bytes(b"keep")
     r = run("convert", sample, tmp_path / "taken.html", "--external")
     assert r.exit_code == 1 and "taken.splatv: already exists" in r.stderr

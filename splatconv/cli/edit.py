@@ -9,10 +9,16 @@ import click
 from .. import io
 from ..formats import REGISTRY
 from ..fsutil import check_output
+from ..ops import apply_transform, make_transform
+from ..ops import drop_nonfinite as ops_drop_nonfinite
 from ..ops import bake as bake_ops
 from ..ops import merge as merge_ops
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
                     quiet_option)
+from ._edit import FloatList, Rotation
+from ._segments import given as segments_given
+from ._segments import run as run_segments
+from ._segments import segment_options
 
 
 class Moment(click.ParamType):
@@ -25,6 +31,62 @@ class Moment(click.ParamType):
         if not 0.0 <= number <= 1.0:
             self.fail(f"{value!r} is not in the viewer's time range [0, 1].", param, ctx)
         return number
+
+
+class PerInput(click.ParamType):
+    """``N:VALUE``: a value for input N (1 for the first), VALUE as ``inner`` reads it."""
+
+    def __init__(self, inner: click.ParamType, metavar: str):
+        self.inner = inner
+        self.name = f"N:{metavar}"
+
+    def get_metavar(self, param, ctx=None):
+        return self.name
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, tuple):
+            return value
+        head, sep, rest = str(value).partition(":")
+        if not sep or not head.strip().isdigit() or int(head) < 1:
+            self.fail(f"{value!r}: expected {self.name}, N the input's number (1 for the first).", param, ctx)
+        return int(head), self.inner.convert(rest, param, ctx)
+
+
+#: Per-input transform options of ``merge``: option name -> parameter of :func:`make_transform`.
+_PLACEMENT = ("translate", "rotate", "scale")
+
+
+def _placements(count: int, values: dict) -> dict:
+    """Input number (1-based) -> the :class:`~splatconv.ops.transform.Transform` its options give.
+
+    Raises
+    ------
+    Failure
+        (usage) for an input number past the inputs, or an option given twice for one input.
+    """
+    given = {}
+    for option in _PLACEMENT:
+        for index, value in values[option]:
+            if index > count:
+                raise Failure(f"--{option} {index}:...: there are {count} inputs (1..{count})", 2)
+            if option in given.setdefault(index, {}):
+                raise Failure(f"--{option} given twice for input {index}", 2)
+            given[index][option] = value
+    return {index: make_transform(**args) for index, args in given.items()}
+
+
+def _read(path, color: str, drop_nonfinite: bool):
+    """Read a scene, and with ``drop_nonfinite`` remove its non-finite splats (its notes say so)."""
+    scene = io.read(path, color=color)
+    if drop_nonfinite:
+        scene, _report = ops_drop_nonfinite(scene)
+    return scene
+
+
+def _drop_option(what: str):
+    return click.option("--drop-nonfinite", is_flag=True,
+                        help=f"Remove splats with a NaN or infinite position, rotation, scale, motion, omega or trbf "
+                             f"centre (as convert does) from {what} first.")
 
 
 def _layout_option(default: str):
@@ -57,11 +119,12 @@ def _wrote(path, report) -> None:
     _layout_option("3dgs"),
     _sort_option(),
     color_option(),
+    _drop_option("INPUT"),
     force_option("OUTPUT (or existing frame files)"),
     quiet_option(),
 )
 @library_errors
-def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, color, force, quiet):
+def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, color, drop_nonfinite, force, quiet):
     """Write the scene as the viewer shows it at one time, as a static scene.
 
     Positions and rotations at that time, opacity times the temporal opacity,
@@ -81,7 +144,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     if frames is None:
         io.check_write_options(output_path, sort=sort, layout=layout)
         check_output(output_path, [input_path], force)
-        scene = io.read(input_path, color=color)
+        scene = _read(input_path, color, drop_nonfinite)
         notes(scene.notes)
         baked, report = bake_ops.bake(scene, time)
         notes(report.notes)
@@ -90,7 +153,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
         notes(written.notes)
         _wrote(output_path, written)
         return
-    scene = io.read(input_path, color=color)
+    scene = _read(input_path, color, drop_nonfinite)
     notes(scene.notes)
     names = bake_ops.frame_names(frames, frame_suffix)
     moments = list(bake_ops.frame_times(frames))
@@ -99,6 +162,10 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
                                 inputs=[input_path], progress=progress(quiet))
     for name, report in zip(names, reports):
         notes(f"{name}: {line}" for line in report.notes)
+    stale = bake_ops.other_frames(os.listdir(output_path), names, frame_suffix)
+    if stale:
+        notes([f"{output_path} also holds {len(stale)} other frame files from before ({stale[0]}, ...): "
+               "a flipbook player would show them too"])
     counts = [r.count for r in reports]
     click.echo(f"wrote {frames} frames to {output_path}: {names[0]} .. {names[-1]} (t = {moments[0]:g} .. "
                f"{moments[-1]:g}), {min(counts):,} to {max(counts):,} splats a frame")
@@ -116,35 +183,67 @@ def _report_each(frames, names):
 @options(
     click.option("--mode", type=click.Choice(merge_ops.MODES), default="overlay", show_default=True,
                  help="overlay: all inputs together on the same timeline."),
+    click.option("--translate", type=PerInput(FloatList(3, "X,Y,Z"), "X,Y,Z"), multiple=True,
+                 help="Move input N by (X, Y, Z), e.g. --translate 2:1.5,0,0. Repeat for other inputs."),
+    click.option("--rotate", type=PerInput(Rotation(), "STEPS"), multiple=True,
+                 help="Turn input N: steps AXIS:DEGREES (2:y:90 or 2:x:90,y:45; right-handed) or "
+                      "2:quat:W,X,Y,Z."),
+    click.option("--scale", type=PerInput(click.FloatRange(min=0, min_open=True), "S"), multiple=True,
+                 help="Scale input N uniformly by S > 0, e.g. --scale 2:0.5."),
     _layout_option("3dgs when every input is plain 3DGS (a 3DGS PLY, a .splat, a baked moment), else lite"),
     _sort_option(),
     color_option(),
+    _drop_option("every INPUT"),
+    *segment_options(),
     force_option(),
     quiet_option(),
 )
 @library_errors
-def merge(paths, mode, layout, sort, color, force, quiet):
+def merge(paths, mode, translate, rotate, scale, layout, sort, color, drop_nonfinite, force, quiet, segments,
+          **segment):
     """Put several scenes in one file on the same timeline.
 
     A static 3DGS background under a dynamic actor, two actors side by side:
     every splat of every input is kept as it is, so each input looks at every
-    time as it did alone. Static inputs (3DGS PLY, .splat) stay at full opacity
+    time as it did alone (moved first by its own --translate, --rotate and
+    --scale, N: naming the input, applied as p' = R(S p) + T with motion,
+    rotations and scales). Static inputs (3DGS PLY, .splat) stay at full opacity
     over the whole clip. The output keeps the cameras of the first input that
-    has any.
+    has any (moved with it).
+
+    With --segments the inputs are laid end to end instead (Spacetime
+    Gaussians segments of one long clip): segment i plays in its own interval
+    of the timeline, its long-lived splats split into pieces that fade out at
+    its ends, and each output frame is measured against its segment alone
+    (see README "Joining segments" and specs/segments.md).
 
     \b
     Example:
       splatconv merge background.ply actor.splatv scene.splatv
+      splatconv merge stage.ply dancer.splatv dancer.splatv duet.splatv --translate 2:-1,0,0 --translate 3:1,0,0
+      splatconv merge seg0.ply seg1.ply seg2.ply clip.splatv --segments --durations 50,50,50
     """
     if len(paths) < 3:
         raise Failure("merge needs at least two INPUT files and an OUTPUT", 2)
     inputs, output_path = list(paths[:-1]), paths[-1]
+    if segments:
+        if translate or rotate or scale or drop_nonfinite:
+            raise Failure("--translate, --rotate, --scale and --drop-nonfinite apply to merges on one timeline, "
+                          "not to --segments", 2)
+        return run_segments(inputs, output_path, layout=layout, sort=sort, color=color, force=force, quiet=quiet,
+                            **segment)
+    if segments_given(segment):
+        raise Failure("--durations, --leak, --budget, --check-every, --no-check, --camera and --json apply to "
+                      "--segments only", 2)
+    placements = _placements(len(inputs), {"translate": translate, "rotate": rotate, "scale": scale})
     io.check_write_options(output_path, sort=sort, layout=layout)
     check_output(output_path, inputs, force)
     scenes = []
-    for path in inputs:
-        scene = io.read(path, color=color)
-        notes(f"{path}: {line}" for line in scene.notes)
+    for number, path in enumerate(inputs, 1):
+        scene = _read(path, color, drop_nonfinite)
+        if number in placements:
+            scene, _report = apply_transform(scene, placements[number])
+        notes(f"input {number} ({path}): {line}" for line in scene.notes)
         scenes.append(scene)
     merged, report = merge_ops.overlay(scenes)
     notes(report.notes)

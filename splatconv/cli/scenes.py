@@ -6,14 +6,15 @@ import os
 
 import click
 
-from .. import io
+from .. import clips, io
 from ..formats import format_for
-from ..report import info_text, stats_markdown, stats_text, to_json
+from ..ops.sequence import SAME_SPLATS_MODES
+from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
 from ..stats import describe, stats_report
 from ..transport import DEFAULT_LEVEL
 from ..web.publish import publish
-from ._base import (Failure, color_option, force_option, library_errors, main, notes, options, progress,
-                    quiet_option)
+from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
+                    progress, quiet_option)
 from ._edit import edit_options, scene_editor
 
 
@@ -22,8 +23,46 @@ def _zstd_option(what: str):
                         help=f"zstd level for {what} [default: {DEFAULT_LEVEL}].")
 
 
+class _Times(click.ParamType):
+    """A comma-separated list of finite numbers."""
+
+    name = "T0,T1,..."
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, list):
+            return value
+        return [FINITE.convert(part.strip(), param, ctx) for part in str(value).split(",")]
+
+
+def sequence_options():
+    return (
+        click.option("--frame-times", type=_Times(), default=None,
+                     help="Frame sequences: the time of each frame, comma-separated, increasing "
+                          "(default: frame k of N at k/(N-1))."),
+        click.option("--same-splats", type=click.Choice(SAME_SPLATS_MODES), default="auto", show_default=True,
+                     help="Frame sequences: whether row i of every frame is the same splat (its motion is "
+                          "fitted); auto: when every frame has the same count."),
+        click.option("--max-error", type=POSITIVE, default=None,
+                     help="Frame sequences: largest position error (scene units) of a fitted splat before it "
+                          "is split into pieces (default: 0.001 of the first frame's extent)."),
+    )
+
+
+def _convert_frames(inputs, output_path, *, edits, quiet, **options):
+    """``convert`` of a frame sequence: fit or stack the frames, then write."""
+    if any(v not in (None, False, ()) for v in edits.values()):
+        raise Failure("edit options apply to one INPUT, not to a frame sequence (convert it first)", 2)
+    scene, fit, report, _ = clips.convert_frames(inputs, output_path, progress=progress(quiet), **options)
+    notes(scene.notes)
+    notes(fit.notes)
+    notes(report.notes)
+    click.echo(sequence_text(fit.as_dict()))
+    size = os.path.getsize(output_path)
+    click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
+
+
 @main.command()
-@click.argument("input_path", metavar="INPUT", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("input_paths", metavar="INPUT...", nargs=-1, required=True, type=click.Path())
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
 @options(
     click.option("--external", is_flag=True,
@@ -46,13 +85,14 @@ def _zstd_option(what: str):
                       "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
     color_option(),
     _zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
+    *sequence_options(),
     force_option(),
     quiet_option(),
 )
 @edit_options()
 @library_errors
-def convert(input_path, output_path, external, durations, compat, sort, cameras, layout, color, zstd_level, force, quiet,
-            **edits):
+def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, color, zstd_level,
+            frame_times, same_splats, max_error, force, quiet, **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
@@ -64,18 +104,26 @@ def convert(input_path, output_path, external, durations, compat, sort, cameras,
     Example:
       splatconv convert scene.ply scene.splatv --cameras cameras.json
       splatconv convert scene.splatv scene.ply
+      splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
       splatconv convert scene.splatv scene.html
     """
     # Player pages of several segments or with --external: splatconv.web.publish.
-    if external or durations or len(input_path) > 1:
+    if external or durations or (len(input_paths) > 1 and output_path.lower().endswith(".html")):
         if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
             raise Failure("--external and several inputs take no other options but --durations and --force", 2)
-        report = publish(input_path, output_path, external=external, force=force, durations=durations)
+        report = publish(input_paths, output_path, external=external, force=force, durations=durations)
         notes(report.notes)
         for path, size in report.written:
             click.echo(f"wrote {path}: {size:,} bytes")
         return
-    input_path = input_path[0]
+    if clips.is_sequence(input_paths):
+        _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
+                        color=color, zstd_level=zstd_level, frame_times=frame_times, same_splats=same_splats,
+                        max_error=max_error, force=force, quiet=quiet, edits=edits)
+        return
+    if frame_times is not None or same_splats != "auto" or max_error is not None:
+        raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
+    input_path = input_paths[0]
     scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
                                force=force, zstd_level=zstd_level, layout=layout, progress=progress(quiet),
                                edit=scene_editor(edits))
@@ -89,7 +137,8 @@ def convert(input_path, output_path, external, durations, compat, sort, cameras,
 @click.argument("paths", metavar="FILE...", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @options(
     click.option("--json", "as_json", is_flag=True,
-                 help="Print the facts as JSON (one object per file, in a list when there are several)."),
+                 help="Print the facts as JSON (keys in specs/json.md): one object per file, in a list when "
+                      "there are several."),
     color_option(),
 )
 @library_errors
@@ -113,7 +162,7 @@ def info(paths, as_json, color):
 @click.argument("source", type=click.Path(dir_okay=False))
 @click.argument("converted", required=False, type=click.Path(dir_okay=False))
 @options(
-    click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (keys in specs/stats.md)."),
+    click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (keys in specs/json.md)."),
     click.option("--markdown", is_flag=True, help="Print the report as Markdown tables."),
     _zstd_option("the transport sizes"),
     color_option(),
@@ -123,8 +172,9 @@ def info(paths, as_json, color):
 def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
     """Report sizes, zstd transport size and what a conversion loses.
 
-    With CONVERTED, compares it against SOURCE attribute by attribute; with SOURCE
-    alone, reports what converting it to .splatv would give.
+    With CONVERTED, compares it against SOURCE attribute by attribute. With SOURCE
+    alone, reports what converting it to .splatv would give; a file the viewer
+    loads as it is (.splatv) is reported as stored, with nothing compared.
 
     \b
     Example:
@@ -133,5 +183,5 @@ def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
     """
     if as_json and markdown:
         raise Failure("--json and --markdown cannot be used together", 2)
-    data = stats_report(source, converted, zstd_level=zstd_level, color=color)
+    data = stats_report(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
     click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))

@@ -60,8 +60,33 @@ _SIZES = {"char": 1, "uchar": 1, "int8": 1, "uint8": 1, "short": 2, "ushort": 2,
           "double": 8, "float64": 8}
 _FULL_FEATURE = re.compile(r"^f_t_\d+$|^f_dc_([3-9]|\d\d+)$")
 _MAX_HEADER = 16 << 20
-_END_HEADER = re.compile(rb"end_header\r?\n")
-_ELEMENT_LINE = re.compile(rb"^(element[ \t]+\S+[ \t]+)(\S+)([ \t]*\r?)$", re.M)
+def _newline(head: bytes):
+    """The line ending a PLY header uses, as plyfile decides it from the first line; None if not PLY."""
+    if head[3:5] == b"\r\n":
+        return b"\r\n"
+    return head[3:4] if head[:3] == b"ply" and head[3:4] in (b"\r", b"\n") else None
+
+
+def _header_lines(head: bytes):
+    """The header's lines (bytes, without endings) and the offset of the body; (lines, None) when incomplete.
+
+    Split as plyfile splits them, on the first line's ending, and ended by the
+    first line that is ``end_header`` once stripped (as plyfile strips: Python
+    ``str.strip`` of the ASCII text).
+    """
+    nl = _newline(head)
+    if nl is None:
+        return [], None
+    lines, pos = [], 0
+    while True:
+        stop = head.find(nl, pos)
+        if stop < 0:
+            return lines, None
+        line = head[pos:stop]
+        pos = stop + len(nl)
+        if line.decode("latin-1").strip() == "end_header":
+            return lines, pos
+        lines.append(line)
 
 
 def _read_header_bytes(f, file_size: int) -> bytes:
@@ -78,7 +103,7 @@ def _read_header_bytes(f, file_size: int) -> bytes:
         if not chunk:
             break
         head += chunk
-        if _END_HEADER.search(head[-len(chunk) - 12:]):
+        if b"end_header" in head[-len(chunk) - 12:] and _header_lines(head)[1] is not None:
             break
         step *= 4
     return head
@@ -87,26 +112,26 @@ def _read_header_bytes(f, file_size: int) -> bytes:
 class _Layout:
     """What a PLY header says, as far as sizes go: format, elements, their counts and row sizes.
 
-    ``elements`` holds ``[name, count, fixed_row_bytes, n_properties, has_list]``;
-    ``header_bytes`` is the offset of the body. Only sizes are read here; plyfile
-    parses and validates the header for real.
+    ``elements`` holds ``[name, count, fixed_row_bytes, n_properties, has_list]``
+    in header order; ``header_bytes`` is the offset of the body; ``lines`` the
+    header lines. Only sizes are read here; plyfile parses and validates the
+    header for real (from :meth:`zeroed`).
     """
 
     def __init__(self, head: bytes, path: str):
         self.format = None
         self.elements = []
-        end = _END_HEADER.search(head)
-        self.header_bytes = end.end() if end else None
-        if not head.startswith(b"ply") or end is None:
+        self.lines, self.header_bytes = _header_lines(head)
+        if self.header_bytes is None:
             return  # let plyfile name the problem
-        for line in head[:end.start()].decode("ascii", "replace").splitlines():
-            words = line.split()
+        for line in self.lines:
+            words = line.decode("latin-1").split()
             if len(words) >= 2 and words[0] == "format":
                 self.format = words[1]
             elif len(words) == 3 and words[0] == "element":
-                if not words[2].isdigit():
+                if not (words[2].isascii() and words[2].isdigit()):
                     raise FormatError(f"row count {words[2][:24]!r} is not a non-negative integer", path,
-                                      (f"element '{words[1]}'",))
+                                      (f"element '{words[1][:40]}'",))
                 self.elements.append([words[1], int(words[2]), 0, 0, False])
             elif words[:1] == ["property"] and self.elements:
                 self.elements[-1][3] += 1
@@ -115,6 +140,19 @@ class _Layout:
                 elif len(words) == 5 and words[1] == "list":
                     self.elements[-1][2] += _SIZES.get(words[2], 1)
                     self.elements[-1][4] = True
+
+    def zeroed(self, head: bytes) -> bytes:
+        """The header with every element's row count replaced by 0 (the same lines, the same endings)."""
+        nl = _newline(head)
+        out = []
+        for line in self.lines:
+            text = line.decode("latin-1")
+            words = text.split()
+            if len(words) == 3 and words[0] == "element":
+                kept = text.rstrip()
+                text = kept[: len(kept) - len(words[2])] + "0" + text[len(kept):]
+            out.append(text.encode("latin-1"))
+        return nl.join(out + [head[len(nl.join(self.lines)) + len(nl):self.header_bytes]])
 
     def fixed_size(self):
         """Bytes of a binary file whose rows are all fixed-size; None when unknown (ASCII, lists)."""
@@ -147,8 +185,9 @@ def _minimum_body(layout: _Layout, path: str, file_size: int) -> None:
     body = file_size - layout.header_bytes
     need = 0
     for name, count, row_bytes, props, _list in layout.elements:
-        # At least one byte a value in binary; a digit and a separator in ASCII.
-        row = max(row_bytes, 1) if fmt != "ascii" else 2 * max(props, 1)
+        # At least one byte a value in binary; a digit and a separator in ASCII (a
+        # row of an element without properties: nothing, or an empty line).
+        row = row_bytes if fmt != "ascii" else 2 * props or 1
         need += count * row
         if need > body + (fmt == "ascii"):
             what = f"{count * row} bytes" if fmt != "ascii" else f"at least {count * row - 1} bytes"
@@ -199,26 +238,42 @@ def _open(path: str) -> _PlyFile:
         head = _read_header_bytes(f, size)
         layout = _Layout(head, path)
         _minimum_body(layout, path, size)
-        if layout.header_bytes is None or layout.format not in ("ascii", "binary_little_endian",
-                                                                 "binary_big_endian"):
-            f.seek(0)
-            with _plyfile_errors(path):  # a header plyfile will refuse, with the line that is wrong
-                plyfile.PlyData.read(f, mmap="r")
-            raise FormatError("bad header", path)  # pragma: no cover - plyfile refuses it above
+        if layout.header_bytes is None:
+            # No end_header line in the first 16 MiB: plyfile names what is wrong
+            # from what was read (a header is never longer in practice).
+            try:
+                with _plyfile_errors(path):
+                    plyfile.PlyData.read(io.BytesIO(head))
+            except FormatError as e:
+                if "codec can't decode" not in e.message:
+                    raise
+            raise FormatError(f"bad header: no end_header line in the first {len(head):,} bytes", path)
         # plyfile parses the header (its rules, its messages) from a copy whose
         # element counts are zero, so that it reads no rows: the rows are read
         # here, in bulk, and only as far as the vertex element.
-        zeroed = _ELEMENT_LINE.sub(lambda m: m.group(1) + b"0" + m.group(3), head[:layout.header_bytes])
         with _plyfile_errors(path):
-            header = plyfile.PlyData.read(io.BytesIO(zeroed))
-        counts = {e[0]: e[1] for e in layout.elements}
+            header = plyfile.PlyData.read(io.BytesIO(layout.zeroed(head)))
         if len(header.elements) != len(layout.elements):  # pragma: no cover - both parse the same lines
             raise FormatError("bad header: element lines not understood", path)
+        counts = [e[1] for e in layout.elements]
+        _check_list_types(header, path)
         if "vertex" not in header:
             return _PlyFile(header, None, [])
         if header.text:
             return _read_ascii(f, path, header, layout, counts)
         return _read_binary(f, path, header, layout, counts)
+
+
+def _check_list_types(header, path: str) -> None:
+    """A list's length must be an integer type (plyfile takes ``property list float int x``)."""
+    for element in header.elements:
+        for prop in element.properties:
+            if isinstance(prop, plyfile.PlyListProperty):
+                len_t = np.dtype(prop.list_dtype("<")[0])
+                if len_t.kind not in "iu":
+                    name = {4: "float", 8: "double"}.get(len_t.itemsize, len_t.name)
+                    raise FormatError(f"list length type '{name}' is not an integer type", path,
+                                      (f"element '{element.name}'", f"property '{prop.name}'"))
 
 
 def _element_dtype(element, byte_order: str, list_lengths=None) -> np.dtype:
@@ -254,7 +309,7 @@ def _list_lengths_at(buf: np.ndarray, start: int, element, byte_order: str):
 
 
 def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: str, path: str,
-                 need_rows: bool = True):
+                 need_rows: bool = True, walk: bool = True):
     """Read ``count`` rows of ``element`` at ``offset``: ``(rows, bytes)``.
 
     Fixed-size rows are a view of ``buf``. With list properties every row is
@@ -273,6 +328,8 @@ def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: 
         if lengths is None:
             raise FormatError("row 0: unexpected end of file", path, where)
     dtype = _element_dtype(element, byte_order, lengths)
+    if dtype.itemsize == 0:
+        return np.zeros(count, dtype), 0  # an element without properties
     if offset + count * dtype.itemsize <= len(buf):
         rows = buf[offset:offset + count * dtype.itemsize].view(dtype)
         if not has_list or all((rows[f"\n{i}len"] == n).all() for i, n in lengths.items()):
@@ -280,6 +337,8 @@ def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: 
     elif not has_list:
         available = (len(buf) - offset) // dtype.itemsize
         raise FormatError(f"row {available}: unexpected end of file", path, where)
+    if not walk:
+        return None, None  # lists of varying lengths, and the caller would rather not walk them
     return _walk_rows(buf, offset, element, count, byte_order, path, need_rows)
 
 
@@ -294,29 +353,55 @@ def _walk_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: st
         else:
             steps.append((None, np.dtype(prop.dtype(byte_order)).itemsize))
     list_index = [i for i, (st, _size) in enumerate(steps) if st is not None]
-    starts = np.empty(count, np.int64)
-    lengths = np.empty((count, len(list_index)), np.int64)
+    # The walk steps over runs of fixed-size properties at once: per list, the
+    # bytes before its length field, the length's struct and the value size.
+    segments, fixed = [], 0
+    for st, size in steps:
+        if st is None:
+            fixed += size
+        else:
+            segments.append((fixed, st.unpack_from, st.size, size))
+            fixed = 0
+    tail = fixed
+    starts, found = [], []  # Python lists: appending beats numpy item assignment in this loop
     raw = memoryview(buf)
     end = len(buf)
     pos = offset
-    for row in range(count):
-        starts[row] = pos
-        k = 0
-        for st, size in steps:
-            if st is None:
-                pos += size
-                continue
-            if pos + st.size > end:
-                raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
-            n = st.unpack_from(raw, pos)[0]
-            if n < 0:
-                raise FormatError(f"row {row}: negative list length {n}", path,
-                                  (f"element '{element.name}'", f"property '{props[list_index[k]].name}'"))
-            lengths[row, k] = n
-            k += 1
-            pos += st.size + n * size
-        if pos > end:
-            raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",))
+    row = 0
+    try:
+        if len(segments) == 1:  # the usual case, in the tightest loop Python has
+            before, unpack, len_size, size = segments[0]
+            step = before + len_size + tail
+            add_start, add_length = starts.append, found.append
+            for row in range(count):
+                add_start(pos)
+                n = unpack(raw, pos + before)[0]
+                add_length(n)
+                pos += step + n * size
+            if found and min(found) < 0:
+                row = next(i for i, n in enumerate(found) if n < 0)
+                raise FormatError(f"row {row}: negative list length {found[row]}", path,
+                                  (f"element '{element.name}'", f"property '{props[list_index[0]].name}'"))
+            if pos > end:
+                row = count - 1
+                raise struct.error("past the end")
+        for row in range(count if len(segments) > 1 else 0):
+            starts.append(pos)
+            for k, (before, unpack, len_size, size) in enumerate(segments):
+                pos += before
+                n = unpack(raw, pos)[0]  # struct.error past the end
+                if n < 0:
+                    raise FormatError(f"row {row}: negative list length {n}", path,
+                                      (f"element '{element.name}'", f"property '{props[list_index[k]].name}'"))
+                found.append(n)
+                pos += len_size + n * size
+            pos += tail
+            if pos > end:
+                raise struct.error("past the end")
+    except struct.error:
+        raise FormatError(f"row {row}: unexpected end of file", path, (f"element '{element.name}'",)) from None
+    starts = np.array(starts, np.int64)
+    lengths = np.array(found, np.int64).reshape(count, len(list_index))
     if not need_rows:
         return None, pos - offset
     fields = [(p.name, p.dtype(byte_order)) for p in props if not isinstance(p, plyfile.PlyListProperty)]
@@ -340,14 +425,15 @@ def _read_binary(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFil
     offset = layout.header_bytes
     notes = []
     vertex = None
-    for element in header.elements:
-        count = counts[element.name]
-        if element.name != "vertex" and vertex is not None and any(
-                isinstance(p, plyfile.PlyListProperty) for p in element.properties):
-            # Not needed, and its extent costs a walk when its lists vary: stop here.
+    for element, count in zip(header.elements, counts):
+        after = vertex is not None
+        rows, nbytes = _binary_rows(buf, offset, element, count, byte_order, path, element.name == "vertex",
+                                    walk=not after)
+        if nbytes is None:
+            # Rows after the vertex element, not needed, whose lists vary: their extent
+            # would cost a walk, only to check for bytes after them. Stop here.
             return _PlyFile(header, vertex, notes)
-        rows, nbytes = _binary_rows(buf, offset, element, count, byte_order, path, element.name == "vertex")
-        if element.name == "vertex":
+        if element.name == "vertex" and vertex is None:  # the first, as ply["vertex"] is
             vertex = rows
         offset += nbytes
     extra = len(buf) - offset
@@ -375,8 +461,7 @@ def _read_ascii(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFile
     at = 0
     vertex = None
     notes = []
-    for element in header.elements:
-        count = counts[element.name]
+    for element, count in zip(header.elements, counts):
         if vertex is None:
             if any(isinstance(p, plyfile.PlyListProperty) for p in element.properties):
                 return _read_ascii_plyfile(f, path)
@@ -403,7 +488,8 @@ def _read_ascii(f, path: str, header, layout: _Layout, counts: dict) -> _PlyFile
 def _read_ascii_plyfile(f, path: str) -> _PlyFile:
     f.seek(0)
     with _plyfile_errors(path):
-        ply = plyfile.PlyData.read(f)
+        # From memory: plyfile wraps a file in a text reader it never closes (a ResourceWarning).
+        ply = plyfile.PlyData.read(io.BytesIO(f.read()))
     return _PlyFile(ply, ply["vertex"].data, [])
 
 
@@ -431,11 +517,18 @@ def detect_variant(names) -> str:
     return model.VARIANT_LITE if temporal else model.VARIANT_3DGS
 
 
-def _column(data: np.ndarray, name: str) -> np.ndarray:
+def _column(data: np.ndarray, name: str, notes: list) -> np.ndarray:
     col = data[name]
     if col.dtype == np.dtype("<f4") or (col.dtype == np.float32 and col.dtype.isnative):
         return col  # a view into the mapped file: no copy
-    return col.astype(np.float32)
+    with np.errstate(over="ignore", invalid="ignore"):  # reported below
+        out = col.astype(np.float32)
+    if col.dtype.kind == "f" and col.dtype.itemsize > 4:
+        overflowed = int(np.count_nonzero(np.isinf(out) & np.isfinite(col)))
+        if overflowed:
+            notes.append(f"{name}: {overflowed:,} finite double value{'s' if overflowed != 1 else ''} past the "
+                         "float32 range became infinite")
+    return out
 
 
 def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
@@ -480,10 +573,10 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
     columns = {}
     if variant == model.VARIANT_LITE:
         for name in COLUMNS:
-            columns[name] = _column(data, name)
+            columns[name] = _column(data, name, notes)
     else:
         for name in GS_REQUIRED:
-            columns[name] = _column(data, name)
+            columns[name] = _column(data, name, notes)
         columns["trbf_center"] = constant_column(model.STATIC_TRBF_CENTER, n)
         columns["trbf_scale"] = constant_column(model.STATIC_TRBF_SCALE, n)
         for name in model.MOTION + model.OMEGA:
@@ -494,8 +587,9 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
                          "view-independent colour")
     color_mode = color if color != "auto" else ("rgb" if variant == model.VARIANT_LITE else "sh")
     if color_mode == "sh":
-        for name in model.COLOR:
-            columns[name] = (0.5 + SH_C0 * columns[name].astype(np.float64)).astype(np.float32)
+        with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
+            for name in model.COLOR:
+                columns[name] = (0.5 + SH_C0 * columns[name].astype(np.float64)).astype(np.float32)
     cameras = _cameras_from_comments(ply.comments, path)
     meta = {
         "format": ply.text and "ascii" or ("binary_" + ("little" if ply.byte_order == "<" else "big") + "_endian"),

@@ -30,8 +30,9 @@ import numpy as np
 
 from .. import model
 from ..errors import FormatError
-from ..fsutil import open_input
-from ..model import Scene
+from ..fsutil import open_input, populate
+from ..model import Scene, constant_column
+from ..packing import F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales
 from .base import WriteReport, refuse_time_varying
@@ -88,31 +89,55 @@ def read(path: str | os.PathLike, **_options) -> Scene:
             raise FormatError(f"size {size:,} bytes is not a whole number of {RECORD_BYTES}-byte records: "
                               f"{size % RECORD_BYTES} bytes after record {size // RECORD_BYTES:,}; file truncated?",
                               path)
-        records = np.fromfile(f, dtype=RECORD, count=size // RECORD_BYTES)
+        # Mapped, not read: the scene's table is four times the file, the file need not be held too.
+        records = np.memmap(f, dtype=RECORD, mode="r", shape=(size // RECORD_BYTES,))
+        populate(records)
     n = len(records)
-    _rows, cols = model.lite_rows(n)
+    cols = {}
     notes = []
-    for i in range(3):
-        cols[model.POSITION[i]][:] = records["position"][:, i]
+    position = _quiet_nans(records["position"], notes)
+    for i, name in enumerate(model.POSITION):
+        cols[name] = position[:, i]  # views of the mapped file when nothing was quieted: no copy
     linear = records["scale"]
     negative = int(np.count_nonzero(linear < 0))
     with np.errstate(divide="ignore", invalid="ignore"):
-        for i in range(3):
-            cols[model.SCALE[i]][:] = np.log(linear[:, i])
+        for i, name in enumerate(model.SCALE):
+            cols[name] = np.log(linear[:, i])
     if negative:
         notes.append(f"scale: {negative:,} negative values have no logarithm; read as NaN")
-    for i in range(3):
-        cols[model.COLOR[i]][:] = COLOR_OF_BYTE[records["rgba"][:, i]]
-    cols["opacity"][:] = LOGIT_OF_BYTE[records["rgba"][:, 3]]
-    for i in range(4):
-        cols[model.ROTATION[i]][:] = (records["rot"][:, i].astype(np.float32) - np.float32(ROT_STEPS)) / np.float32(
-            ROT_STEPS)
-    cols["trbf_center"][:] = model.STATIC_TRBF_CENTER
-    cols["trbf_scale"][:] = model.STATIC_TRBF_SCALE
+    for i, name in enumerate(model.COLOR):
+        cols[name] = COLOR_OF_BYTE[records["rgba"][:, i]]
+    cols["opacity"] = LOGIT_OF_BYTE[records["rgba"][:, 3]]
+    rot = (records["rot"].astype(np.float32) - np.float32(ROT_STEPS)) / np.float32(ROT_STEPS)
+    for i, name in enumerate(model.ROTATION):
+        cols[name] = rot[:, i]
+    # A static scene: the same constants for every splat, held once.
+    cols["trbf_center"] = constant_column(model.STATIC_TRBF_CENTER, n)
+    cols["trbf_scale"] = constant_column(model.STATIC_TRBF_SCALE, n)
     for name in model.MOTION + model.OMEGA:
-        cols[name][:] = 0.0
+        cols[name] = constant_column(0.0, n)
     meta = {"file_bytes": size, "records": n}
-    return Scene(columns=cols, cameras=None, variant=model.VARIANT_3DGS, meta=meta, notes=notes)
+    return Scene(columns={name: cols[name] for name in model.COLUMNS}, cameras=None, variant=model.VARIANT_3DGS,
+                 meta=meta, notes=notes)
+
+
+def _quiet_nans(values: np.ndarray, notes: list) -> np.ndarray:
+    """``values`` (float32), with signalling NaNs made quiet: a copy only when there are any.
+
+    A signalling NaN raises numpy's "invalid value" warning when it is widened
+    to float64, as everything that reads the viewer's values does; it is NaN
+    either way, so only its quiet bit is set (noted).
+    """
+    bits = values.view(np.uint32)
+    signalling = ((bits & np.uint32(0x7F800000)) == np.uint32(0x7F800000)) & (
+        (bits & np.uint32(0x007FFFFF)) != 0) & ((bits & np.uint32(F32_QUIET_BIT)) == 0)
+    count = int(np.count_nonzero(signalling))
+    if not count:
+        return values
+    values = np.array(values)
+    values.view(np.uint32)[signalling] |= np.uint32(F32_QUIET_BIT)
+    notes.append(f"position: {count:,} signalling NaN values read as quiet NaN")
+    return values
 
 
 def _refuse_other_formats(head: bytes, path: str) -> None:

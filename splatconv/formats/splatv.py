@@ -143,8 +143,24 @@ def _write_notes(report: WriteReport, compat: bool) -> list:
 # Reading
 
 
+#: Largest size or count taken: 2**53 - 1, the largest integer a JavaScript viewer reads exactly.
+MAX_SAFE_INTEGER = (1 << 53) - 1
+
+
 def _is_count(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool) and v >= 0
+    return isinstance(v, int) and not isinstance(v, bool) and 0 <= v <= MAX_SAFE_INTEGER
+
+
+def _count_message(key: str, v) -> str:
+    if isinstance(v, int) and not isinstance(v, bool) and v > MAX_SAFE_INTEGER:
+        return f"'{key}' {_shown(v)} is past 2**53-1, the largest integer the viewer reads exactly"
+    return f"'{key}' must be a non-negative integer, got {_shown(v)}"
+
+
+def _shown(v) -> str:
+    """``repr`` of a header value for a message, cut short."""
+    text = repr(v) if not isinstance(v, int) or abs(v) < 1 << 64 else f"an integer of {len(str(abs(v)))} digits"
+    return text if len(text) <= 40 else text[:37] + "..."
 
 
 def read_header(f, path: str, file_size: int) -> tuple[list, int]:
@@ -175,18 +191,18 @@ def read_header(f, path: str, file_size: int) -> tuple[list, int]:
         if not isinstance(chunk.get("type"), str):
             raise FormatError("'type' must be a string", path, (f"chunk {i}",))
         if not _is_count(chunk.get("size")):
-            raise FormatError(f"'size' must be a non-negative integer, got {chunk.get('size')!r}",
+            raise FormatError(_count_message("size", chunk.get("size")),
                               path, (f"chunk {i}",))
     return chunks, PREAMBLE.size + json_len
 
 
 def _check_splat_chunk(chunk: dict, path: str, where: tuple) -> None:
     if chunk.get("texwidth") != TEXWIDTH or isinstance(chunk.get("texwidth"), bool):
-        raise FormatError(f"'texwidth' is {chunk.get('texwidth')!r}; the viewer's shader needs {TEXWIDTH}",
+        raise FormatError(f"'texwidth' is {_shown(chunk.get('texwidth'))}; the viewer's shader needs {TEXWIDTH}",
                           path, where)
     texheight = chunk.get("texheight")
     if not _is_count(texheight):
-        raise FormatError(f"'texheight' must be a non-negative integer, got {texheight!r}", path, where)
+        raise FormatError(_count_message("texheight", texheight), path, where)
     if texheight > MAX_TEXHEIGHT:
         raise FormatError(f"'texheight' {texheight} is past the largest texture any GPU takes ({MAX_TEXHEIGHT})",
                           path, where)
@@ -245,7 +261,7 @@ def read_records(path: str | os.PathLike):
             if splat is None and offset + chunk["size"] > file_size and chunk["type"] != "splat":
                 raise FormatError(f"declares {chunk['size']} bytes but the file ends {file_size - offset} "
                                   "bytes after its start, before any splat chunk", path,
-                                  (f"chunk {i} ({chunk['type']!r})",))
+                                  (f"chunk {i} ({_shown(chunk['type'])})",))
             if chunk["type"] == "splat" and splat is None:
                 _check_splat_chunk(chunk, path, (f"chunk {i}",))
                 splat = (i, chunk, offset)
@@ -278,8 +294,10 @@ def read_records(path: str | os.PathLike):
     records = buf.reshape(-1, WORDS_PER_SPLAT)
     count = _splat_count(records, chunk, notes)
     if skipped:
+        types = sorted({c['type'] for c in skipped})
         notes.append(f"skipped {len(skipped)} chunk(s) of other types: "
-                     + ", ".join(sorted({c['type'] for c in skipped})))
+                     + ", ".join(t if len(t) <= 40 else t[:37] + "..." for t in types[:10])
+                     + (f" and {len(types) - 10} more" if len(types) > 10 else ""))
     meta = {
         "texwidth": chunk["texwidth"],
         "texheight": chunk["texheight"],

@@ -5,7 +5,9 @@
 * :mod:`~splatconv.ops.time`: linear time maps (:func:`remap_time`,
   :func:`place_in`) and :func:`trim`;
 * :mod:`~splatconv.ops.transform`: p' = R (S p) + T for splats that move;
-* :mod:`~splatconv.ops.edit`: all of them in ``convert``'s order.
+* :mod:`~splatconv.ops.edit`: all of them in ``convert``'s order;
+* :mod:`~splatconv.ops.bake`: the scene at one time as a static scene;
+* :mod:`~splatconv.ops.merge`: several scenes in one, on one timeline.
 
 Every operation returns ``(Scene, OpReport)``; the input scene is never changed.
 """

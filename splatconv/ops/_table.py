@@ -9,10 +9,14 @@ fast paths (:func:`splatconv.model.row_fields`).
 Columns of a row table are strided: a pass over one column touches every row's
 cache line. Ops therefore work a block of :data:`CHUNK` rows at a time (about
 1 MB of lite rows, which stays in cache across the column passes) rather than
-column after column over the whole table.
+column after column over the whole table, two threads taking blocks in turn
+(:func:`run_blocks`).
 """
 
 from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
@@ -20,33 +24,58 @@ from ..model import COLUMNS, Scene, lite_rows, row_fields
 
 #: Rows a block: 8,192 lite rows are 1 MB.
 CHUNK = 1 << 13
+#: Threads working on blocks: numpy lets go of the interpreter lock inside each
+#: call, so two threads keep two cores busy; more only add hand-overs of the lock.
+WORKERS = max(1, min(os.cpu_count() or 2, 2))
 
 
-def blocks(columns: dict, names=COLUMNS, size: int = CHUNK):
-    """Blocks of rows: ``(slice, {name: (k,) view})`` for each ``size`` rows of ``columns``."""
-    n = len(columns["x"])
-    # Plain ndarray views: slicing a memmap makes a memmap each time, at many times the cost.
-    base = {name: columns[name].view(np.ndarray) for name in names}
-    for start in range(0, n, size):
-        part = slice(start, min(n, start + size))
-        yield part, {name: base[name][part] for name in names}
+def run_blocks(n: int, job, size: int | None = None) -> list:
+    """``job(part)`` for each block ``part`` (a slice) of ``n`` rows, by :data:`WORKERS` threads.
+
+    Blocks are ``size`` rows (default :data:`CHUNK`). Jobs must touch only their
+    own rows; their results come back in block order.
+    """
+    size = CHUNK if size is None else size
+    parts = [slice(start, min(n, start + size)) for start in range(0, n, size)]
+
+    def quiet(part):
+        # NaN is handled explicitly everywhere; a signalling NaN (a hostile file may
+        # hold them) would otherwise warn when widened or compared. The error state
+        # belongs to a thread, so it is set in each job.
+        with np.errstate(invalid="ignore"):
+            return job(part)
+
+    if len(parts) > 1 and WORKERS > 1:
+        with ThreadPoolExecutor(max_workers=WORKERS) as pool:
+            return list(pool.map(quiet, parts))
+    return [quiet(part) for part in parts]
 
 
-def gather(columns: dict, index: np.ndarray | None = None, each=None) -> dict:
+def gather(columns: dict, index: np.ndarray | None = None) -> dict:
     """Rows ``index`` (all rows when None) of every column, as writeable views of one new table.
 
     Parameters
     ----------
     columns : dict of str to (N,) float32 ndarray
     index : (M,) integer ndarray, optional
-    each : callable, optional
-        ``each(block)`` is called with each block of new rows (a dict of
-        writeable ``(k,) float32`` views) right after it is copied, while it is
-        in cache: for changing the rows in place.
 
     Returns
     -------
     dict of str to (M,) float32 ndarray
+    """
+    return copy_rows(columns, index)[0]
+
+
+def copy_rows(columns: dict, index: np.ndarray | None = None, each=None) -> tuple:
+    """:func:`gather`, calling ``each(block)`` on each block of new rows as soon as it is copied.
+
+    ``each`` gets a dict of writeable ``(k,) float32`` views of the block (in
+    cache right after the copy), may change them in place and returns a number.
+
+    Returns
+    -------
+    (dict, int or float)
+        The new columns and the sum of what ``each`` returned (0 without it).
     """
     m = len(columns["x"]) if index is None else len(index)
     found = row_fields([columns[name] for name in COLUMNS])
@@ -58,38 +87,41 @@ def gather(columns: dict, index: np.ndarray | None = None, each=None) -> dict:
     else:
         matrix = None
         _rows, out = lite_rows(m)
-    for start in range(0, m, CHUNK):
-        part = slice(start, min(m, start + CHUNK))
+        sources = {name: np.asarray(columns[name]) for name in COLUMNS}
+
+    def job(part):
         source = part if index is None else index[part]
         if matrix is not None:
             rows[part] = matrix[source]
         else:
             for name in COLUMNS:
-                out[name][part] = np.asarray(columns[name])[source]
-        if each is not None:
-            each({name: out[name][part] for name in COLUMNS})
-    return out
+                out[name][part] = sources[name][source]
+        return 0 if each is None else each({name: out[name][part] for name in COLUMNS})
+
+    return out, sum(run_blocks(m, job))
 
 
-def compact(columns: dict, index: np.ndarray, each=None) -> dict:
-    """Rows ``index`` of columns made here (writeable views of one row table), moved up in place.
+def compact(columns: dict, index: np.ndarray, each=None) -> tuple:
+    """:func:`copy_rows` for columns made here (views of one writeable row table), in place.
 
-    Like :func:`gather`, without a second table: ``index`` is ascending, so row
-    ``index[i] >= i`` and moving blocks forward never overwrites a row still to
-    be moved. Falls back to :func:`gather` for columns that are not such views.
+    The rows ``index`` (ascending) move up within the same table: row
+    ``index[i] >= i``, so moving blocks forward, in order, never overwrites a row
+    still to be moved (hence one thread). Falls back to :func:`copy_rows` for
+    other columns.
     """
     table = columns["x"].base
     if (not isinstance(table, np.ndarray) or table.ndim != 2 or table.dtype != np.float32
             or not table.flags.writeable or not table.flags.c_contiguous or len(table) != len(columns["x"])
             or any(columns[name].base is not table for name in COLUMNS)):
-        return gather(columns, index, each)
+        return copy_rows(columns, index, each)
     m = len(index)
+    total = 0
     for start in range(0, m, CHUNK):
         part = slice(start, min(m, start + CHUNK))
         table[part] = table[index[part]]
         if each is not None:
-            each({name: columns[name][part] for name in COLUMNS})
-    return {name: columns[name][:m] for name in COLUMNS}
+            total += each({name: columns[name][part] for name in COLUMNS})
+    return {name: columns[name][:m] for name in COLUMNS}, total
 
 
 def derive(scene: Scene, columns: dict, notes=(), cameras=...) -> Scene:
@@ -107,8 +139,12 @@ def keep_rows(scene: Scene, keep: np.ndarray) -> dict:
 
 
 def blockwise(fn, columns: dict, names, dtype=bool) -> np.ndarray:
-    """``fn(block)`` over blocks of rows, concatenated: an ``(N,)`` array of ``dtype``."""
+    """``fn(block)`` over blocks of rows (by threads), concatenated: an ``(N,)`` array of ``dtype``."""
     out = np.empty(len(columns["x"]), dtype=dtype)
-    for part, block in blocks(columns, names):
-        out[part] = fn(block)
+    base = {name: columns[name].view(np.ndarray) for name in names}
+
+    def job(part):
+        out[part] = fn({name: base[name][part] for name in names})
+
+    run_blocks(len(out), job)
     return out

@@ -22,13 +22,15 @@ positions included (``--drop-nonfinite`` removes those).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import re
+from dataclasses import dataclass
 
 import numpy as np
 
 from .. import model, viewer
 from ..errors import UsageError
 from ..model import Scene
+from .report import OpReport
 
 def frame_times(count: int) -> np.ndarray:
     """Times of ``count`` frames spread over the viewer's clip: ``(count,) float64``, k / (count - 1).
@@ -47,36 +49,15 @@ def frame_times(count: int) -> np.ndarray:
 
 
 @dataclass
-class BakeReport:
-    """What baking did.
+class BakeReport(OpReport):
+    """What baking did: an :class:`~splatconv.ops.report.OpReport` (``op`` ``"bake"``) and the time.
 
-    Attributes
-    ----------
-    op : str
-        ``"bake"``.
-    time : float
-        The moment baked.
-    count_in, count_out : int
-        Splats before and after.
-    counts : dict of str to int
-        ``hidden``: under the viewer's 0.02 cut at ``time``; ``undefined``: NaN
-        temporal opacity; both removed. ``faded``: kept splats whose opacity
-        the temporal opacity lowered.
-    notes : list of str
-        The same, in words.
+    ``counts``: ``hidden``, splats under the viewer's 0.02 cut at ``time``;
+    ``undefined``, splats with a NaN temporal opacity (both removed);
+    ``faded``, kept splats whose opacity the temporal opacity lowered.
     """
 
-    op: str
-    time: float
-    count_in: int
-    count_out: int
-    counts: dict = field(default_factory=dict)
-    notes: list = field(default_factory=list)
-
-    @property
-    def removed(self) -> int:
-        """Splats removed."""
-        return self.count_in - self.count_out
+    time: float = 0.0
 
 
 def baked_opacity(opacity: np.ndarray, temporal: np.ndarray) -> np.ndarray:
@@ -158,7 +139,7 @@ def bake(scene: Scene, time: float) -> tuple[Scene, BakeReport]:
         notes.append(f"{counts['undefined']:,} splats with a NaN trbf centre or scale (no defined opacity at "
                      "any time) removed")
     baked = Scene(columns=out, cameras=scene.cameras, variant=model.VARIANT_3DGS, meta={"baked_time": t})
-    return baked, BakeReport("bake", t, n, m, counts, notes)
+    return baked, BakeReport("bake", n, m, notes, counts, time=t)
 
 
 def _rows_of(cols: dict, index) -> dict:
@@ -196,3 +177,10 @@ def frame_names(count: int, suffix: str) -> list:
     """``frame_0000`` + ``suffix`` ... one name a frame, numbered from 0 with at least 4 digits."""
     width = max(4, len(str(count - 1)))
     return [f"frame_{k:0{width}d}{suffix}" for k in range(count)]
+
+
+def other_frames(files, names, suffix: str) -> list:
+    """Names among ``files`` that look like frames (``frame_`` digits ``suffix``) but are not ``names``, sorted."""
+    pattern = re.compile(r"frame_\d+" + re.escape(suffix) + r"\Z")
+    ours = set(names)
+    return sorted(f for f in files if pattern.match(f) and f not in ours)

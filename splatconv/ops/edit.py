@@ -22,7 +22,7 @@ import numpy as np
 from ..model import Scene
 from . import filters
 from . import time as time_ops
-from ._table import blocks, compact, derive, gather
+from ._table import compact, copy_rows, derive, run_blocks
 from .report import OpReport
 from .transform import Transform, _block_transformer, transform_cameras, transform_columns, transform_report
 
@@ -79,9 +79,14 @@ def _masks(columns: dict, wanted: dict) -> dict:
     """
     n = len(columns["x"])
     out = {name: np.empty(n, dtype=dtype) for name, (_fn, dtype) in wanted.items()}
-    for part, block in blocks(columns):
+    base = {name: columns[name].view(np.ndarray) for name in columns}
+
+    def job(part):
+        block = {name: base[name][part] for name in base}
         for name, (fn, _dtype) in wanted.items():
             out[name][part] = fn(part, block)
+
+    run_blocks(n, job)
     return out
 
 
@@ -138,14 +143,10 @@ def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
         dropped = ~mask if alive is None else alive & ~mask
         nan_time = time_ops._nan_time(columns, np.flatnonzero(dropped))
         alive = mask if alive is None else alive & mask
-        overflow = [0]
-
-        def remap(block):
-            overflow[0] += time_ops._remap_block(block, t0, t1 - t0)
-
-        columns = gather(columns, np.flatnonzero(alive), each=remap)
+        columns, overflow = copy_rows(columns, np.flatnonzero(alive),
+                                      each=lambda block: time_ops._remap_block(block, t0, t1 - t0))
         alive, owned = None, True
-        reports.append(time_ops.trim_report(count_in, len(columns["x"]), nan_time, t0, t1, overflow[0]))
+        reports.append(time_ops.trim_report(count_in, len(columns["x"]), nan_time, t0, t1, overflow))
 
         # Pass 2, after the time map: crop, min-opacity and the importance key of max-splats.
         masks = _masks(columns, second) if second else {}
@@ -172,17 +173,11 @@ def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
         reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
     elif transform is not None or removed:
         index = np.flatnonzero(alive) if removed else None
-        grown = [0]
-        apply = _block_transformer(transform) if transform is not None else None
-
-        def each(block):
-            grown[0] += apply(block)
-
-        copy = compact if owned and removed else gather
-        columns = copy(columns, index, each=each if apply is not None else None)
+        each = _block_transformer(transform) if transform is not None else None
+        columns, grown = (compact if owned and removed else copy_rows)(columns, index, each=each)
         if transform is not None:
             cameras = transform_cameras(cameras, transform)
-            reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown[0]))
+            reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
     notes = [line for report in reports for line in report.notes]
     return derive(scene, columns, notes, cameras=cameras), reports
 

@@ -13,7 +13,7 @@ import numpy as np
 from .. import viewer
 from ..errors import UsageError
 from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
-from ._table import blocks, blockwise, derive, gather, keep_rows
+from ._table import blockwise, derive, gather, keep_rows, run_blocks
 from .report import OpReport
 
 #: Groups whose every value must be finite for a splat to be kept by
@@ -39,8 +39,11 @@ def nonfinite_mask(columns: dict) -> np.ndarray:
     """
     out = np.empty(len(columns["x"]), dtype=bool)
     test = nonfinite_tester(columns)
-    for part, block in blocks(columns, _CHECKED):
-        out[part] = test(part, block)
+
+    def job(part):
+        out[part] = test(part, {name: columns[name][part] for name in _CHECKED})
+
+    run_blocks(len(out), job)
     return out
 
 
@@ -91,18 +94,18 @@ def _nonfinite_block(block: dict) -> np.ndarray:
 def _nonfinite_counts(columns: dict, rows: np.ndarray) -> dict:
     """Of rows ``rows``, how many have a disqualifying value in each group (a row may count in several)."""
     counts = {}
-    for group, names in FINITE_GROUPS.items():
-        bad = np.zeros(len(rows), dtype=bool)
-        for name in names:
-            bad |= ~np.isfinite(np.asarray(columns[name])[rows])
-        counts[group] = int(bad.sum())
-    for group, names in NAN_GROUPS.items():
-        bad = np.zeros(len(rows), dtype=bool)
-        for name in names:
-            v = np.asarray(columns[name])[rows]
-            bad |= np.isnan(v) | ((v == -np.inf) if name == "trbf_scale" else False)
-        counts[group] = int(bad.sum())
-    return {k: v for k, v in counts.items() if v}
+    groups = [(g, names, False) for g, names in FINITE_GROUPS.items()] + [
+        (g, names, True) for g, names in NAN_GROUPS.items()]
+    with np.errstate(invalid="ignore"):  # signalling NaNs compared
+        for group, names, nan_only in groups:
+            bad = np.zeros(len(rows), dtype=bool)
+            for name in names:
+                v = np.asarray(columns[name])[rows]
+                bad |= (np.isnan(v) | (v == -np.inf if name == "trbf_scale" else False)) if nan_only \
+                    else ~np.isfinite(v)
+            if bad.any():
+                counts[group] = int(bad.sum())
+    return counts
 
 
 def nonfinite_report(columns: dict, keep: np.ndarray, alive: np.ndarray | None = None) -> OpReport:
@@ -117,7 +120,8 @@ def nonfinite_report(columns: dict, keep: np.ndarray, alive: np.ndarray | None =
         report.notes.append(f"drop-nonfinite: removed {len(rows):,} of {count_in:,} splats with a NaN or infinite "
                             f"value ({groups}; a splat may count in several)")
     else:
-        report.notes.append(f"drop-nonfinite: all {count_in:,} splats finite, none removed")
+        report.notes.append(f"drop-nonfinite: removed 0 of {count_in:,} splats: none has a NaN or an infinity "
+                            f"that removes it")
     return report
 
 

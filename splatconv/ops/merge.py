@@ -23,6 +23,7 @@ import numpy as np
 from .. import model
 from ..errors import UsageError
 from ..model import Scene
+from .report import OpReport
 
 #: How :func:`merge` lays its inputs out in time. ``overlay``: all on the same
 #: timeline (this module). Other modes (segments end to end) belong to other modules.
@@ -30,34 +31,15 @@ MODES = ("overlay",)
 
 
 @dataclass
-class MergeReport:
-    """What composing did.
+class MergeReport(OpReport):
+    """What composing did: an :class:`~splatconv.ops.report.OpReport` (``op`` ``"merge"``, no splat removed).
 
-    Attributes
-    ----------
-    op : str
-        ``"merge"``.
-    count_in, count_out : int
-        Splats in all inputs together, and in the result (the same).
-    counts : dict of str to int
-        ``inputs``: how many scenes; ``cameras_from``: the 1-based input whose
-        cameras were kept (0: none had any).
-    parts : list of int
-        Splats of each input, in order (the result's rows, input by input).
-    notes : list of str
+    ``counts``: ``inputs``, how many scenes; ``cameras_from``, the 1-based input
+    whose cameras were kept (0: none had any). ``parts``: splats of each input,
+    in order (the result's rows, input by input).
     """
 
-    op: str
-    count_in: int
-    count_out: int
-    counts: dict = field(default_factory=dict)
     parts: list = field(default_factory=list)
-    notes: list = field(default_factory=list)
-
-    @property
-    def removed(self) -> int:
-        """Splats removed (none)."""
-        return self.count_in - self.count_out
 
 
 def overlay(scenes: list) -> tuple[Scene, MergeReport]:
@@ -98,7 +80,6 @@ def overlay(scenes: list) -> tuple[Scene, MergeReport]:
         notes.append(f"cameras: input {kept + 1}'s {len(cameras)} kept"
                      + (f"; those of input{'s' if len(dropped) > 1 else ''} "
                         f"{', '.join(map(str, dropped))} dropped" if dropped else ""))
-    report = MergeReport("merge", total, total, {"inputs": len(scenes),
-                                                 "cameras_from": with_cameras[0] + 1 if with_cameras else 0},
-                         parts, notes)
+    counts = {"inputs": len(scenes), "cameras_from": with_cameras[0] + 1 if with_cameras else 0}
+    report = MergeReport("merge", total, total, notes, counts, parts=parts)
     return Scene(columns=out, cameras=cameras, variant=variant, meta={}), report

@@ -22,7 +22,7 @@ import numpy as np
 from .. import viewer
 from ..errors import UsageError
 from ..model import MOTION, OMEGA, TRBF, Scene
-from ._table import blockwise, blocks, derive, gather
+from ._table import blockwise, copy_rows, derive, run_blocks
 from .report import OpReport
 
 
@@ -50,7 +50,8 @@ def remap_columns(columns: dict, origin: float, duration: float) -> int:
         Values that were finite and no longer fit float32 (now infinite).
     """
     origin, duration = _check_map(origin, duration)
-    return sum(_remap_block(block, origin, duration) for _part, block in blocks(columns, _TIMED))
+    return sum(run_blocks(len(columns["x"]), lambda part: _remap_block(
+        {name: columns[name][part] for name in _TIMED}, origin, duration)))
 
 
 _TIMED = TRBF + MOTION + OMEGA
@@ -124,13 +125,7 @@ def remap_time(scene: Scene, origin: float, duration: float) -> tuple[Scene, OpR
     u0 = i/n, u1 = (i + 1)/n) with :func:`place_in`.
     """
     origin, duration = _check_map(origin, duration)
-    overflow = [0]
-
-    def remap(block):
-        overflow[0] += _remap_block(block, origin, duration)
-
-    columns = gather(scene.columns, each=remap)
-    overflow = overflow[0]
+    columns, overflow = copy_rows(scene.columns, each=lambda block: _remap_block(block, origin, duration))
     report = OpReport("time-map", scene.count, scene.count)
     report.notes.append(f"time-map: t' = (t - {origin:g}) / {duration:g} applied to {scene.count:,} splats")
     report.notes += _overflow_note("time-map", overflow)
@@ -213,13 +208,8 @@ def trim(scene: Scene, t0: float, t1: float) -> tuple[Scene, OpReport]:
     t0, t1 = check_interval(t0, t1)
     keep = visible_in_mask(scene.columns, t0, t1)
     dropped = np.flatnonzero(~keep)
-    overflow = [0]
-
-    def remap(block):
-        overflow[0] += _remap_block(block, t0, t1 - t0)
-
-    columns = gather(scene.columns, np.flatnonzero(keep), each=remap)
-    overflow = overflow[0]
+    columns, overflow = copy_rows(scene.columns, np.flatnonzero(keep),
+                                  each=lambda block: _remap_block(block, t0, t1 - t0))
     report = trim_report(scene.count, scene.count - len(dropped), _nan_time(scene.columns, dropped), t0, t1,
                          overflow)
     return derive(scene, columns, report.notes), report

@@ -38,7 +38,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
-from ._table import blocks, derive, gather
+from ._table import copy_rows, derive, run_blocks
 from .report import OpReport
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -314,7 +314,7 @@ def transform_columns(columns: dict, transform: Transform) -> int:
         Values that were finite and no longer fit float32 (now infinite).
     """
     apply = _block_transformer(transform)
-    return sum(apply(block) for _part, block in blocks(columns))
+    return sum(run_blocks(len(columns["x"]), lambda part: apply({name: columns[name][part] for name in columns})))
 
 
 def _block_transformer(transform: Transform):
@@ -384,14 +384,7 @@ def apply_transform(scene: Scene, transform: Transform) -> tuple[Scene, OpReport
     (Scene, OpReport)
         A new scene (no splat removed).
     """
-    apply = _block_transformer(transform)
-    grown = [0]
-
-    def each(block):
-        grown[0] += apply(block)
-
-    columns = gather(scene.columns, each=each)
-    grown = grown[0]
+    columns, grown = copy_rows(scene.columns, each=_block_transformer(transform))
     cameras = transform_cameras(scene.cameras, transform)
     report = transform_report(scene.count, len(cameras or []), transform, grown)
     return derive(scene, columns, report.notes, cameras=cameras), report
@@ -401,8 +394,11 @@ def transform_report(count: int, cameras: int, transform: Transform, grown: int)
     """The report of :func:`apply_transform`."""
     report = OpReport("transform", count, count)
     moved = f" and {cameras:,} camera{'' if cameras == 1 else 's'}" if cameras else ""
+    rotates = not np.array_equal(np.asarray(transform.matrix), np.eye(3))
+    changed = ["positions"] + (["motion"] if rotates or transform.scale != 1.0 else []) + (
+        ["rotations", "omega"] if rotates else []) + (["scales"] if transform.scale != 1.0 else [])
     report.notes.append(f"transform: p' = R(S p) + T with {transform.describe()} applied to {count:,} splats"
-                        f"{moved} (positions, motion, rotations, omega, scales)")
+                        f"{moved} ({', '.join(changed)})")
     if grown:
         report.notes.append(f"transform: {grown:,} finite values grew beyond float32 and are now infinite")
     report.counts = {"cameras": cameras, "overflow": grown}

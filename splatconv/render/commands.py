@@ -51,6 +51,12 @@ def render_file(input_path, output_path, *, time: float = 0.5, camera: int | Non
         advance()
     v = resolve_view(cameras_of(source), camera=camera, view=matrix, size=dims, fx=fx, fy=fy, path=source.path)
     times = [time] if frames == 1 else [float(t) for t in np.linspace(0.0, 1.0, frames)]
+    if frames > 1 and suffix in images.STILL:
+        cols, rows = images.sheet_grid(frames)
+        if max(cols * v.width, rows * v.height) > cam.MAX_IMAGE_SIDE:
+            raise UsageError(f"--frames {frames} of {v.width}x{v.height} make a {cols * v.width}x{rows * v.height} "
+                             f"contact sheet, over {cam.MAX_IMAGE_SIDE:,} pixels a side: use fewer frames, a "
+                             f"smaller --size, or .gif / .webp", output_path)
     data = source.reference() if reference else source.texture()
     del source
     with contextlib.closing(render_frames(data, v, times, progress=progress)) as drawn:
@@ -59,7 +65,7 @@ def render_file(input_path, output_path, *, time: float = 0.5, camera: int | Non
             width, height = images.save(drawn, times, stream, suffix)
     if len(times) == 1:
         return f"wrote {output_path}: {width}x{height}, t={time:g}"
-    if (width, height) != (v.width, v.height):
+    if suffix in images.STILL:
         return (f"wrote {output_path}: {width}x{height} contact sheet of {len(times)} frames "
                 f"({v.width}x{v.height} each) over t=0..1")
     return f"wrote {output_path}: {width}x{height}, {len(times)} frames over t=0..1"

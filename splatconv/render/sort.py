@@ -43,7 +43,8 @@ def viewer_order(positions: np.ndarray, view_proj: list) -> np.ndarray:
     (N,) int32 ndarray
         Splat indices in draw order.
     """
-    p = np.asarray(positions, dtype=np.float32).astype(np.float64)
+    with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
+        p = np.asarray(positions, dtype=np.float32).astype(np.float64)
     with np.errstate(invalid="ignore", over="ignore"):
         depth = _to_int32((view_proj[2] * p[:, 0] + view_proj[6] * p[:, 1] + view_proj[10] * p[:, 2]) * 4096)
         n = len(depth)

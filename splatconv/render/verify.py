@@ -57,19 +57,30 @@ def check_min_psnr(min_psnr: float) -> float:
     return float(min_psnr)
 
 
-def parse_cameras(text: str | None, available: int, first: int = DEFAULT_CAMERAS) -> list:
-    """``--cameras`` value: ``all``, comma-separated indices, or None for the first ``first``."""
-    if text is None:
-        return list(range(min(first, available)))
-    if text == "all":
-        return list(range(available))
+def parse_cameras(text: str | None) -> list | str | None:
+    """``--cameras`` value checked for form before any file is read.
+
+    Returns None (the default), ``"all"``, or a list of indices for
+    :func:`pick_cameras` to check against the cameras there are.
+    """
+    if text is None or text == "all":
+        return text
     try:
-        picked = [int(c) for c in text.split(",")]
+        return [int(c) for c in text.split(",")]
     except ValueError:
         raise UsageError(f"--cameras: expected 'all' or comma-separated indices, got {text!r}") from None
+
+
+def pick_cameras(picked: list | str | None, available: int, first: int = DEFAULT_CAMERAS) -> list:
+    """Indices of the cameras to draw: ``picked`` from :func:`parse_cameras`; None: the first ``first``."""
+    if picked is None:
+        return list(range(min(first, available)))
+    if picked == "all":
+        return list(range(available))
     bad = [c for c in picked if not 0 <= c < available]
     if bad:
-        raise UsageError(f"--cameras: no camera {bad[0]}; there are {available:,} (0..{available - 1})")
+        there = "there is 1 (0)" if available == 1 else f"there are {available:,} (0..{available - 1})"
+        raise UsageError(f"--cameras: no camera {bad[0]}; {there}")
     return picked
 
 
@@ -172,6 +183,7 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     """
     min_psnr = check_min_psnr(min_psnr)
     times = _times(times, DEFAULT_TIMES)
+    picked = parse_cameras(cameras)
     size = cam.parse_size(size) if isinstance(size, str) else size
     paths = os.fspath(source_path), os.fspath(converted_path)
     with progress.stage("reading", 2, "file") as advance:
@@ -185,7 +197,7 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         attributes = compare_scenes(source.scene, converted.scene, order)
         advance()
     available = cameras_of(source, converted)
-    indices = parse_cameras(cameras, len(available))
+    indices = pick_cameras(picked, len(available))
     outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=source.scene.count)
     if cameras is None and len(available) > len(indices):
         outcome.notes.append(f"drew the first {len(indices)} of {len(available):,} cameras "
@@ -231,6 +243,7 @@ def diff_scenes(path_a, path_b, *, times=None, cameras: str | None = None, size=
     """
     min_psnr = check_min_psnr(min_psnr)
     times = _times(times, DIFF_TIMES)
+    picked = parse_cameras(cameras)
     size = cam.parse_size(size) if isinstance(size, str) else size
     paths = os.fspath(path_a), os.fspath(path_b)
     with progress.stage("reading", 2, "file") as advance:
@@ -239,7 +252,7 @@ def diff_scenes(path_a, path_b, *, times=None, cameras: str | None = None, size=
         b = load(paths[1], color=color)
         advance()
     available = cameras_of(a, b)
-    views = frame_views(available, parse_cameras(cameras, len(available), DIFF_CAMERAS), size, VERIFY_MAX_WIDTH)
+    views = frame_views(available, pick_cameras(picked, len(available), DIFF_CAMERAS), size, VERIFY_MAX_WIDTH)
     outcome = Outcome("diff", paths, min_psnr)
     if reference:
         data_a, data_b = a.reference, b.reference

@@ -1,0 +1,79 @@
+"""``merge --segments``: segment files end to end on one timeline, with a per-frame fidelity report."""
+
+from __future__ import annotations
+
+import click
+
+from .. import clips
+from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK
+from ..render.fidelity import fidelity_summary
+from ..report import segments_text, to_json
+from ._base import Failure, notes, progress
+
+
+#: The first key of ``merge --segments --json`` (specs/segments.md).
+SCHEMA = "splatconv.merge-segments/1"
+
+
+class _Counts(click.ParamType):
+    """A comma-separated list of whole numbers >= 2."""
+
+    name = "N0,N1,..."
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, list):
+            return value
+        try:
+            counts = [int(part) for part in str(value).split(",")]
+        except ValueError:
+            self.fail(f"{value!r} is not a comma-separated list of frame counts.", param, ctx)
+        if any(c < 2 for c in counts):
+            self.fail(f"{value!r}: every segment needs at least 2 frames.", param, ctx)
+        return counts
+
+
+def segment_options():
+    """The options ``merge`` takes for ``--segments``, in help order."""
+    return (
+        click.option("--segments", is_flag=True,
+                     help="Lay the inputs end to end (segment i in its own interval of [0, 1]) instead of together."),
+        click.option("--durations", type=_Counts(), default=None,
+                     help=f"--segments: frames of each segment, comma-separated; segment i gets that share of "
+                          f"the timeline and its frames stay at frame times [default: {DEFAULT_FRAMES} each]."),
+        click.option("--leak", type=click.IntRange(min=0), default=DEFAULT_LEAK, show_default=True,
+                     help="--segments: frames of the next (previous) segment through which a segment's "
+                          "long-lived splats fade out (in)."),
+        click.option("--budget", type=click.FloatRange(min=1.0), default=DEFAULT_BUDGET, show_default=True,
+                     help="--segments: at most this many times the segments' splats."),
+        click.option("--check-every", type=click.IntRange(min=1), default=1, show_default=True,
+                     help="--segments: measure every K-th output frame against its segment."),
+        click.option("--no-check", is_flag=True, help="--segments: skip the per-frame fidelity measurement."),
+        click.option("--camera", type=click.IntRange(min=0), default=0, show_default=True,
+                     help="--segments: stored camera the fidelity is measured from."),
+        click.option("--json", "as_json", is_flag=True,
+                     help="--segments: print the report as JSON (keys in specs/segments.md)."),
+    )
+
+
+def given(options: dict) -> bool:
+    """Whether any --segments-only option differs from its default."""
+    return (options["durations"] is not None or options["leak"] != DEFAULT_LEAK or options["budget"] != DEFAULT_BUDGET
+            or options["check_every"] != 1 or options["no_check"] or options["camera"] != 0 or options["as_json"])
+
+
+def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, leak, budget, check_every, no_check,
+        camera, as_json) -> None:
+    """The body of ``merge --segments``."""
+    if durations is not None and len(durations) != len(inputs):
+        raise Failure(f"--durations gives {len(durations)} value(s) for {len(inputs)} segment(s)", 2)
+    merged, report, written, rows = clips.merge_segment_files(
+        inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout, color=color,
+        force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet))
+    notes(merged.notes)
+    notes(report.notes)
+    notes(written.notes)
+    data = {"schema": SCHEMA, **report.as_dict()}
+    data["output"] = {"path": str(output_path), "splats": written.count}
+    data["frames"] = rows
+    data["fidelity"] = fidelity_summary(rows)
+    click.echo(to_json(data) if as_json else segments_text(data))

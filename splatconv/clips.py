@@ -1,0 +1,156 @@
+"""Long clips on disk: frame sequences become one 4D scene; segment files join on one timeline.
+
+The fitting and the merging are :mod:`splatconv.ops.sequence` and
+:mod:`splatconv.ops.segments` (no I/O); this module resolves a directory, a glob
+or a list of files into frame paths and feeds the frames to the fit one at a
+time through :func:`splatconv.io.read`, so any format that can be read can be a
+frame; and reads, merges, checks and writes segment files.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import re
+
+from .cameras import load_cameras
+from .errors import UnsupportedError, UsageError
+from .formats import REGISTRY, format_for
+from .fsutil import check_output
+from .io import check_write_options, read, write
+from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, merge_segments
+from .render.fidelity import fidelity
+from .ops.sequence import fit_sequence
+from .progress import SILENT
+from .transport import inner_name
+
+_GLOB_CHARS = re.compile(r"[*?[]")
+
+
+def natural_key(path: str):
+    """Sort key that orders digit runs by value: frame_2 before frame_10."""
+    name = os.fspath(path)
+    return [(0, int(part), part) if part.isdigit() else (1, 0, part) for part in re.split(r"(\d+)", name)]
+
+
+def is_sequence(inputs) -> bool:
+    """Whether convert's inputs name a frame sequence rather than one scene file.
+
+    Several paths, a directory, or a pattern that is not itself an existing file.
+    """
+    inputs = [os.fspath(p) for p in inputs]
+    if len(inputs) != 1:
+        return True
+    only = inputs[0]
+    return os.path.isdir(only) or (not os.path.exists(only) and bool(_GLOB_CHARS.search(only)))
+
+
+def _readable(name: str) -> bool:
+    lower = inner_name(name).lower()
+    return any(lower.endswith(suffix) and module.CAN_READ for suffix, module in REGISTRY.items())
+
+
+def frame_paths(inputs) -> list:
+    """Resolve a directory, glob patterns or file paths into frame files, in natural order.
+
+    A directory gives its files of readable formats (not recursing); a pattern
+    gives its matches; a file gives itself. The result is sorted by
+    :func:`natural_key` (shells sort ``frame_10`` before ``frame_2``), with
+    duplicates removed.
+
+    Raises
+    ------
+    UsageError
+        When nothing matches, or a named file does not exist.
+    """
+    found = []
+    for item in (os.fspath(p) for p in inputs):
+        if os.path.isdir(item):
+            names = [os.path.join(item, n) for n in os.listdir(item)]
+            hits = [n for n in names if os.path.isfile(n) and _readable(n)]
+            if not hits:
+                raise UsageError("directory holds no scene files", item)
+            found += hits
+        elif not os.path.exists(item) and _GLOB_CHARS.search(item):
+            hits = [n for n in glob.glob(item) if os.path.isfile(n)]
+            if not hits:
+                raise UsageError("no files match", item)
+            found += hits
+        elif not os.path.isfile(item):
+            raise UsageError("no such file", item)
+        else:
+            found.append(item)
+    return sorted(set(found), key=natural_key)
+
+
+def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto", max_error=None,
+                   compat=None, sort=None, cameras=None, color: str = "auto", force: bool = False,
+                   zstd_level=None, layout=None, progress=SILENT):
+    """Read a frame sequence and write it as one 4D scene (see :func:`splatconv.ops.sequence.fit_sequence`).
+
+    Parameters
+    ----------
+    inputs : list of path
+        A directory, glob patterns or files (see :func:`frame_paths`).
+    frame_times : sequence of float, optional
+        One time per frame (default frame k of N at k / (N - 1)).
+    cameras : path or list of dict, optional
+        Replaces the cameras of the first frame that has some.
+
+    Returns
+    -------
+    (Scene, SequenceReport, WriteReport, list of str)
+        The scene written, what the fit did, what the writer did, the frame paths in order.
+    """
+    paths = frame_paths(inputs)
+    for p in paths:
+        format_for(p, purpose="read")
+    module = check_write_options(output, compat=compat, sort=sort, layout=layout)
+    check_output(output, paths, force)
+    camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
+    found = {}
+
+    def read_frame(k):
+        scene = read(paths[k], color=color)
+        if "cameras" not in found and scene.cameras:
+            found["cameras"] = scene.cameras
+        return scene
+
+    scene, fit = fit_sequence(read_frame, len(paths), times=frame_times, same_splats=same_splats,
+                              max_error=max_error, progress=progress)
+    if scene.count == 0 and not module.HOLDS_EMPTY:
+        raise UnsupportedError(f"the frames hold no splats; a {module.NAME} file cannot hold an empty scene",
+                               paths[0])
+    scene.cameras = camera_list if camera_list is not None else found.get("cameras")
+    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
+                   layout=layout, progress=progress)
+    return scene, fit, report, paths
+
+
+def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
+                        sort=None, layout=None, color: str = "auto", force: bool = False, zstd_level=None,
+                        check: bool = True,
+                        check_every: int = 1, camera: int = 0, progress=SILENT):
+    """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
+
+    Parameters
+    ----------
+    check : bool
+        Measure each output frame against its segment (:func:`splatconv.render.fidelity.fidelity`).
+
+    Returns
+    -------
+    (Scene, SegmentReport, WriteReport, list of dict)
+        The merged scene, what merging did, what the writer did, the per-frame fidelity ([] unless ``check``).
+    """
+    inputs = [os.fspath(p) for p in inputs]
+    for p in inputs:
+        format_for(p, purpose="read")
+    check_write_options(output, sort=sort, layout=layout)
+    check_output(output, inputs, force)
+    scenes = [read(p, color=color) for p in inputs]
+    merged, report = merge_segments(scenes, durations, leak=leak, budget=budget, progress=progress)
+    rows = fidelity(merged, scenes, report, camera=camera, every=check_every, progress=progress) if check else []
+    written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level, layout=layout,
+                    progress=progress)
+    return merged, report, written, rows

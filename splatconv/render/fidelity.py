@@ -1,0 +1,97 @@
+"""How faithfully a merged clip shows its segments: each output frame drawn against its segment alone.
+
+The float reference renderer (unquantized attributes, the viewer's shader
+maths) draws both from one stored camera; the result is a PSNR per frame.
+Used by ``merge --segments`` (:mod:`splatconv.clips`).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .. import viewer
+from ..cameras import framing_camera
+from ..errors import UsageError
+from ..model import Scene
+from ..ops.segments import SegmentReport
+from ..progress import SILENT
+from . import camera as cam
+from .diff import compare
+from .layout import float_attributes
+from .preview import Renderer, View
+
+
+#: Width of the fidelity renders (the camera's size scaled down to it).
+FIDELITY_WIDTH = 320
+#: Splats drawn per frame are those at or above this temporal opacity (below the viewer's
+#: 0.02 so that the shader, not this pre-selection, makes the cut).
+_PRESELECT = 0.019
+
+
+def _view(cameras, index: int, columns: dict, width: int) -> View:
+    cams = cameras or [framing_camera(columns["x"], columns["y"], columns["z"])]
+    if not 0 <= index < len(cams):
+        plural = "" if len(cams) == 1 else "s"
+        raise UsageError(f"--camera {index}: the segments have {len(cams)} camera{plural}, 0..{len(cams) - 1}")
+    w, h, fx, fy = cam.fit(cams[index], None, width)
+    return View(cam.view_matrix(cams[index]), fx, fy, w, h)
+
+
+def _visible_rows(columns: dict, t: float) -> np.ndarray:
+    return np.flatnonzero(~(viewer.temporal_opacity(columns, t, cut=False) < _PRESELECT))
+
+
+def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: int = 0, every: int = 1,
+             width: int = FIDELITY_WIDTH, progress=SILENT) -> list:
+    """PSNR of the merged scene at each output frame time against its segment at the local time.
+
+    Both are drawn with the float reference renderer (unquantized attributes,
+    the viewer's shader maths) from the stored camera ``camera`` (the first
+    segment's cameras; a framing camera when none has any), ``width`` pixels wide.
+    Only splats that pass the temporal cut at the frame's time are uploaded
+    (the others draw nothing).
+
+    Parameters
+    ----------
+    every : int
+        Check every ``every``-th output frame (1: all).
+
+    Returns
+    -------
+    list of dict
+        ``frame``, ``time``, ``segment``, ``local_time``, ``psnr`` (None when identical).
+    """
+    frames = report.frame_times()[::max(1, int(every))]
+    view = _view(merged.cameras or next((s.cameras for s in segments if s.cameras), None), camera,
+                 merged.columns, width)
+    a = Renderer(view.width, view.height)
+    b = Renderer(view.width, view.height, ctx=a.ctx)
+    out = []
+    try:
+        with progress.stage("checking frames", len(frames), "frame") as advance:
+            for f, t, i, local in frames:
+                images = []
+                for r, scene, when in ((a, merged, t), (b, segments[i], local)):
+                    rows = _visible_rows(scene.columns, when)
+                    r.load_float(float_attributes(Scene(columns=scene.take(rows))))
+                    images.append(r.draw(view, float(when)))
+                psnr = compare(images[1], images[0]).psnr
+                out.append({"frame": f, "time": round(t, 9), "segment": i, "local_time": round(local, 9),
+                            "psnr": None if math.isinf(psnr) else round(psnr, 3)})
+                advance()
+    finally:
+        b.release()
+        a.release()
+    return out
+
+
+def fidelity_summary(rows: list) -> dict:
+    """Median, minimum and frames below 30 and 40 dB of :func:`fidelity` rows (identical frames count as inf)."""
+    v = np.array([math.inf if r["psnr"] is None else r["psnr"] for r in rows])
+    if len(v) == 0:
+        return {"frames": 0}
+    return {"frames": len(v), "median_psnr": float(np.median(v)) if np.isfinite(np.median(v)) else None,
+            "min_psnr": float(v.min()) if np.isfinite(v.min()) else None,
+            "below_40": int((v < 40).sum()), "below_30": int((v < 30).sum())}

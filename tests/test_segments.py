@@ -1,0 +1,169 @@
+"""Segments end to end: placement, the temporal cut between segments, fidelity by pixels (float reference path)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from splatconv.render.fidelity import fidelity, fidelity_summary
+from splatconv import io, viewer
+from splatconv.cli import main
+from splatconv.model import COLUMNS, Scene
+from splatconv.ops import segments as sg
+from splatconv.ops.time import trim
+from splatconv.render.diff import compare
+from splatconv.render.frames import render_scene
+
+ROOT = Path(__file__).resolve().parent.parent
+CAMERAS = json.loads((ROOT / "sample_data/cameras.json").read_text())
+SIZE = (240, 180)
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def source():
+    s = io.read(ROOT / "sample_data/dancers.ply")
+    s.cameras = CAMERAS
+    return s
+
+
+def perturbed(scene: Scene, seed: int, amount: float = 0.002) -> Scene:
+    """A copy with every position and colour nudged: no splat equals the original's."""
+    rng = np.random.default_rng(seed)
+    cols = {k: np.array(v, np.float32) for k, v in scene.columns.items()}
+    for name in ("x", "y", "z"):
+        cols[name] += rng.normal(0, amount, scene.count).astype(np.float32)
+    for i in range(3):
+        cols[f"f_dc_{i}"] += rng.normal(0, 5 * amount, scene.count).astype(np.float32)
+    return Scene(columns=cols, cameras=scene.cameras, variant=scene.variant)
+
+
+def halves(source, per: int):
+    """The source trimmed into two segments of ``per`` frames each; the second perturbed."""
+    total = 2 * per
+    first, _ = trim(source, 0.0, (per - 1) / (total - 1))
+    second, _ = trim(source, per / (total - 1), 1.0)
+    return [first, perturbed(second, 1)]
+
+
+def blocks(report):
+    """Row range of each segment in the merged scene."""
+    ends = np.cumsum(report.counts_out)
+    return [slice(e - n, e) for e, n in zip(ends, report.counts_out)]
+
+
+def test_placements_keep_every_frame_at_a_frame_time():
+    places = sg.placements([3, 5, 2], leak=1)
+    step = 1 / 9
+    assert [p.first for p in places] == [0, 3, 8]
+    assert [(round(p.start / step), round(p.end / step)) for p in places] == [(0, 2), (3, 7), (8, 9)]
+    assert places[0].cut_before == -np.inf and places[-1].cut_after == np.inf
+    assert places[1].cut_before == pytest.approx(1 * step) and places[1].cut_after == pytest.approx(9 * step)
+    rows = sg.SegmentReport(places, [], [], [], [], [], 1, 2.0).frame_times()
+    assert [r[0] for r in rows] == list(range(10))
+    assert all(abs(t - f * step) < 1e-12 for f, t, _, _ in rows)
+    assert [round(local, 3) for f, t, i, local in rows if i == 1] == [0, 0.25, 0.5, 0.75, 1]
+
+
+def test_trimmed_halves_merge_back_to_the_original_at_frame_times(source):
+    per = 12
+    segments = halves(source, per)
+    merged, report = sg.merge_segments(segments, [per, per])
+    assert report.count_out <= 2 * report.count_in
+    assert sum(report.long_lived) > 0.5 * report.count_in  # the ground is visible throughout both halves
+    times = [f / (2 * per - 1) for f in range(2 * per)]
+    ours = render_scene(merged, CAMERAS[0], times, size=SIZE)
+    original = render_scene(source, CAMERAS[0], times, size=SIZE)
+    psnr = np.array([compare(a, b).psnr for a, b in zip(original, ours)])
+    # The issue's aim: median >= 40 dB, no frame below 30 dB (measured here: 46.4 and 37.6,
+    # lowest at the hand-over between the halves, where both grounds fade).
+    assert np.median(psnr) >= 40, psnr.round(1)
+    assert psnr.min() >= 30, psnr.round(1)
+    # The library's own per-frame measure (segment alone as reference) says the same.
+    rows = fidelity(merged, segments, report, width=SIZE[0])
+    assert [r["frame"] for r in rows] == list(range(2 * per))
+    summary = fidelity_summary(rows)
+    assert summary["median_psnr"] >= 40 and summary["min_psnr"] >= 30
+
+
+def test_each_segment_is_cut_before_the_neighbours_frames_after_the_leak(source):
+    per = 10
+    segments = [source, perturbed(source, 2), perturbed(source, 3)]
+    merged, report = sg.merge_segments(segments, [per] * 3, leak=2)
+    frames = report.frame_times()
+    cols = merged.columns
+    for i, rows in enumerate(blocks(report)):
+        part = {k: np.asarray(v)[rows] for k, v in cols.items()}
+        for f, t, seg, _ in frames:
+            first, last = report.placements[i].first, report.placements[i].first + per - 1
+            if f < first - 2 or f > last + 2:  # beyond the two leak frames
+                assert not viewer.visible(part, t).any(), (i, f)
+
+
+def test_a_segment_does_not_show_during_another(source):
+    """Two different scenes end to end: each frame away from the hand-over shows only its own."""
+    moved = {k: np.array(v, np.float32) for k, v in source.columns.items()}
+    moved["x"] += 0.8
+    moved["f_dc_2"] = np.clip(moved["f_dc_2"] + 0.4, 0, 1)
+    other = Scene(columns=moved, cameras=CAMERAS)
+    per = 10
+    merged, report = sg.merge_segments([source, other], [per, per], leak=2)
+    rows = fidelity(merged, [source, other], report, width=SIZE[0])
+    far = [r["psnr"] for r in rows if abs(r["frame"] - (per - 0.5)) > 3]
+    assert min(far) >= 30, far
+    # Placed naively, each segment's wide splats would show in the other's frames.
+    naive = Scene(columns={k: np.concatenate([sg.place(s.columns, p.start, p.end)[k] for s, p in
+                                              zip([source, other], report.placements)]).astype(np.float32)
+                           for k in COLUMNS}, cameras=CAMERAS)
+    bad = fidelity(naive, [source, other], report, width=SIZE[0])
+    assert max(r["psnr"] for r in bad) < 25
+
+
+def test_pieces_of_an_opaque_background_splat_composite_near_its_opacity():
+    per = 50
+    x = sg.windows(per, 5, 2, True, True)
+    places = sg.placements([per, per, per], leak=2)
+    p = places[1]
+    cols = {name: np.zeros(1) for name in COLUMNS}
+    cols.update(rot_0=np.ones(1), trbf_scale=np.array([np.inf]), opacity=np.array([viewer.logit(0.95)]),
+                trbf_center=np.array([0.5]))
+    pieces = sg._pieces(cols, np.array([0]), p, 5, 2, (True, True))
+    assert len(pieces["x"]) == len(x[0])
+    own = [p.start + j * (p.end - p.start) / (per - 1) for j in range(per)]
+    comp = np.array([1 - np.prod(1 - viewer.opacity(pieces) * viewer.temporal_opacity(pieces, t)) for t in own])
+    # One splat's copies composite to its opacity only roughly (a Gaussian window is round, not
+    # flat: measured 0.52..0.99 for 0.95 here); images gain from neighbouring splats and the
+    # neighbour's hand-over (specs/segments.md).
+    assert comp.min() > 0.5 and np.median(np.abs(comp - 0.95)) < 0.1
+    for t in (places[0].end - 3 / (3 * per - 1), places[2].start + 3 / (3 * per - 1)):
+        assert not viewer.visible(pieces, t).any()
+
+
+def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
+    per = 8
+    a, b = halves(source, per)
+    io.write(a, tmp_path / "a.ply")
+    io.write(b, tmp_path / "b.ply")
+    out = tmp_path / "clip.splatv"
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", out, "--segments", "--durations", f"{per},{per}",
+            "--json", "--check-every", "3")
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    assert [f["frame"] for f in data["frames"]] == list(range(0, 2 * per, 3))
+    assert data["splats_out"] <= 2 * data["splats_in"] and data["output"]["splats"] == data["splats_out"]
+    assert set(data["fidelity"]) == {"frames", "median_psnr", "min_psnr", "below_40", "below_30"}
+    assert io.read(out).count == data["splats_out"]
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
+    assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations", "5")
+    assert (r.exit_code, r.stderr) == (2, "Error: --durations gives 1 value(s) for 2 segment(s)\n")
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")
+    assert r.exit_code == 2 and "apply to --segments only" in r.stderr
+    assert not (tmp_path / "x.splatv").exists()

@@ -1,0 +1,203 @@
+"""Frame sequences -> 4D: fits proven by rendering (float reference path) against the source scene."""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from splatconv import io, viewer
+from splatconv.cli import main
+from splatconv.model import MOTION, OMEGA, STATIC_TRBF_CENTER, STATIC_TRBF_SCALE, Scene
+from splatconv.ops import sequence
+from splatconv.render.diff import compare
+from splatconv.render.frames import render_scene
+from splatconv.clips import frame_paths, natural_key
+
+ROOT = Path(__file__).resolve().parent.parent
+SAMPLE = ROOT / "sample_data/dancers.ply"
+CAMERAS = json.loads((ROOT / "sample_data/cameras.json").read_text())
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def snapshot(cols: dict, t: float) -> Scene:
+    """What the viewer shows of a 4D scene at ``t`` as a static frame (unnormalised rotation kept)."""
+    out = dict(cols)
+    p = viewer.position_at(cols, t)
+    q = viewer.rotation_at(cols, t, normalize=False)
+    a = viewer.opacity(cols) * viewer.temporal_opacity(cols, t)
+    for i, name in enumerate("xyz"):
+        out[name] = p[:, i].astype(np.float32)
+    for i in range(4):
+        out[f"rot_{i}"] = q[:, i].astype(np.float32)
+    with np.errstate(divide="ignore"):
+        out["opacity"] = viewer.logit(a).astype(np.float32)
+    n = len(a)
+    for name in MOTION + OMEGA:
+        out[name] = np.zeros(n, np.float32)
+    out["trbf_center"] = np.full(n, STATIC_TRBF_CENTER, np.float32)
+    out["trbf_scale"] = np.full(n, STATIC_TRBF_SCALE, np.float32)
+    return Scene(columns=out)
+
+
+def draw(scenes, times, size=(320, 240)):
+    """Float-reference frames of each scene at each time from camera 0: an array per scene."""
+    return [render_scene(s, CAMERAS[0], times, size=size) for s in scenes]
+
+
+def write_frames(directory: Path, scenes, stem="frame_") -> list:
+    directory.mkdir(exist_ok=True)
+    paths = []
+    for k, s in enumerate(scenes):
+        p = directory / f"{stem}{k}.ply"
+        io.write(s, p)
+        paths.append(p)
+    return paths
+
+
+def test_natural_order_directories_globs_and_lists(tmp_path):
+    names = ["f_10.ply", "f_2.ply", "f_1.ply", "notes.txt"]
+    for n in names:
+        (tmp_path / n).write_bytes(b"")
+    by_dir = [Path(p).name for p in frame_paths([tmp_path])]
+    assert by_dir == ["f_1.ply", "f_2.ply", "f_10.ply"]
+    assert [Path(p).name for p in frame_paths([str(tmp_path / "f_*.ply")])] == by_dir
+    assert [Path(p).name for p in frame_paths([tmp_path / "f_10.ply", tmp_path / "f_2.ply"])] == ["f_2.ply", "f_10.ply"]
+    assert sorted(["a12", "a3", "a100"], key=natural_key) == ["a3", "a12", "a100"]
+
+
+def test_sampled_4d_scene_fits_back_and_renders_the_same_at_and_between_frames(tmp_path):
+    source = io.read(SAMPLE)
+    times = np.linspace(0, 1, 16)
+    paths = write_frames(tmp_path / "frames", [snapshot(source.columns, t) for t in times])
+    out = tmp_path / "clip.ply"
+    r = run("convert", str(tmp_path / "frames" / "frame_*.ply"), out)
+    assert r.exit_code == 0, r.output
+    assert "the same 5,000 splats in each: motion fitted" in r.stdout
+    fitted = io.read(out)
+    assert fitted.count == source.count and len(paths) == 16
+    check = [0.0, times[5], 0.5 * (times[5] + times[6]), 0.37, times[11], 0.5 * (times[14] + times[15]), 1.0]
+    a, b = draw([source, fitted], check)
+    for t, ia, ib in zip(check, a, b):
+        psnr = compare(ia, ib).psnr
+        assert psnr >= 40, (t, psnr)
+        assert ia[..., :3].max() > 0  # something is drawn
+
+
+def test_fit_is_exact_for_a_lite_scene_with_unit_or_flipped_quaternions():
+    rng = np.random.default_rng(4)
+    cols = {k: np.asarray(v) for k, v in io.read(SAMPLE).columns.items()}
+    times = np.linspace(0, 1, 9)
+
+    def frame(k):
+        s = snapshot(cols, times[k])
+        c = dict(s.columns)
+        q = viewer.rotation_at(cols, times[k])  # unit, with random signs
+        sign = rng.choice([-1.0, 1.0], size=len(q))[:, None]
+        for i in range(4):
+            c[f"rot_{i}"] = (q[:, i] * sign[:, 0]).astype(np.float32)
+        return Scene(columns=c)
+
+    scene, report = sequence.fit_sequence(frame, len(times))
+    assert report.same_splats and report.split_splats == 0
+    assert report.position_error["max"] < 1e-5
+    assert report.rotation_error_deg["max"] < 0.01
+    assert report.opacity_error["p99"] < 1e-3
+    for t in (0.1, 0.45, 0.93):  # between frames too
+        assert np.abs(viewer.position_at(scene.columns, t) - viewer.position_at(cols, t)).max() < 1e-4
+
+
+def test_different_splats_per_frame_show_each_frame_exactly_at_its_time(tmp_path):
+    source = io.read(SAMPLE)
+    rng = np.random.default_rng(2)
+    times = [0.0, 0.3, 0.45, 1.0]  # uneven: the cut follows the nearer neighbour
+    frames = []
+    for t in times:
+        keep = np.sort(rng.choice(source.count, size=int(rng.integers(2000, 4000)), replace=False))
+        frames.append(snapshot({k: np.asarray(v)[keep] for k, v in source.columns.items()}, t))
+    write_frames(tmp_path / "f", frames)
+    out = tmp_path / "flip.ply"
+    r = run("convert", tmp_path / "f", out, "--frame-times", ",".join(map(str, times)))
+    assert r.exit_code == 0, r.output
+    assert "different splats per frame" in r.stdout
+    flip = io.read(out)
+    assert flip.count == sum(f.count for f in frames)
+    images = draw([flip, *frames], times)
+    for k, t in enumerate(times):
+        assert compare(images[0][k], images[k + 1][k]).psnr >= 60, t
+    # Before the neighbouring frame's time each frame is already cut (the 0.02 cutoff).
+    c = flip.columns
+    for k, t in enumerate(times):
+        rows = np.isclose(c["trbf_center"], t)
+        for other in times:
+            if other != t:
+                assert not viewer.visible({n: v[rows] for n, v in c.items()}, other).any()
+
+
+def test_motion_one_cubic_cannot_follow_is_split_into_pieces_that_composite_to_the_opacity():
+    n = 200
+    times = np.linspace(0, 1, 40)
+    base = {k: np.asarray(v)[:n] for k, v in io.read(SAMPLE).columns.items()}
+    alpha = 0.9
+
+    def frame(k):
+        s = snapshot(base, times[k])
+        c = dict(s.columns)
+        ang = 2 * np.pi * 1.25 * times[k] + np.arange(n)
+        c["x"], c["y"] = (2 * np.cos(ang)).astype(np.float32), (2 * np.sin(ang)).astype(np.float32)
+        c["opacity"] = np.full(n, viewer.logit(alpha), np.float32)
+        return Scene(columns=c)
+
+    scene, report = sequence.fit_sequence(frame, len(times), max_error=0.01)
+    assert report.split_splats == n
+    assert report.pieces_added == scene.count - n > 0
+    assert report.position_error["max"] <= 0.01
+    # The pieces of one splat: composited, their opacity stays near the splat's at and between frames.
+    c = scene.columns
+    ang0 = 2 * np.pi * 1.25 * times + 0
+    mine = np.isclose(c["f_dc_0"], base["f_dc_0"][0]) & np.isclose(c["f_dc_1"], base["f_dc_1"][0])
+    part = {k: v[mine] for k, v in c.items()}
+    for t in np.linspace(0, 1, 81):
+        a = viewer.opacity(part) * viewer.temporal_opacity(part, t)
+        assert abs(1 - np.prod(1 - a) - alpha) < 0.05, t
+    at = [viewer.position_at(part, t)[np.argmax(viewer.temporal_opacity(part, t))] for t in times]
+    err = np.hypot(np.array(at)[:, 0] - 2 * np.cos(ang0), np.array(at)[:, 1] - 2 * np.sin(ang0))
+    assert err.max() <= 0.01
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--frame-times", "0,1"], "Error: --frame-times gives 2 time(s) for 3 frame(s)\n"),
+    (["--frame-times", "0,0.5,0.5"], "Error: --frame-times must increase strictly\n"),
+    (["--same-splats", "yes"], "Error: --same-splats yes, but the frames hold different counts (10 to 12 splats)\n"),
+])
+def test_sequence_usage_errors(tmp_path, args, message):
+    cols = io.read(SAMPLE).columns
+    write_frames(tmp_path / "f", [snapshot({k: np.asarray(v)[:n] for k, v in cols.items()}, 0.5) for n in (10, 12, 11)])
+    out = tmp_path / "o.splatv"
+    r = run("convert", tmp_path / "f", out, *args)
+    assert (r.exit_code, r.stderr) == (2, message)
+    assert not out.exists()
+
+
+def test_sequence_options_need_a_sequence_and_missing_frames_are_clear(tmp_path, lite_ply):
+    r = run("convert", lite_ply, tmp_path / "o.splatv", "--max-error", "0.1")
+    assert (r.exit_code, r.stderr) == (2, "Error: --frame-times, --same-splats and --max-error apply to frame "
+                                          "sequences only\n")
+    r = run("convert", str(tmp_path / "none_*.ply"), tmp_path / "o.splatv")
+    assert (r.exit_code, r.stderr) == (2, f"Error: {tmp_path / 'none_*.ply'}: no files match\n")
+    assert not (tmp_path / "o.splatv").exists()
+
+
+def test_frame_windows_cut_before_neighbours():
+    t = np.array([0.0, 0.1, 0.5, 0.55, 1.0])
+    s = np.exp(sequence.frame_windows(t))
+    gaps = np.minimum(np.r_[np.inf, np.diff(t)], np.r_[np.diff(t), np.inf])
+    assert (gaps > viewer.VISIBLE_RADIUS * s).all()
+    assert math.isclose(sequence.frame_windows(np.array([0.3]))[0], float(STATIC_TRBF_SCALE))
