@@ -19,6 +19,7 @@ from click.testing import CliRunner
 
 import splatconv
 from splatconv.cli import main
+from splatconv.formats.splatv_layout import COUNT_KEY
 from splatconv.transport import plain_input
 from splatconv.web.page import SHADERS, SceneRef, build_page
 from splatconv.web.server import HOST, ViewServer
@@ -241,6 +242,8 @@ def test_specs_player_md_states_what_the_code_does(sample):
     assert "`GET` and `HEAD` for exactly `/`,\n`/index.html` and `/scene/I.splatv`" in spec
     for name in SHADERS:
         assert name in spec
+    # The page reads the splat count under the writer's key.
+    assert f"const count = seg.header.{COUNT_KEY};" in player
 
 
 def test_without_a_display_view_does_not_start_a_text_browser(sample):

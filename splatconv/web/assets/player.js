@@ -711,7 +711,12 @@
     const where = locate(state.time);
     const seg = state.segments[where.index];
     const parts = [];
-    if (seg && seg.header) parts.push(`${seg.total.toLocaleString()} splat slots`);
+    if (seg && seg.header) {
+      // splatconv's writer stores the count (COUNT_KEY in formats/splatv_layout.py); others only the texture size.
+      const count = seg.header.count;
+      parts.push(Number.isInteger(count) && count >= 0 && count <= seg.total
+        ? `${count.toLocaleString()} splats` : `${seg.total.toLocaleString()} splat slots`);
+    }
     if (state.segments.length > 1) parts.push(`segment ${where.index + 1} of ${state.segments.length}`);
     parts.push(`${state.frameMs.toFixed(1)} ms/frame`);
     if (state.sortMs !== null) parts.push(`sort ${state.sortMs.toFixed(1)} ms`);
