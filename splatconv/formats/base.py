@@ -43,6 +43,17 @@ class WriteReport:
     clamped: dict = field(default_factory=dict)
     nan_bytes: dict = field(default_factory=dict)
 
+    def byte_notes(self) -> list:
+        """Notes for the values clamped to a byte and the NaNs written as 0."""
+        notes = [f"{key}: {counted(count)} outside [0, 1] clamped" for key, count in self.clamped.items() if count]
+        return notes + [f"{key}: {counted(count, 'NaN value')} written as 0"
+                        for key, count in self.nan_bytes.items() if count]
+
+
+def counted(count: int, noun: str = "value") -> str:
+    """``count`` with ``noun``, singular or plural: ``"1 value"``, ``"2,000 values"``."""
+    return f"{count:,} {noun}" + ("" if count == 1 else "s")
+
 
 #: Smallest temporal opacity over the viewer's clip at which a static format
 #: may drop a splat's temporal basis: the alpha byte moves by at most half a

@@ -272,13 +272,7 @@ def _notes(report: WriteReport, changed: dict, n: int) -> list:
                      "(drawn unrotated)")
     if changed["scale"]:
         notes.append(f"scale: {changed['scale']:,} values past the float32 range written as infinity")
-    for key, count in report.clamped.items():
-        if count:
-            notes.append(f"{key}: {count:,} values outside [0, 1] clamped")
-    for key, count in report.nan_bytes.items():
-        if count:
-            notes.append(f"{key}: {count:,} NaN values written as 0")
-    return notes
+    return notes + report.byte_notes()
 
 
 def info_fields(scene: Scene) -> dict:

@@ -21,7 +21,7 @@ from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
 from ..progress import SILENT
 from . import splatv_engine as engine
-from .base import WriteReport
+from .base import WriteReport, counted
 from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE, _sigmoid255,
                             COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
                             MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXWIDTH,
@@ -118,25 +118,15 @@ def encode(scene: Scene, *, compat: str | None = None, sort: str | None = None):
     return records, report
 
 
-def _values(count: int, noun: str = "value") -> str:
-    return f"{count:,} {noun}" + ("" if count == 1 else "s")
-
-
 def _write_notes(report: WriteReport, compat: bool) -> list:
     notes = []
     for name, c in report.half.items():
         if c.overflow:
             what = "became infinity (splaTV's converter)" if compat else "saturated to +-65504"
-            notes.append(f"{name}: {_values(c.overflow)} past the half-float range {what}")
+            notes.append(f"{name}: {counted(c.overflow)} past the half-float range {what}")
         if c.underflow:
-            notes.append(f"{name}: {_values(c.underflow, 'nonzero value')} became zero")
-    for key, count in report.clamped.items():
-        if count:
-            notes.append(f"{key}: {_values(count)} outside [0, 1] clamped")
-    for key, count in report.nan_bytes.items():
-        if count:
-            notes.append(f"{key}: {_values(count, 'NaN value')} written as 0")
-    return notes
+            notes.append(f"{name}: {counted(c.underflow, 'nonzero value')} became zero")
+    return notes + report.byte_notes()
 
 
 # --------------------------------------------------------------------------

@@ -153,6 +153,22 @@ class Outcome:
         return out
 
 
+def _request(min_psnr, times, default_times, cameras, size) -> tuple:
+    """The checked threshold, times, camera pick and image size of a comparison."""
+    size = cam.parse_size(size) if isinstance(size, str) else size
+    return check_min_psnr(min_psnr), _times(times, default_times), parse_cameras(cameras), size
+
+
+def _load_pair(paths: tuple, color: str, progress: Progress) -> list:
+    """Both files of a comparison, loaded for drawing, with a "reading" stage."""
+    loaded = []
+    with progress.stage("reading", 2, "file") as advance:
+        for path in paths:
+            loaded.append(load(path, color=color))
+            advance()
+    return loaded
+
+
 def verify(source_path, converted_path, *, times=None, cameras: str | None = None, size=None,
            min_psnr: float = DEFAULT_MIN_PSNR, tolerance: int = imgdiff.TOLERANCE, color: str = "auto",
            report_dir=None, force: bool = False, progress: Progress = SILENT) -> Outcome:
@@ -181,16 +197,9 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         drifted past what quantization explains. No image is kept: memory does
         not grow with the number of frames.
     """
-    min_psnr = check_min_psnr(min_psnr)
-    times = _times(times, DEFAULT_TIMES)
-    picked = parse_cameras(cameras)
-    size = cam.parse_size(size) if isinstance(size, str) else size
+    min_psnr, times, picked, size = _request(min_psnr, times, DEFAULT_TIMES, cameras, size)
     paths = os.fspath(source_path), os.fspath(converted_path)
-    with progress.stage("reading", 2, "file") as advance:
-        source = load(paths[0], color=color)
-        advance()
-        converted = load(paths[1], color=color)
-        advance()
+    source, converted = _load_pair(paths, color, progress)
     with progress.stage("checking attributes", 2, "step") as advance:
         order = align(source.scene, converted.scene, *paths)
         advance()
@@ -241,16 +250,9 @@ def diff_scenes(path_a, path_b, *, times=None, cameras: str | None = None, size=
     ``times`` (default :data:`DIFF_TIMES`) from ``cameras`` (default camera 0).
     ``on_frame(frame, image_a, image_b)`` sees each pair as it is drawn.
     """
-    min_psnr = check_min_psnr(min_psnr)
-    times = _times(times, DIFF_TIMES)
-    picked = parse_cameras(cameras)
-    size = cam.parse_size(size) if isinstance(size, str) else size
+    min_psnr, times, picked, size = _request(min_psnr, times, DIFF_TIMES, cameras, size)
     paths = os.fspath(path_a), os.fspath(path_b)
-    with progress.stage("reading", 2, "file") as advance:
-        a = load(paths[0], color=color)
-        advance()
-        b = load(paths[1], color=color)
-        advance()
+    a, b = _load_pair(paths, color, progress)
     available = cameras_of(a, b)
     views = frame_views(available, pick_cameras(picked, len(available), DIFF_CAMERAS), size, VERIFY_MAX_WIDTH)
     outcome = Outcome("diff", paths, min_psnr)
