@@ -126,3 +126,20 @@ def test_image_diff_example(monkeypatch, tmp_path):
     result = CliRunner().invoke(main, ["diff", "a.png", "b.png"])
     assert result.exit_code == 0
     assert result.stdout == example
+
+
+def test_commands_summary_names_every_command_and_only_real_options():
+    """The README's command summary lists each command, and every option it shows exists."""
+    block = re.search(r"## Commands\n\n```\n(.*?)```", README, re.S).group(1)
+    seen = set()
+    command = None
+    for line in block.splitlines():
+        words = line.split()
+        if words and words[0] == "splatconv":
+            command = next((w for w in words[1:] if not w.startswith("-") and w in main.commands), None)
+            seen.add(command)
+        options = set(re.findall(r"(?<![\w-])(--?[a-z][a-z-]*)", line))
+        params = main.commands[command].params + main.params if command else main.params
+        known = {o for p in params for o in p.opts + p.secondary_opts}
+        assert options <= known, f"{line.strip()}: not options of {command}: {sorted(options - known)}"
+    assert seen - {None} == set(main.commands), sorted(set(main.commands) - seen)
