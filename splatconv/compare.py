@@ -14,6 +14,7 @@ import numpy as np
 from . import packing, viewer
 from .errors import UnsupportedError
 from .model import GROUPS, Scene
+from .wording import plural
 
 HALF_MAX = packing.HALF_MAX
 #: One half-float ulp relative to the value (10 mantissa bits), the largest error
@@ -74,7 +75,7 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     """
     n, m = source.count, converted.count
     if n != m:
-        raise UnsupportedError(f"{source_name} has {n:,} splats but {converted_name} has {m:,}")
+        raise UnsupportedError(f"{source_name} has {plural(n, 'splat')} but {converted_name} has {m:,}")
     a, b = _position_key(source.columns), _position_key(converted.columns)
     key = viewer.importance(source.columns)
     with np.errstate(invalid="ignore", over="ignore"):

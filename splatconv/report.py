@@ -5,16 +5,12 @@ from __future__ import annotations
 import json
 import textwrap
 
+from .wording import plural
+
 
 def to_json(data) -> str:
     """Stable JSON: fixed key order as built, two-space indent, no NaN constants."""
     return json.dumps(data, indent=2, allow_nan=False)
-
-
-def plural(count: int, noun: str, nouns: str | None = None) -> str:
-    """``"1 splat"``, ``"2 splats"``, ``"1,000 splats"``: the count with thousands separators and the noun
-    agreeing with it (``nouns``: an irregular plural)."""
-    return f"{count:,} {noun if count == 1 else nouns or noun + 's'}"
 
 
 def _fmt_range(r) -> str:
@@ -89,11 +85,6 @@ def _psnr(v) -> str:
     return "inf" if v is None else f"{v:.2f}"
 
 
-def _count(n: int, word: str) -> str:
-    """``1 frame``, ``2 frames``, ``3,000 values``."""
-    return f"{n:,} {word}{'' if n == 1 else 's'}"
-
-
 def _frames_footnote(frames: list) -> str:
     why = f"(errors out of 255; pixels off: a channel off by more than {frames[0]['tolerance']}"
     if any(f["identical"] for f in frames):
@@ -121,7 +112,7 @@ def attributes_text(data: dict) -> str:
     lines.append("(errors between values finite on both sides, in the viewer's units)")
     for name, g in data["attributes"].items():
         if g["nan_stored"]:
-            lines.append(f"{name}: {_count(g['nan_stored'], 'NaN value')} stored as numbers "
+            lines.append(f"{name}: {plural(g['nan_stored'], 'NaN value')} stored as numbers "
                          f"(a byte cannot hold NaN)")
     return "\n".join(lines)
 
@@ -129,7 +120,7 @@ def attributes_text(data: dict) -> str:
 def _drift_text(name: str, g: dict) -> str:
     """What drifted in one attribute: values made infinite, non-finite values changed, the rest."""
     parts = []
-    of = f"of {_count(g['values'], 'value')}"
+    of = f"of {plural(g['values'], 'value')}"
     if g["became_infinite"]:
         parts.append(f"{g['became_infinite']:,} {of} became infinite (finite in the source)")
     if g["nonfinite_changed"]:
@@ -152,12 +143,12 @@ def verdict_text(data: dict) -> str:
             lines.append(_drift_text(name, g))
     if bad_frames:
         worst = ", ".join(f"t={f['time']:g} camera {f['camera']} ({f['psnr']:.2f} dB)" for f in bad_frames[:3])
-        lines.append(f"FAIL: {len(bad_frames):,} of {_count(len(data['frames']), 'frame')} below "
+        lines.append(f"FAIL: {len(bad_frames):,} of {plural(len(data['frames']), 'frame')} below "
                      f"{data['min_psnr']:g} dB; worst: {worst}")
     if not lines:
         w = data["worst"]
         worst = "" if w is None else f"; worst {_psnr(w['psnr'])} dB at t={w['time']:g} camera {w['camera']}"
-        lines.append(f"PASS: {_count(len(data['frames']), 'frame')} at or above {data['min_psnr']:g} dB{worst}")
+        lines.append(f"PASS: {plural(len(data['frames']), 'frame')} at or above {data['min_psnr']:g} dB{worst}")
     return "\n".join(lines)
 
 
@@ -339,14 +330,14 @@ def sequence_text(data: dict) -> str:
     span = f"t {times[0]:g} .. {times[-1]:g}" if times else ""
     if not data["same_splats"]:
         per = data["splats_per_frame"]
-        return (f"{n} frames ({span}), different splats per frame: {sum(per):,} splats, each frame shown "
+        return (f"{n} frames ({span}), different splats per frame: {plural(sum(per), 'splat')}, each frame shown "
                 "around its own time")
-    lines = [f"{n} frames ({span}), the same {data['splats_per_frame'][0]:,} splats in each: motion fitted"]
+    lines = [f"{n} frames ({span}), the same {plural(data['splats_per_frame'][0], 'splat')} in each: motion fitted"]
     lines.append(f"  position error ({data['max_error']:.3g} allowed): {_dist(data['position_error'], '{:.3g}')}")
     lines.append(f"  rotation error (degrees):  {_dist(data['rotation_error_deg'], '{:.3g}')}")
     lines.append(f"  opacity error:             {_dist(data['opacity_error'], '{:.3g}')}")
     if data["split_splats"]:
-        lines.append(f"  split into pieces: {data['split_splats']:,} splats, {data['pieces_added']:+,} splats")
+        lines.append(f"  split into pieces: {plural(data['split_splats'], 'splat')}, {data['pieces_added']:+,} splats")
     return "\n".join(lines)
 
 
@@ -356,14 +347,14 @@ def _db(v) -> str:
 
 def segments_text(data: dict) -> str:
     """``merge --segments``'s report (:meth:`SegmentReport.as_dict` + frames + fidelity) as text."""
-    lines = [f"{len(data['segments'])} segments on one timeline: {data['splats_in']:,} splats -> "
+    lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
              f"{data['splats_out']:,} ({data['ratio']:.2f}x; budget {data['budget']:g}x), "
-             f"long-lived splats fade over {data['leak_frames']} frame(s) of the neighbours"]
+             f"long-lived splats fade over {plural(data['leak_frames'], 'frame')} of the neighbours"]
     for i, s in enumerate(data["segments"]):
         given = sorted(s["pieces_per_long_lived"].items(), key=lambda kv: int(kv[0]))
         pieces = ", ".join(f"{n:,} x {k}" for k, n in given)
         lines.append(f"  segment {i}: frames {s['first_frame']}..{s['first_frame'] + s['frames'] - 1} "
-                     f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {s['splats_out']:,} splats, "
+                     f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {plural(s['splats_out'], 'splat')}, "
                      f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else ""))
     frames = data.get("frames") or []
     if frames:
@@ -372,9 +363,9 @@ def segments_text(data: dict) -> str:
             lines.append(f"{f['frame']:5d}  {f['time']:.5f}  {f['segment']:7d}  {f['local_time']:.4f}  "
                          f"{_db(f['psnr'])}")
         s = data["fidelity"]
-        lines.append(f"fidelity over {s['frames']} frame(s): median {_db(s['median_psnr'])}, "
+        lines.append(f"fidelity over {plural(s['frames'], 'frame')}: median {_db(s['median_psnr'])}, "
                      f"min {_db(s['min_psnr'])}; {s['below_40']} below 40 dB, {s['below_30']} below 30 dB")
     out = data.get("output")
     if out:
-        lines.append(f"wrote {out['path']}: {out['splats']:,} splats")
+        lines.append(f"wrote {out['path']}: {plural(out['splats'], 'splat')}")
     return "\n".join(lines)

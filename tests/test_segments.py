@@ -163,7 +163,7 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations", "5")
-    assert (r.exit_code, r.stderr) == (2, "Error: --durations gives 1 value(s) for 2 segment(s)\n")
+    assert (r.exit_code, r.stderr) == (2, "Error: --durations gives 1 value for 2 segments\n")
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")
     assert r.exit_code == 2 and "apply to --segments only" in r.stderr
     assert not (tmp_path / "x.splatv").exists()

@@ -173,7 +173,7 @@ def test_motion_one_cubic_cannot_follow_is_split_into_pieces_that_composite_to_t
 
 
 @pytest.mark.parametrize("args, message", [
-    (["--frame-times", "0,1"], "Error: --frame-times gives 2 time(s) for 3 frame(s)\n"),
+    (["--frame-times", "0,1"], "Error: --frame-times gives 2 times for 3 frames\n"),
     (["--frame-times", "0,0.5,0.5"], "Error: --frame-times must increase strictly\n"),
     (["--same-splats", "yes"], "Error: --same-splats yes, but the frames hold different counts (10 to 12 splats)\n"),
 ])

@@ -184,7 +184,7 @@ def test_nonfinite_scales_and_positions(tmp_path):
     cols["scale_0"][1] = np.inf
     cols["scale_1"][2] = 200.0  # exp overflows float32
     report = io.write(Scene(columns=cols, variant=model.VARIANT_3DGS), tmp_path / "f.splat", sort="none")
-    assert "scale: 1 values past the float32 range written as infinity" in report.notes
+    assert "scale: 1 value past the float32 range written as infinity" in report.notes
     back = io.read(tmp_path / "f.splat")
     assert np.isnan(back.columns["x"][0]) and np.isinf(back.columns["scale_0"][1])
 

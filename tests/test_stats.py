@@ -724,3 +724,24 @@ def test_progress_stages_cover_the_work(tmp_path, lite_ply):
         for label, total, unit, done in recorder.stages:
             assert done == total and unit == ("splat" if label in ("comparing", "reading values") else "byte")
         assert recorder.stages[-1][1] == 3000
+
+
+def test_one_splat_reads_as_one_splat_in_every_command(tmp_path):
+    """Notes and summaries agree with a count of one: convert with edits, bake, merge."""
+    cols = lite_columns_with_normals(random_columns(2, 5))
+    cols["trbf_scale"][:] = np.inf  # visible at every time
+    cols["opacity"][:] = 5.0
+    cols["x"][1] = np.nan  # the one drop-nonfinite removes
+    src = tmp_path / "two.ply"
+    write_ply(src, cols)
+    outputs = []
+    for args in (("convert", src, tmp_path / "one.splatv", "--drop-nonfinite", "--rotate", "y:90"),
+                 ("bake", tmp_path / "one.splatv", tmp_path / "one.ply", "--time", "0.5"),
+                 ("merge", tmp_path / "one.ply", tmp_path / "one.splatv", tmp_path / "both.splatv"),
+                 ("convert", tmp_path / "one.splatv", tmp_path / "trim.splatv", "--trim", "0.2,0.4")):
+        result = run(*args)
+        outputs.append(result.stdout + result.stderr)
+    text = "\n".join(outputs)
+    assert "removed 1 of 2 splats" in text and "wrote " in text
+    assert "applied to 1 splat" in text and ": 1 splat," in text, text
+    assert not re.search(r"\b1 (splats|values|frames|cameras)\b|\(s\)", text), text

@@ -212,7 +212,7 @@ def test_convert_html_refusals(sample, tmp_path):
 
 
 @pytest.mark.parametrize("durations, message", [
-    ("1", "--durations gives 1 value(s) for 2 segment(s)"),
+    ("1", "--durations gives 1 value for 2 segments"),
     ("1,x", "--durations: expected comma-separated numbers, got '1,x'"),
     ("1,0", "--durations: every duration must be a positive finite number"),
     ("1,nan", "--durations: every duration must be a positive finite number"),

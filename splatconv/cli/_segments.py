@@ -8,6 +8,7 @@ from .. import clips
 from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK
 from ..render.fidelity import fidelity_summary
 from ..report import segments_text, to_json
+from ..wording import plural
 from ._base import Failure, notes, progress
 
 
@@ -65,7 +66,7 @@ def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, le
         camera, as_json) -> None:
     """The body of ``merge --segments``."""
     if durations is not None and len(durations) != len(inputs):
-        raise Failure(f"--durations gives {len(durations)} value(s) for {len(inputs)} segment(s)", 2)
+        raise Failure(f"--durations gives {plural(len(durations), 'value')} for {plural(len(inputs), 'segment')}", 2)
     merged, report, written, rows = clips.merge_segment_files(
         inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout, color=color,
         force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet))

@@ -13,6 +13,7 @@ from ..ops import apply_transform, make_transform
 from ..ops import drop_nonfinite as ops_drop_nonfinite
 from ..ops import bake as bake_ops
 from ..ops import merge as merge_ops
+from ..wording import plural
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
                     quiet_option)
 from ._edit import FloatList, Rotation
@@ -102,7 +103,7 @@ def _sort_option():
 
 
 def _wrote(path, report) -> None:
-    click.echo(f"wrote {path}: {report.count:,} splats, {os.path.getsize(path):,} bytes")
+    click.echo(f"wrote {path}: {plural(report.count, 'splat')}, {os.path.getsize(path):,} bytes")
 
 
 @main.command()
@@ -168,7 +169,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
                "a flipbook player would show them too"])
     counts = [r.count for r in reports]
     click.echo(f"wrote {frames} frames to {output_path}: {names[0]} .. {names[-1]} (t = {moments[0]:g} .. "
-               f"{moments[-1]:g}), {min(counts):,} to {max(counts):,} splats a frame")
+               f"{moments[-1]:g}), {min(counts):,} to {plural(max(counts), 'splat')} a frame")
 
 
 def _report_each(frames, names):

@@ -13,6 +13,7 @@ from ..report import info_text, sequence_text, stats_markdown, stats_text, to_js
 from ..stats import describe, stats_report
 from ..transport import DEFAULT_LEVEL
 from ..web.publish import publish
+from ..wording import plural
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, quiet_option)
 from ._edit import edit_options, scene_editor
@@ -58,7 +59,7 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
     notes(report.notes)
     click.echo(sequence_text(fit.as_dict()))
     size = os.path.getsize(output_path)
-    click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
+    click.echo(f"wrote {output_path}: {plural(report.count, 'splat')}, {size:,} bytes")
 
 
 @main.command()
@@ -130,7 +131,7 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     notes(scene.notes)
     notes(report.notes)
     size = os.path.getsize(output_path)
-    click.echo(f"wrote {output_path}: {report.count:,} splats, {size:,} bytes")
+    click.echo(f"wrote {output_path}: {plural(report.count, 'splat')}, {size:,} bytes")
 
 
 @main.command()

@@ -16,6 +16,7 @@ import numpy as np
 from ..errors import UnsupportedError
 from ..model import MOTION, OMEGA
 from ..viewer import TIME_RANGE, temporal_opacity
+from ..wording import plural
 
 
 @dataclass
@@ -45,14 +46,9 @@ class WriteReport:
 
     def byte_notes(self) -> list:
         """Notes for the values clamped to a byte and the NaNs written as 0."""
-        notes = [f"{key}: {counted(count)} outside [0, 1] clamped" for key, count in self.clamped.items() if count]
-        return notes + [f"{key}: {counted(count, 'NaN value')} written as 0"
+        notes = [f"{key}: {plural(count, 'value')} outside [0, 1] clamped" for key, count in self.clamped.items() if count]
+        return notes + [f"{key}: {plural(count, 'NaN value')} written as 0"
                         for key, count in self.nan_bytes.items() if count]
-
-
-def counted(count: int, noun: str = "value") -> str:
-    """``count`` with ``noun``, singular or plural: ``"1 value"``, ``"2,000 values"``."""
-    return f"{count:,} {noun}" + ("" if count == 1 else "s")
 
 
 #: Smallest temporal opacity over the viewer's clip at which a static format
@@ -90,5 +86,5 @@ def refuse_time_varying(columns: dict, what: str) -> None:
     if varying:
         n = len(columns["x"])
         raise UnsupportedError(
-            f"{varying:,} of {n:,} splats move, turn or fade over time and {what} is static; bake one moment "
+            f"{varying:,} of {plural(n, 'splat')} move, turn or fade over time and {what} is static; bake one moment "
             "with `splatconv bake INPUT OUTPUT --time T`")

@@ -35,6 +35,7 @@ from ..model import Scene, constant_column
 from ..packing import F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales
+from ..wording import plural
 from .base import WriteReport, refuse_time_varying
 from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
 from .splatv_layout import MAGIC as SPLATV_MAGIC
@@ -261,17 +262,17 @@ def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
 def _notes(report: WriteReport, changed: dict, n: int) -> list:
     notes = []
     if changed["color"]:
-        notes.append(f"color: {changed['color']:,} of {n:,} splats rounded to 8 bits a channel")
+        notes.append(f"color: {changed['color']:,} of {plural(n, 'splat')} rounded to 8 bits a channel")
     if changed["opacity"]:
-        notes.append(f"opacity: {changed['opacity']:,} of {n:,} splats rounded to 8 bits")
+        notes.append(f"opacity: {changed['opacity']:,} of {plural(n, 'splat')} rounded to 8 bits")
     if changed["rotation"]:
-        notes.append(f"rotation: {changed['rotation']:,} of {n:,} splats normalised and rounded to 8 bits a "
+        notes.append(f"rotation: {changed['rotation']:,} of {plural(n, 'splat')} normalised and rounded to 8 bits a "
                      "component")
     if changed["degenerate"]:
         notes.append(f"rotation: {changed['degenerate']:,} non-finite quaternions written as zero "
                      "(drawn unrotated)")
     if changed["scale"]:
-        notes.append(f"scale: {changed['scale']:,} values past the float32 range written as infinity")
+        notes.append(f"scale: {plural(changed['scale'], 'value')} past the float32 range written as infinity")
     return notes + report.byte_notes()
 
 

@@ -20,8 +20,9 @@ from ..jsonutil import decode as decode_json
 from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
 from ..progress import SILENT
+from ..wording import plural
 from . import splatv_engine as engine
-from .base import WriteReport, counted
+from .base import WriteReport
 from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE, _sigmoid255,
                             COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
                             MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXWIDTH,
@@ -123,9 +124,9 @@ def _write_notes(report: WriteReport, compat: bool) -> list:
     for name, c in report.half.items():
         if c.overflow:
             what = "became infinity (splaTV's converter)" if compat else "saturated to +-65504"
-            notes.append(f"{name}: {counted(c.overflow)} past the half-float range {what}")
+            notes.append(f"{name}: {plural(c.overflow, 'value')} past the half-float range {what}")
         if c.underflow:
-            notes.append(f"{name}: {counted(c.underflow, 'nonzero value')} became zero")
+            notes.append(f"{name}: {plural(c.underflow, 'nonzero value')} became zero")
     return notes + report.byte_notes()
 
 
@@ -285,7 +286,7 @@ def read_records(path: str | os.PathLike):
     count = _splat_count(records, chunk, notes)
     if skipped:
         types = sorted({c['type'] for c in skipped})
-        notes.append(f"skipped {len(skipped)} chunk(s) of other types: "
+        notes.append(f"skipped {plural(len(skipped), 'chunk')} of other types: "
                      + ", ".join(t if len(t) <= 40 else t[:37] + "..." for t in types[:10])
                      + (f" and {len(types) - 10} more" if len(types) > 10 else ""))
     meta = {

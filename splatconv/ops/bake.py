@@ -30,7 +30,9 @@ import numpy as np
 from .. import model, viewer
 from ..errors import UsageError
 from ..model import Scene
+from ..wording import plural
 from .report import OpReport
+
 
 def frame_times(count: int) -> np.ndarray:
     """Times of ``count`` frames spread over the viewer's clip: ``(count,) float64``, k / (count - 1).
@@ -131,12 +133,12 @@ def bake(scene: Scene, time: float) -> tuple[Scene, BakeReport]:
     out["trbf_scale"][:] = model.STATIC_TRBF_SCALE
     counts = {"hidden": int(np.count_nonzero(hidden)), "undefined": int(np.count_nonzero(undefined)),
               "faded": int(np.count_nonzero(kept_temporal < 1.0))}
-    notes = [f"baked at t={t:g}: {m:,} of {n:,} splats visible"]
+    notes = [f"baked at t={t:g}: {m:,} of {plural(n, 'splat')} visible"]
     if counts["hidden"]:
-        notes.append(f"{counts['hidden']:,} splats hidden at t={t:g} (temporal opacity below "
+        notes.append(f"{plural(counts['hidden'], 'splat')} hidden at t={t:g} (temporal opacity below "
                      f"{viewer.TEMPORAL_CUTOFF}) removed")
     if counts["undefined"]:
-        notes.append(f"{counts['undefined']:,} splats with a NaN trbf centre or scale (no defined opacity at "
+        notes.append(f"{plural(counts['undefined'], 'splat')} with a NaN trbf centre or scale (no defined opacity at "
                      "any time) removed")
     baked = Scene(columns=out, cameras=scene.cameras, variant=model.VARIANT_3DGS, meta={"baked_time": t})
     return baked, BakeReport("bake", n, m, notes, counts, time=t)

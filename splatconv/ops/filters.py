@@ -13,6 +13,7 @@ import numpy as np
 from .. import viewer
 from ..errors import UsageError
 from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
+from ..wording import plural
 from ._table import blockwise, derive, gather, keep_rows, run_blocks
 from .report import OpReport
 
@@ -117,10 +118,10 @@ def nonfinite_report(columns: dict, keep: np.ndarray, alive: np.ndarray | None =
     if len(rows):
         report.counts = _nonfinite_counts(columns, rows)
         groups = ", ".join(f"{g} {c:,}" for g, c in report.counts.items())
-        report.notes.append(f"drop-nonfinite: removed {len(rows):,} of {count_in:,} splats with a NaN or infinite "
+        report.notes.append(f"drop-nonfinite: removed {len(rows):,} of {plural(count_in, 'splat')} with a NaN or infinite "
                             f"value ({groups}; a splat may count in several)")
     else:
-        report.notes.append(f"drop-nonfinite: removed 0 of {count_in:,} splats: none has a NaN or an infinity "
+        report.notes.append(f"drop-nonfinite: removed 0 of {plural(count_in, 'splat')}: none has a NaN or an infinity "
                             f"that removes it")
     return report
 
@@ -178,7 +179,7 @@ def opacity_report(keep: np.ndarray, minimum: float, alive: np.ndarray | None = 
     count_in = len(keep) if alive is None else int(alive.sum())
     removed = int((~keep).sum() if alive is None else (alive & ~keep).sum())
     report = OpReport("min-opacity", count_in, count_in - removed)
-    report.notes.append(f"min-opacity: removed {removed:,} of {count_in:,} splats with peak opacity below "
+    report.notes.append(f"min-opacity: removed {removed:,} of {plural(count_in, 'splat')} with peak opacity below "
                         f"{minimum:g}")
     return report
 
@@ -269,7 +270,7 @@ def crop_report(keep: np.ndarray, lo, hi, alive: np.ndarray | None = None) -> Op
     removed = int((~keep).sum() if alive is None else (alive & ~keep).sum())
     report = OpReport("crop", count_in, count_in - removed)
     box = f"({', '.join(f'{v:g}' for v in lo)}) .. ({', '.join(f'{v:g}' for v in hi)})"
-    report.notes.append(f"crop: removed {removed:,} of {count_in:,} splats whose centre at peak opacity lies "
+    report.notes.append(f"crop: removed {removed:,} of {plural(count_in, 'splat')} whose centre at peak opacity lies "
                         f"outside {box}")
     return report
 
@@ -336,10 +337,10 @@ def max_splats_report(count_in: int, count_out: int, limit: int) -> OpReport:
     """The report of :func:`max_splats`."""
     report = OpReport("max-splats", count_in, count_out)
     if count_out < count_in:
-        report.notes.append(f"max-splats: kept the {count_out:,} most important of {count_in:,} splats, "
+        report.notes.append(f"max-splats: kept the {count_out:,} most important of {plural(count_in, 'splat')}, "
                             f"removed {count_in - count_out:,}")
     else:
-        report.notes.append(f"max-splats: {count_in:,} splats are within {limit:,}, none removed")
+        report.notes.append(f"max-splats: {plural(count_in, 'splat')} are within {limit:,}, none removed")
     return report
 
 

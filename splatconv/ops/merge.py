@@ -23,6 +23,7 @@ import numpy as np
 from .. import model
 from ..errors import UsageError
 from ..model import Scene
+from ..wording import plural
 from .report import OpReport
 
 #: How :func:`merge` lays its inputs out in time. ``overlay``: all on the same
@@ -73,7 +74,7 @@ def overlay(scenes: list) -> tuple[Scene, MergeReport]:
     static = all(s.variant == model.VARIANT_3DGS for s in scenes)
     variant = model.VARIANT_3DGS if static else model.VARIANT_LITE
     notes = [f"merged {len(scenes)} scenes on one timeline: " + " + ".join(f"{n:,}" for n in parts)
-             + f" = {total:,} splats"]
+             + f" = {plural(total, 'splat')}"]
     if with_cameras:
         kept = with_cameras[0]
         dropped = [i + 1 for i in with_cameras[1:]]

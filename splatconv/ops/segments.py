@@ -34,6 +34,7 @@ from .. import viewer
 from ..errors import UsageError
 from ..model import COLUMNS, MOTION, OMEGA, POSITION, ROTATION, VARIANT_LITE, Scene, lite_rows
 from ..progress import SILENT
+from ..wording import plural
 from .sequence import _shift_poly
 from .time import remap_columns
 
@@ -430,7 +431,7 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
     if durations is None:
         durations = [DEFAULT_FRAMES] * len(scenes)
     if len(durations) != len(scenes):
-        raise UsageError(f"--durations gives {len(durations)} value(s) for {len(scenes)} segment(s)")
+        raise UsageError(f"--durations gives {plural(len(durations), 'value')} for {plural(len(scenes), 'segment')}")
     if not (budget >= 1.0):
         raise UsageError("the splat budget must be at least 1")
     places = placements(durations, leak)
@@ -476,14 +477,14 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
             out[name][at:at + k] = part[name]
         at += k
     if sum(report.dropped):
-        report.notes.append(f"{sum(report.dropped):,} splat(s) with a NaN temporal centre or scale dropped "
+        report.notes.append(f"{plural(sum(report.dropped), 'splat')} with a NaN temporal centre or scale dropped "
                             "(they have no place in time)")
     if overflow:
         report.notes.append(f"{overflow:,} finite values grew beyond float32 and are now infinite")
     long_total = sum(report.long_lived)
     report.notes.append(
         f"segments: {len(scenes)} on one timeline ({', '.join(str(d) for d in durations)} frames); "
-        f"{long_total:,} long-lived splat(s) split into time-windowed pieces; "
-        f"{report.count_in:,} -> {report.count_out:,} splats ({report.count_out / max(report.count_in, 1):.2f}x)")
+        f"{plural(long_total, 'long-lived splat')} split into time-windowed pieces; "
+        f"{report.count_in:,} -> {plural(report.count_out, 'splat')} ({report.count_out / max(report.count_in, 1):.2f}x)")
     cameras = next((s.cameras for s in scenes if s.cameras), None)
     return Scene(columns=out, cameras=cameras, variant=VARIANT_LITE, meta={}), report

@@ -31,6 +31,7 @@ from .. import viewer
 from ..errors import UsageError
 from ..model import COLOR, COLUMNS, MOTION, OMEGA, POSITION, ROTATION, SCALE, STATIC_TRBF_SCALE, VARIANT_LITE, Scene
 from ..progress import SILENT
+from ..wording import plural
 
 #: Identity modes of ``--same-splats``.
 SAME_SPLATS_MODES = ("auto", "yes", "no")
@@ -107,7 +108,7 @@ def check_times(times, count: int) -> np.ndarray:
         return default_times(count)
     t = np.asarray(times, dtype=np.float64)
     if t.ndim != 1 or len(t) != count:
-        raise UsageError(f"--frame-times gives {t.size} time(s) for {count} frame(s)")
+        raise UsageError(f"--frame-times gives {plural(t.size, 'time')} for {plural(count, 'frame')}")
     if not np.isfinite(t).all():
         raise UsageError("--frame-times must be finite numbers")
     if count > 1 and not (np.diff(t) > 0).all():
@@ -162,7 +163,7 @@ def fit_sequence(read_frame, count: int, *, times=None, same_splats: str = "auto
     same = len(set(counts)) == 1 if same_splats == "auto" else same_splats == "yes"
     if same and len(set(counts)) != 1:
         raise UsageError(f"--same-splats yes, but the frames hold different counts ({min(counts):,} to "
-                         f"{max(counts):,} splats)")
+                         f"{plural(max(counts), 'splat')})")
     report = SequenceReport(frames=count, times=[float(x) for x in t], same_splats=same,
                             splats_per_frame=counts, splats_out=0)
     if same:
@@ -202,7 +203,7 @@ def _stack_frames(read_frame, t, counts, report, progress) -> Scene:
             frame = read_frame(k)
             n = frame.count
             if n != counts[k]:
-                raise UsageError(f"frame {k} changed while being read ({counts[k]:,} then {n:,} splats)")
+                raise UsageError(f"frame {k} changed while being read ({counts[k]:,} then {plural(n, 'splat')})")
             c = frame.columns
             moving += _has_motion(c)
             for name in POSITION + COLOR + ("opacity",) + SCALE + ROTATION:
@@ -214,7 +215,7 @@ def _stack_frames(read_frame, t, counts, report, progress) -> Scene:
             at += n
             advance()
     if moving:
-        report.notes.append(f"{moving} frame(s) carry motion or a temporal window; each frame is taken at its "
+        report.notes.append(f"{plural(moving, 'frame')} carry motion or a temporal window; each frame is taken at its "
                             "rest state (motion, omega and the temporal window replaced)")
     return Scene(columns=out, variant=VARIANT_LITE, meta={"frames": len(t)})
 
@@ -451,7 +452,7 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
             sums.add(k, u[k], state)
             advance()
     if moving:
-        report.notes.append(f"{moving} frame(s) carry motion or a temporal window; each frame is taken at its "
+        report.notes.append(f"{plural(moving, 'frame')} carry motion or a temporal window; each frame is taken at its "
                             "rest state")
     if max_error is None:
         max_error = DEFAULT_MAX_ERROR_SHARE * extent if extent > 0 else 1e-6
@@ -493,7 +494,7 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     keep = sums.seen > 0
     report.dropped = int(n - keep.sum())
     if report.dropped:
-        report.notes.append(f"{report.dropped:,} splat(s) invisible in every frame dropped")
+        report.notes.append(f"{plural(report.dropped, 'splat')} invisible in every frame dropped")
     bad = keep & (errors[0] > max_error)
     pos_err = errors[0].copy()
     pieces = None
@@ -502,7 +503,7 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
         keep &= ~bad
         report.split_splats = int(bad.sum())
         report.pieces_added = added
-        report.notes.append(f"{report.split_splats:,} splat(s) whose motion one cubic cannot follow within "
+        report.notes.append(f"{plural(report.split_splats, 'splat')} whose motion one cubic cannot follow within "
                             f"{max_error:.3g} were split into pieces: {added:+,} splats")
         unmet = int((pos_err[bad] > max_error).sum())
         if unmet:
@@ -521,7 +522,7 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
 def _checked(read_frame, k: int, n: int) -> Scene:
     frame = read_frame(k)
     if frame.count != n:
-        raise UsageError(f"frame {k} holds {frame.count:,} splats, the first {n:,}: not the same splats "
+        raise UsageError(f"frame {k} holds {plural(frame.count, 'splat')}, the first {n:,}: not the same splats "
                          "(use --same-splats no)")
     return frame
 

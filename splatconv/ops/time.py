@@ -22,6 +22,7 @@ import numpy as np
 from .. import viewer
 from ..errors import UsageError
 from ..model import MOTION, OMEGA, TRBF, Scene
+from ..wording import plural
 from ._table import blockwise, copy_rows, derive, run_blocks
 from .report import OpReport
 
@@ -127,7 +128,7 @@ def remap_time(scene: Scene, origin: float, duration: float) -> tuple[Scene, OpR
     origin, duration = _check_map(origin, duration)
     columns, overflow = copy_rows(scene.columns, each=lambda block: _remap_block(block, origin, duration))
     report = OpReport("time-map", scene.count, scene.count)
-    report.notes.append(f"time-map: t' = (t - {origin:g}) / {duration:g} applied to {scene.count:,} splats")
+    report.notes.append(f"time-map: t' = (t - {origin:g}) / {duration:g} applied to {plural(scene.count, 'splat')}")
     report.notes += _overflow_note("time-map", overflow)
     report.counts = {"overflow": overflow}
     return derive(scene, columns, report.notes), report
@@ -172,7 +173,7 @@ def trim_report(count_in: int, kept: int, nan_time: int, t0: float, t1: float, o
     report = OpReport("trim", count_in, kept)
     removed = count_in - kept
     why = f" ({nan_time:,} of them with a NaN trbf centre or scale)" if nan_time else ""
-    report.notes.append(f"trim: removed {removed:,} of {count_in:,} splats not visible in [{t0:g}, {t1:g}]{why}; "
+    report.notes.append(f"trim: removed {removed:,} of {plural(count_in, 'splat')} not visible in [{t0:g}, {t1:g}]{why}; "
                         f"that interval now spans the clip's [0, 1] (times t' = (t - {t0:g}) / {t1 - t0:g}, "
                         f"motion and angular velocity rescaled to match)")
     report.notes += _overflow_note("trim", overflow)

@@ -38,6 +38,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
+from ..wording import plural
 from ._table import copy_rows, derive, run_blocks
 from .report import OpReport
 
@@ -397,7 +398,7 @@ def transform_report(count: int, cameras: int, transform: Transform, grown: int)
     rotates = not np.array_equal(np.asarray(transform.matrix), np.eye(3))
     changed = ["positions"] + (["motion"] if rotates or transform.scale != 1.0 else []) + (
         ["rotations", "omega"] if rotates else []) + (["scales"] if transform.scale != 1.0 else [])
-    report.notes.append(f"transform: p' = R(S p) + T with {transform.describe()} applied to {count:,} splats"
+    report.notes.append(f"transform: p' = R(S p) + T with {transform.describe()} applied to {plural(count, 'splat')}"
                         f"{moved} ({', '.join(changed)})")
     if grown:
         report.notes.append(f"transform: {grown:,} finite values grew beyond float32 and are now infinite")

@@ -23,6 +23,7 @@ from ..io import read as read_scene
 from ..io import read_texture
 from ..model import Scene
 from ..progress import SILENT, Progress
+from ..wording import plural
 from . import camera as cam
 from . import diff as imgdiff
 from .layout import float_attributes, texture_records
@@ -113,10 +114,6 @@ def cameras_of(*sources: Source) -> list:
     return [framing_camera(c["x"], c["y"], c["z"])]
 
 
-def _count(n: int, word: str) -> str:
-    return f"{n:,} {word}{'' if n == 1 else 's'}"
-
-
 def resolve_view(cameras: list, *, camera: int | None = None, view: list | None = None,
                  size: tuple | None = None, fx: float | None = None, fy: float | None = None,
                  path: str | None = None) -> View:
@@ -132,7 +129,7 @@ def resolve_view(cameras: list, *, camera: int | None = None, view: list | None 
     """
     index = 0 if camera is None else camera
     if not 0 <= index < len(cameras):
-        raise UsageError(f"--camera {index}: the file has {_count(len(cameras), 'camera')}, "
+        raise UsageError(f"--camera {index}: the file has {plural(len(cameras), 'camera')}, "
                          f"0..{len(cameras) - 1}", path)
     c = cameras[index]
     if size is None:

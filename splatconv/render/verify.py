@@ -20,6 +20,7 @@ from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
 from ..fsutil import atomic_writer, check_output
 from ..progress import SILENT, Progress
+from ..wording import plural
 from . import camera as cam
 from . import diff as imgdiff
 from .frames import Frame, cameras_of, compare_frames, frame_views, load
@@ -209,7 +210,7 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     indices = pick_cameras(picked, len(available))
     outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=source.scene.count)
     if cameras is None and len(available) > len(indices):
-        outcome.notes.append(f"drew the first {len(indices)} of {len(available):,} cameras "
+        outcome.notes.append(f"drew the first {len(indices)} of {plural(len(available), 'camera')} "
                              f"(--cameras all draws every one)")
     views = frame_views(available, indices, size, VERIFY_MAX_WIDTH)
     on_frame = None

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from importlib import resources
 
 from ..errors import UsageError
+from ..wording import plural
 
 #: The vertex shader is these three files joined, as ``render.preview.vertex_source("splatv")``.
 SHADERS = ("splat_head.glsl", "fetch_splatv.glsl", "splat_main.glsl", "splat.frag")
@@ -53,7 +54,7 @@ def parse_durations(text: str | None, count: int) -> list:
     except ValueError:
         raise UsageError(f"--durations: expected comma-separated numbers, got {text!r}") from None
     if len(values) != count:
-        raise UsageError(f"--durations gives {len(values)} value(s) for {count} segment(s)")
+        raise UsageError(f"--durations gives {plural(len(values), 'value')} for {plural(count, 'segment')}")
     if not all(math.isfinite(v) and v > 0 for v in values):
         raise UsageError("--durations: every duration must be a positive finite number")
     return values
