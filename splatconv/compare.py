@@ -24,18 +24,57 @@ HALF_REL = 2.0**-10
 HALF_ABS = 2.0**-24
 #: One 8-bit step.
 BYTE = 1.0 / 255.0
-#: Groups stored as bytes (the rest of the attributes are halves, positions float32).
-BYTE_GROUPS = ("color", "opacity")
+#: A linear value stored as float32 while the model keeps its logarithm (a .splat's
+#: scales): two float32 roundings, of the value and of its logarithm, relative.
+FLOAT32_REL = 2.0**-16
+#: A quaternion component stored as a byte in steps of this (a .splat's rotation).
+QUATERNION_STEP = 1.0 / 128.0
+F32_MAX = float(np.finfo(np.float32).max)
+
+#: How a format stores an attribute group (each format module's ``STORAGE`` maps every
+#: group to one), and so the error a faithful conversion may bring:
+#:
+#: ``exact``: as the model holds it; ``half``: a half float (one ulp; a value past the
+#: half range may saturate or become the infinity of its sign); ``float32``: see
+#: :data:`FLOAT32_REL` (past the float32 range: infinity); ``byte``: value * 255 as a byte
+#: (one step; NaN cannot be held and is stored as a number); ``unit_quaternion_byte``:
+#: normalised, each component in :data:`QUATERNION_STEP` steps, compared normalised
+#: (the viewer normalises) with two steps of room (rounding, then the length's change);
+#: ``none``: not stored at all (a static format's time and motion): nothing to compare,
+#: the frames drawn at several times check what the viewer shows.
+STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "none")
+#: The viewer's texture (``.splatv``), the default.
+TEXTURE_STORAGE = {"position": "exact", "rotation": "half", "scale": "half", "color": "byte", "opacity": "byte",
+                   "motion": "half", "omega": "half", "trbf": "half"}
 
 
-def quantization_bound(group: str, values: np.ndarray) -> np.ndarray:
-    """Largest error a faithful .splatv conversion may introduce, per value."""
-    if group == "position":
+def quantization_bound(group: str, values: np.ndarray, kind: str | None = None) -> np.ndarray:
+    """Largest error a faithful conversion may introduce, per value, for storage ``kind``.
+
+    ``kind`` defaults to how the viewer's texture stores ``group`` (:data:`TEXTURE_STORAGE`).
+    """
+    kind = kind or TEXTURE_STORAGE[group]
+    if kind == "exact":
         return np.zeros_like(values)
-    if group in BYTE_GROUPS:
+    if kind == "byte":
         return np.full_like(values, BYTE * (1 + 1e-6))
+    if kind == "unit_quaternion_byte":
+        return np.full_like(values, 2 * QUATERNION_STEP * (1 + 1e-6))
+    if kind == "none":
+        return np.full_like(values, np.inf)
     with np.errstate(invalid="ignore"):
+        if kind == "float32":
+            return np.maximum(np.abs(values) * FLOAT32_REL, np.finfo(np.float32).smallest_subnormal)
         return np.maximum(np.abs(values) * HALF_REL, HALF_ABS)
+
+
+def _unit_rows(q: np.ndarray) -> np.ndarray:
+    """Quaternion rows normalised (float64); rows with no direction (zero, NaN, infinite) all NaN."""
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        length = np.sqrt(np.square(q).sum(axis=1, keepdims=True))
+        u = q / length
+    u[~np.isfinite(u).all(axis=1)] = np.nan
+    return u
 
 
 def _position_key(cols: dict) -> np.ndarray:
@@ -111,6 +150,7 @@ class GroupError:
     became_infinite: int = 0  # finite source values stored as infinity (part of unexplained)
     nonfinite_changed: int = 0  # NaN or infinite source values stored as something else (part of unexplained)
     nan_stored: int = 0  # NaN source values stored as numbers by a byte that cannot hold NaN (explained)
+    storage: str = "half"  # how the converted file stores the group (STORAGE_KINDS)
 
     def merge(self, other: "GroupError") -> "GroupError":
         """The errors of both sets of rows together (``other`` another block of the same group)."""
@@ -127,14 +167,14 @@ class GroupError:
                           values=self.values + other.values,
                           became_infinite=self.became_infinite + other.became_infinite,
                           nonfinite_changed=self.nonfinite_changed + other.nonfinite_changed,
-                          nan_stored=self.nan_stored + other.nan_stored)
+                          nan_stored=self.nan_stored + other.nan_stored, storage=self.storage)
 
 
-def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupError:
+def group_errors(source_cols: dict, converted_cols: dict, group: str, kind: str | None = None) -> GroupError:
     """Error statistics of one group over finite pairs; NaN must stay NaN.
 
-    Colour and opacity are stored as bytes, which cannot hold NaN: a NaN there
-    stored as a number is explained (and counted in ``nan_stored``).
+    A byte cannot hold NaN: a NaN there stored as a number is explained (and
+    counted in ``nan_stored``).
 
     Parameters
     ----------
@@ -142,11 +182,14 @@ def group_errors(source_cols: dict, converted_cols: dict, group: str) -> GroupEr
         Model columns, row i of one matching row i of the other.
     group : str
         A key of :data:`splatconv.model.GROUPS`.
+    kind : str, optional
+        How the converted file stores the group (:data:`STORAGE_KINDS`; default the texture's).
     """
-    return value_errors(viewer.group_values(source_cols, group), viewer.group_values(converted_cols, group), group)
+    return value_errors(viewer.group_values(source_cols, group), viewer.group_values(converted_cols, group), group,
+                        kind)
 
 
-def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
+def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str | None = None) -> GroupError:
     """:func:`group_errors` of values already in viewer units.
 
     Parameters
@@ -154,12 +197,17 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
     a, b : (N, k) float64 ndarray
         ``viewer.group_values`` of source and converted rows.
     group : str
+    kind : str, optional
+        How the converted file stores the group (default the texture's).
 
     Notes
     -----
     Differences and ratios are taken only where both values are finite (``where=``
     masks): computing inf - inf and masking it afterwards would warn.
     """
+    kind = kind or TEXTURE_STORAGE[group]
+    if kind == "unit_quaternion_byte":
+        a, b = _unit_rows(a), _unit_rows(b)
     both = np.isfinite(a) & np.isfinite(b)
     err = np.zeros(a.shape, dtype=np.float64)
     with np.errstate(over="ignore"):  # a difference past 1.8e308 is infinite, which is the truth
@@ -168,15 +216,18 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
     rel = np.zeros(a.shape, dtype=np.float64)
     with np.errstate(over="ignore"):  # an error over a float64-subnormal value may pass 1.8e308: inf is the truth
         np.divide(err, np.abs(a), out=rel, where=both & (a != 0))
-    bound = quantization_bound(group, np.where(both, a, 0.0))
-    # Finite values past the half range saturate (or become infinite in splaTV's
-    # converter), keeping their sign; NaN stays NaN. Both are lossy but expected, counted elsewhere.
-    over = False
-    if group != "position":
-        over = np.isfinite(a) & (np.abs(a) > HALF_MAX) & (np.abs(b) >= HALF_MAX) & (np.signbit(a) == np.signbit(b))
+    bound = quantization_bound(group, np.where(both, a, 0.0), kind)
+    # Finite values past a float range saturate (or become infinite), keeping their
+    # sign; NaN stays NaN. Both are lossy but expected, and noted by the writer.
+    over = np.zeros(a.shape, dtype=bool)
+    if kind in ("half", "float32"):
+        top = HALF_MAX if kind == "half" else F32_MAX
+        over = np.isfinite(a) & (np.abs(a) > top) & (np.abs(b) >= top) & (np.signbit(a) == np.signbit(b))
     same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
-    nan_stored = np.isnan(a) & np.isfinite(b) if group in BYTE_GROUPS else np.zeros(a.shape, bool)
+    nan_stored = np.isnan(a) & np.isfinite(b) if kind == "byte" else np.zeros(a.shape, bool)
     bad = ~(both & (err <= bound)) & ~over & ~same_special & ~nan_stored
+    if kind == "none":
+        bad[:] = False
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
     top = float(err.max()) if err.size else 0.0
@@ -186,19 +237,23 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str) -> GroupError:
         rmse = top if math.isinf(top) else top * math.sqrt(float(np.square(err[both] / top).mean()))
     return GroupError(group, top, float(rel.max()) if rel.size else 0.0, rmse, int(bad.sum()), worst, n,
                       values=int(a.size), became_infinite=int((bad & np.isfinite(a) & np.isinf(b)).sum()),
-                      nonfinite_changed=int((bad & ~np.isfinite(a)).sum()), nan_stored=int(nan_stored.sum()))
+                      nonfinite_changed=int((bad & ~np.isfinite(a)).sum()), nan_stored=int(nan_stored.sum()),
+                      storage=kind)
 
 
 #: Rows compared per step: bounds the float64 temporaries of group_errors (a few MB a column).
 _ROWS = 1 << 17
 
 
-def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None) -> dict:
+def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None,
+                   storage: dict | None = None) -> dict:
     """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``.
 
-    Computed :data:`_ROWS` rows at a time and merged, so that memory stays
-    bounded whatever the scene's size.
+    ``storage`` maps each group to how the converted file stores it (a format
+    module's ``STORAGE``; default :data:`TEXTURE_STORAGE`). Computed :data:`_ROWS`
+    rows at a time and merged, so that memory stays bounded whatever the scene's size.
     """
+    storage = storage or TEXTURE_STORAGE
     n = converted.count
     parts = {g: [] for g in GROUPS}
     for start in range(0, max(n, 1), _ROWS):
@@ -207,7 +262,7 @@ def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = N
         src = {k: v[pick] for k, v in source.columns.items()}
         conv = {k: v[rows] for k, v in converted.columns.items()}
         for g in GROUPS:
-            parts[g].append(group_errors(src, conv, g))
+            parts[g].append(group_errors(src, conv, g, storage[g]))
     return {g: _merge(parts[g]) for g in GROUPS}
 
 

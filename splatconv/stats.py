@@ -378,13 +378,14 @@ def _rows(cols: dict, index, as_texture: bool) -> dict:
 class _Tally:
     """What the ``stats`` report adds up over blocks of rows."""
 
-    def __init__(self, n: int, compare: bool, damage: bool):
+    def __init__(self, n: int, compare: bool, damage: bool, storage: dict):
         self.times = _times()
         self.visible = np.zeros(len(self.times), dtype=np.int64)
         self.magnitudes = {term: np.empty(n, dtype=np.float64) for term in MOTION_TERMS}
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
         self.errors = {} if compare else None
+        self.storage = storage  # how the converted file stores each group
         self.counts = {g: dict.fromkeys(COUNT_KEYS, 0) for g in GROUPS} if compare else None
         self.damage = {g: {"infinity": 0, "garbled": 0} for g in HALF_GROUPS} if damage else None
 
@@ -401,7 +402,7 @@ class _Tally:
         if self.errors is not None:
             for group in GROUPS:
                 a, b = viewer.group_values(src, group), viewer.group_values(conv, group)
-                e = value_errors(a, b, group)
+                e = value_errors(a, b, group, self.storage[group])
                 self.errors[group] = self.errors[group].merge(e) if group in self.errors else e
                 for key, count in _counts(a, b, src, group).items():
                     self.counts[group][key] += count
@@ -473,7 +474,7 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
         order = align(source, converted)
         files.append(_file_entry("converted", None, conv_mod.NAME, size, source.count, zstd_bytes, level, src_bytes))
     n = converted.count
-    tally = _Tally(n, compare, damage=not src_mod.STORES_TEXTURE)
+    tally = _Tally(n, compare, damage=not src_mod.STORES_TEXTURE, storage=conv_mod.storage(converted))
     with progress.stage("comparing" if compare else "reading values", n, "splat") as advance:
         for start in range(0, n, BLOCK):
             rows = slice(start, min(start + BLOCK, n))

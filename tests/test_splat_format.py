@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import struct
 
 import numpy as np
@@ -304,3 +305,47 @@ def test_arbitrary_bytes_read_and_write_without_warnings(tmp_path):
         assert r.exit_code == 0, (name, r.output)
     assert run("info", tmp_path / "c.splat").exit_code == 0
     assert run("bake", src, tmp_path / "d.ply", "--time", "0.5").exit_code == 0
+
+
+def test_verify_a_splat_conversion_passes_within_its_own_quantisation(tmp_path, gs_ply):
+    """verify judges a .splat by what a .splat stores: byte rotations, no time, float32 scales."""
+    src = tmp_path / "gs.ply"
+    cols = {p.name: np.asarray(plyfile.PlyData.read(gs_ply)["vertex"][p.name]) for p in
+            plyfile.PlyData.read(gs_ply)["vertex"].properties}
+    cols["rot_0"][:3] = np.nan  # no direction: written as zero, drawn unrotated (noted)
+    cols["rot_1"][3:5] = np.inf
+    cols["rot_2"][5:50] *= 40.0  # far from unit length: normalised first
+    write_ply(src, cols)
+    out = tmp_path / "gs.splat"
+    assert run("convert", src, out).exit_code == 0
+    result = run("verify", src, out, "--json")
+    assert result.exit_code == 0, result.stdout
+    data = json.loads(result.stdout)
+    rot = data["attributes"]["rotation"]
+    assert rot["storage"] == "unit_quaternion_byte" and rot["ok"] and 0 < rot["max_abs_error"] <= 2 / 128
+    assert {data["attributes"][g]["storage"] for g in ("motion", "omega", "trbf")} == {"none"}
+    text = run("verify", src, out).stdout
+    assert "trbf        not stored by CONVERTED (a static format)" in text and "PASS" in text
+
+    # A real fault in the stored rotations is still caught: turn 40 splats half a turn about x.
+    data = bytearray(out.read_bytes())
+    records = np.frombuffer(data, splat.RECORD).copy()
+    q = (records["rot"][:40].astype(np.float64) - 128) / 128
+    w, x, y, z = q.T
+    turned = np.stack([-x, w, -z, y], axis=1)  # (0, 1, 0, 0) * q
+    records["rot"][:40] = np.clip(np.rint(turned * 128 + 128), 0, 255)
+    out.write_bytes(records.tobytes())
+    result = run("verify", src, out)
+    assert result.exit_code == 1
+    assert "FAIL: rotation drifted" in result.stdout
+
+
+def test_every_format_says_how_it_stores_each_group(tmp_path):
+    from splatconv.compare import STORAGE_KINDS
+    from splatconv.formats import REGISTRY
+
+    scene = Scene(columns=static_columns(4), variant=model.VARIANT_3DGS)
+    for module in set(REGISTRY.values()):
+        kinds = module.storage(scene)
+        assert set(kinds) == set(model.GROUPS) and set(kinds.values()) <= set(STORAGE_KINDS), module.NAME
+    assert ply.storage(scene)["trbf"] == "none" and ply.storage(Scene(columns=static_columns(4)))["trbf"] == "exact"

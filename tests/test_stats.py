@@ -648,6 +648,32 @@ def test_group_errors_of_infinities_and_nan_without_warning():
     assert (finite.max_abs_error, finite.max_rel_error, finite.rmse) == (0.5, 0.5, 0.5)
 
 
+
+@pytest.mark.parametrize("kind, unexplained", [("exact", 6), ("half", 3), ("byte", 2), ("float32", 5), ("none", 0)])
+def test_each_storage_kind_explains_its_own_errors(kind, unexplained):
+    """The same pairs judged by how CONVERTED stores them (``compare.STORAGE_KINDS``)."""
+    from splatconv.compare import value_errors
+
+    # Off by 2^-12 and 2^-20, NaN stored as 0, inf as 7, 1e5 saturated to the half range, 0.25 off by 1/512.
+    a = np.array([[1.0, 2.0, np.nan], [np.inf, 1e5, 0.25]])
+    b = np.array([[1.0 + 2**-12, 2.0 + 2**-20, 0.0], [7.0, 65504.0, 0.25 + 1 / 512]])
+    e = value_errors(a, b, "motion", kind)
+    assert e.unexplained == unexplained and e.storage == kind
+    assert e.nan_stored == (kind == "byte")  # a byte cannot hold NaN: stored as 0, explained
+
+
+def test_quaternions_stored_as_bytes_compare_normalised():
+    from splatconv.compare import QUATERNION_STEP, value_errors
+
+    q = np.array([[2.0, 0.0, 0.0, 0.0], [0.5, 0.5, 0.5, 0.5], [np.nan, 0, 0, 0], [0.0, 0, 0, 0], [1.0, 0, 0, 0]])
+    stored = np.array([[1.0, 0, 0, 0], [0.5, 0.5, 0.5, 0.5 + QUATERNION_STEP], [0.0, 0, 0, 0], [0.0, 0, 0, 0],
+                       [0.0, 1.0, 0, 0]])
+    e = value_errors(q, stored, "rotation", "unit_quaternion_byte")
+    # Length 2 vs 1: the same rotation; one step off: explained; no direction on both sides: alike;
+    # the last turned half a turn: all four of its components are unexplained.
+    assert e.unexplained == 2 and e.nonfinite_changed == 0
+
+
 def test_blocks_merge_to_the_whole(monkeypatch, tmp_path):
     # The report is computed a block of rows at a time; with blocks of 7 rows it is the same.
     from splatconv import stats

@@ -131,7 +131,7 @@ def test_json_shape(faithful):
                                       "trbf"}
     assert set(data["attributes"]["scale"]) == {"max_abs_error", "max_rel_error", "rmse", "unexplained",
                                                 "became_infinite", "nonfinite_changed", "nan_stored", "compared",
-                                                "values", "ok"}
+                                                "values", "storage", "ok"}
     assert data["attributes"]["scale"]["values"] == 3 * 5000
     assert [(f["time"], f["camera"]) for f in data["frames"]] == [(0.25, 0), (0.6, 0)]
     assert list(data["frames"][0]) == ["time", "camera", "psnr", "identical", "max_abs_error", "mean_abs_error",

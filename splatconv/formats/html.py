@@ -56,5 +56,9 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     return report
 
 
+#: What the embedded ``.splatv`` stores.
+storage = splatv.storage
+
+
 def info_fields(scene: Scene) -> dict:
     return {}

@@ -25,7 +25,7 @@ from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError, UsageError
 from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
-from ..model import COLUMNS, Scene, constant_column
+from ..model import COLUMNS, GROUPS, Scene, constant_column
 from ..progress import SILENT
 from ..viewer import importance, importance_order
 from .base import WriteReport, refuse_time_varying
@@ -762,6 +762,20 @@ def _lite_rows_of(scene: Scene):
     if normals.view(np.uint32).any():
         return None  # the writer writes zero normals (+0.0)
     return matrix.view(np.uint8)
+
+
+def storage(scene: Scene) -> dict:
+    """How a PLY read as ``scene`` stores each attribute group (see :mod:`splatconv.compare`).
+
+    Float32 as the model holds it; colour read as spherical harmonics goes through
+    one float32 conversion each way; a plain 3DGS PLY holds no time or motion.
+    """
+    kinds = dict.fromkeys(GROUPS, "exact")
+    if scene.meta.get("color") == "sh":
+        kinds["color"] = "float32"
+    if scene.variant == model.VARIANT_3DGS:
+        kinds.update(dict.fromkeys(("motion", "omega", "trbf"), "none"))
+    return kinds
 
 
 def info_fields(scene: Scene) -> dict:

@@ -50,6 +50,10 @@ DEFAULT_SORT = "importance"
 HOLDS_EMPTY = False
 DYNAMIC = False
 STORES_TEXTURE = False
+#: How each attribute group is stored (see :data:`splatconv.compare.STORAGE_KINDS`):
+#: no time or motion at all, the rest as the record table above says.
+STORAGE = {"position": "exact", "scale": "float32", "color": "byte", "opacity": "byte",
+           "rotation": "unit_quaternion_byte", "motion": "none", "omega": "none", "trbf": "none"}
 
 #: One record, as the table at the top of this module lays it out.
 RECORD = np.dtype([("position", "<f4", (3,)), ("scale", "<f4", (3,)), ("rgba", "u1", (4,)), ("rot", "u1", (4,))])
@@ -274,6 +278,11 @@ def _notes(report: WriteReport, changed: dict, n: int) -> list:
     if changed["scale"]:
         notes.append(f"scale: {plural(changed['scale'], 'value')} past the float32 range written as infinity")
     return notes + report.byte_notes()
+
+
+def storage(scene: Scene) -> dict:
+    """How a ``.splat`` stores each attribute group: :data:`STORAGE`."""
+    return STORAGE
 
 
 def info_fields(scene: Scene) -> dict:

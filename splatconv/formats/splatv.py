@@ -14,6 +14,7 @@ import numpy as np
 
 from .. import packing
 from ..cameras import validate_cameras
+from ..compare import TEXTURE_STORAGE
 from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input
 from ..jsonutil import decode as decode_json
@@ -426,6 +427,11 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     meta["records"] = int(records.shape[0])
     return Scene(columns=columns, cameras=list(chunk.get("cameras", [])), variant="splatv",
                  meta=meta, notes=notes + decode_notes)
+
+
+def storage(scene: Scene) -> dict:
+    """How a ``.splatv`` stores each attribute group: the viewer's texture (see :mod:`splatconv.compare`)."""
+    return TEXTURE_STORAGE
 
 
 def info_fields(scene: Scene) -> dict:

@@ -18,6 +18,7 @@ from dataclasses import dataclass, field
 
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
+from ..formats import format_for
 from ..fsutil import atomic_writer, check_output
 from ..progress import SILENT, Progress
 from ..wording import plural
@@ -145,7 +146,7 @@ class Outcome:
                 "max_abs_error": g.max_abs_error, "max_rel_error": g.max_rel_error, "rmse": g.rmse,
                 "unexplained": g.unexplained, "became_infinite": g.became_infinite,
                 "nonfinite_changed": g.nonfinite_changed, "nan_stored": g.nan_stored,
-                "compared": g.compared, "values": g.values, "ok": not g.unexplained,
+                "compared": g.compared, "values": g.values, "storage": g.storage, "ok": not g.unexplained,
             } for g in self.attributes.values()}
         worst = self.worst
         out["frames"] = [{**f.where(), **f.diff.as_dict()} for f in self.frames]
@@ -204,7 +205,8 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     with progress.stage("checking attributes", 2, "step") as advance:
         order = align(source.scene, converted.scene, *paths)
         advance()
-        attributes = compare_scenes(source.scene, converted.scene, order)
+        storage = format_for(paths[1]).storage(converted.scene)
+        attributes = compare_scenes(source.scene, converted.scene, order, storage)
         advance()
     available = cameras_of(source, converted)
     indices = pick_cameras(picked, len(available))
