@@ -230,9 +230,10 @@ def test_bake_frames_all_or_nothing(tmp_path):
 @pytest.mark.parametrize("args, code, message", [
     (["--time", "0.5", "--frames", "3"], 2, "give either --time T (one moment) or --frames N (a folder of moments)"),
     ([], 2, "give either --time T (one moment) or --frames N (a folder of moments)"),
-    (["--time", "nan"], 2, "Invalid value for '--time': 'nan' is not a finite number."),
-    (["--time", "1.5"], 2, "Invalid value for '--time': '1.5' is not in the viewer's time range [0, 1]."),
-    (["--frames", "1"], 2, "Invalid value for '--frames': 1 is not in the range x>=2."),
+    (["--time", "nan"], 2, "Invalid value for '--time': 'nan' is not a finite number. See 'main bake --help'."),
+    (["--time", "1.5"], 2, "Invalid value for '--time': '1.5' is not in the viewer's time range [0, 1]."
+                           " See 'main bake --help'."),
+    (["--frames", "1"], 2, "Invalid value for '--frames': 1 is not in the range x>=2. See 'main bake --help'."),
 ])
 def test_bake_usage_errors(tmp_path, sample_splatv, args, code, message):
     r = run("bake", sample_splatv, tmp_path / "m.ply", *args)

@@ -181,6 +181,23 @@ def test_usage_errors_exit_2(tmp_path, lite_ply):
     assert not (tmp_path / "x.ply").exists()
 
 
+@pytest.mark.parametrize("args, message", [
+    (["convert", "a.ply"], "Missing argument 'INPUT...'. See 'main convert --help'."),
+    (["convert", "a.ply", "b.splatv", "--sort", "size"],
+     "Invalid value for '--sort': 'size' is not one of 'importance', 'none'. See 'main convert --help'."),
+    (["frobnicate"], "No such command 'frobnicate'. See 'main --help'."),
+    (["--max-decompressed", "3X", "info", "a.splatv"],
+     "Invalid value for '--max-decompressed': expected a byte count such as 4G, 512M or 1000000, got '3X'. "
+     "See 'main --help'."),
+    (["bake", "a.splatv", "out", "--frames", "1"], "Invalid value for '--frames': 1 is not in the range x>=2. "
+                                                    "See 'main bake --help'."),
+])
+def test_click_usage_errors_are_one_error_line_too(tmp_path, monkeypatch, args, message):
+    monkeypatch.chdir(tmp_path)
+    r = run(*args)
+    assert (r.exit_code, r.stdout, r.stderr) == (2, "", f"Error: {message}\n")
+
+
 def test_missing_input(tmp_path):
     r = run("convert", tmp_path / "nope.ply", tmp_path / "o.splatv")
     assert r.exit_code == 1

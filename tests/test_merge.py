@@ -197,11 +197,13 @@ def test_rotate_applies_to_its_input_only(actor, tmp_path):
     (["a.ply", "b.ply", "out.ply", "--translate", "3:1,0,0"], 2, "--translate 3:...: there are 2 inputs (1..2)"),
     (["a.ply", "b.ply", "out.ply", "--scale", "1:2", "--scale", "1:3"], 2, "--scale given twice for input 1"),
     (["a.ply", "b.ply", "out.ply", "--translate", "1,0,0"], 2,
-     "Invalid value for '--translate': '1,0,0': expected N:X,Y,Z, N the input's number (1 for the first)."),
+     "Invalid value for '--translate': '1,0,0': expected N:X,Y,Z, N the input's number (1 for the first)."
+     " See 'main merge --help'."),
     (["a.ply", "b.ply", "out.ply", "--scale", "0:2"], 2,
-     "Invalid value for '--scale': '0:2': expected N:S, N the input's number (1 for the first)."),
+     "Invalid value for '--scale': '0:2': expected N:S, N the input's number (1 for the first)."
+     " See 'main merge --help'."),
     (["a.ply", "b.ply", "out.ply", "--scale", "1:-2"], 2,
-     "Invalid value for '--scale': -2.0 is not in the range x>0."),
+     "Invalid value for '--scale': -2.0 is not in the range x>0. See 'main merge --help'."),
 ])
 def test_merge_usage_errors(tmp_path, args, code, message, monkeypatch):
     monkeypatch.chdir(tmp_path)

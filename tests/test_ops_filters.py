@@ -284,18 +284,21 @@ def test_convert_without_edits_writes_the_same_bytes(tmp_path):
 
 @pytest.mark.parametrize("args, message", [
     (["--crop", "1,2,3"], "Error: Invalid value for '--crop': '1,2,3': expected 6 numbers separated by commas "
-                          "(X0,Y0,Z0,X1,Y1,Z1).\n"),
+                          "(X0,Y0,Z0,X1,Y1,Z1). See 'main convert --help'.\n"),
     (["--crop", "0,0,0,1,1,-1"], "Error: --crop: the box is empty along z (0 > -1)\n"),
     (["--trim", "0.6,0.2"], "Error: --trim: expected 0 <= T0 < T1 <= 1, got 0.6,0.2\n"),
     (["--trim", "a,b"], "Error: Invalid value for '--trim': 'a,b': expected 2 numbers separated by commas "
-                        "(T0,T1).\n"),
-    (["--min-opacity", "nan"], "Error: Invalid value for '--min-opacity': 'nan' is not in [0, 1].\n"),
-    (["--max-splats", "-1"], "Error: Invalid value for '--max-splats': -1 is not in the range x>=0.\n"),
+                        "(T0,T1). See 'main convert --help'.\n"),
+    (["--min-opacity", "nan"], "Error: Invalid value for '--min-opacity': 'nan' is not in [0, 1]."
+                               " See 'main convert --help'.\n"),
+    (["--max-splats", "-1"], "Error: Invalid value for '--max-splats': -1 is not in the range x>=0."
+                             " See 'main convert --help'.\n"),
     (["--translate", "1,2,nan"], "Error: Invalid value for '--translate': '1,2,nan': every number must be "
-                                 "finite.\n"),
+                                 "finite. See 'main convert --help'.\n"),
     (["--rotate", "x:90,q:1"], "Error: Invalid value for '--rotate': cannot read 'q:1'; expected steps such as "
-                               "x:90,y:-45 or quat:W,X,Y,Z\n"),
-    (["--scale", "-2"], "Error: Invalid value for '--scale': -2.0 is not in the range x>0.\n"),
+                               "x:90,y:-45 or quat:W,X,Y,Z. See 'main convert --help'.\n"),
+    (["--scale", "-2"], "Error: Invalid value for '--scale': -2.0 is not in the range x>0."
+                        " See 'main convert --help'.\n"),
     (["--scale", "inf"], "Error: --scale: expected a finite number > 0, got inf\n"),
 ])
 def test_bad_edit_options_are_usage_errors_and_write_nothing(tmp_path, args, message):

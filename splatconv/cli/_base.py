@@ -115,7 +115,41 @@ def _max_decompressed(ctx, param, value):
         raise click.BadParameter(str(e), ctx, param) from None
 
 
-@click.group(context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
+def _one_line(error: click.UsageError) -> Failure:
+    """A click usage error as one ``Error: ...`` line (exit 2) that says where help is."""
+    message = error.format_message().rstrip()
+    if error.ctx is not None:
+        message += ("" if message.endswith((".", "?", "!")) else ".") + f" See '{error.ctx.command_path} --help'."
+    return Failure(message, error.exit_code)
+
+
+#: ``splatconv`` alone shows the help (click 8.2 and later raise this for it).
+_HELP_WITHOUT_ARGUMENTS = getattr(click.exceptions, "NoArgsIsHelpError", ())
+
+
+class _Commands(click.Group):
+    """The ``splatconv`` group: click's own usage errors (a bad option value, a missing
+    argument, an unknown command) print one ``Error:`` line like every other error,
+    not the usage block before it."""
+
+    def make_context(self, info_name, args, parent=None, **extra):
+        try:
+            return super().make_context(info_name, args, parent, **extra)
+        except _HELP_WITHOUT_ARGUMENTS:
+            raise
+        except click.UsageError as e:
+            raise _one_line(e) from None
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except _HELP_WITHOUT_ARGUMENTS:
+            raise
+        except click.UsageError as e:
+            raise _one_line(e) from None
+
+
+@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="splatconv")
 @click.option("--max-decompressed", metavar="SIZE", callback=_max_decompressed, expose_value=False,
               help=f"Largest size a .zst input may decompress to, e.g. 8G (or set {MAX_DECOMPRESSED_ENV}) "
