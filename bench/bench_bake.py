@@ -23,10 +23,7 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import tempfile
-import time
 
 import splatconv
 from splatconv import io
@@ -34,16 +31,8 @@ from splatconv.ops.bake import bake
 from splatconv.ops.merge import overlay
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from _harness import median_seconds, work_folder  # noqa: E402
 from bench_convert import make_ply  # noqa: E402  (the same synthetic input)
-
-
-def median_seconds(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        t = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t)
-    return statistics.median(times)
 
 
 def main() -> None:
@@ -51,7 +40,7 @@ def main() -> None:
     ap.add_argument("--splats", type=int, default=1_000_000, help="splats in the input (default 1,000,000)")
     ap.add_argument("--repeat", type=int, default=3, help="runs per figure (median; default 3)")
     args = ap.parse_args()
-    with tempfile.TemporaryDirectory(prefix="splatconv-bench-bake-") as work:
+    with work_folder(prefix="splatconv-bench-bake-") as work:
         src = os.path.join(work, "input.ply")
         size = make_ply(src, args.splats)
         print(f"input: {args.splats:,} splats, {size / 1e6:.1f} MB lite PLY; median of {args.repeat} runs")

@@ -31,11 +31,8 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
 import shutil
-import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
@@ -43,7 +40,7 @@ import numpy as np
 import splatconv
 from splatconv import io, viewer
 from splatconv.model import COLUMNS, MOTION, OMEGA, STATIC_TRBF_CENTER, STATIC_TRBF_SCALE, Scene
-from bench_convert import CLI, LAUNCHER, PYTHON, row
+from _harness import CLI, machine_line, row, run_fresh, work_folder
 
 #: Peak memory target, bytes.
 TARGET_RSS = 2 * 1024 ** 3
@@ -119,10 +116,10 @@ def make_segments(folder: str, count: int, n: int) -> list:
 
 
 def launch(args: list) -> tuple:
-    """Run ``splatconv args`` in a fresh process; (exit status, wall seconds, peak RSS bytes, output)."""
-    p = subprocess.run([PYTHON, "-c", LAUNCHER, CLI, *args], capture_output=True, text=True)
-    line = [x for x in p.stdout.splitlines() if x.startswith("BENCH_CHILD")][-1].split()
-    return int(line[1]), float(line[2]), int(line[3]) * 1024, p.stdout + p.stderr
+    """Run ``splatconv args`` in a fresh process (through :func:`_harness.run_fresh`'s launcher);
+    (exit status, wall seconds, peak RSS bytes, its stdout then its stderr)."""
+    r = run_fresh([CLI, *args])
+    return r["code"], r["wall"], round(r["rss_mb"] * 1e6), r["stdout"] + r["stderr"]
 
 
 def main(argv=None) -> int:
@@ -134,10 +131,8 @@ def main(argv=None) -> int:
     ap.add_argument("--segment-splats", type=int, default=300_000)
     ap.add_argument("--keep", help="generate inputs here and keep them")
     a = ap.parse_args(argv)
-    root = a.keep or tempfile.mkdtemp(prefix="bench_clips_")
-    print(f"splatconv {splatconv.__version__}, Python {platform.python_version()}, numpy {np.__version__}, "
-          f"{os.cpu_count()} CPUs ({platform.machine()}); shared machine: figures are noisy")
-    try:
+    print(f"splatconv {splatconv.__version__}, {machine_line()}; shared machine: figures are noisy")
+    with work_folder(a.keep, "bench_clips_") as root:
         t = time.perf_counter()
         size = make_frames(os.path.join(root, "frames"), a.frames, a.frame_splats, a.nonlinear)
         print(f"generated {a.frames} frames of {a.frame_splats:,} splats ({size / 1e9:.2f} GB) in "
@@ -149,7 +144,7 @@ def main(argv=None) -> int:
         print(row("wall seconds", f"{wall:.1f}", f"{a.frames * a.frame_splats / wall / 1e6:.2f} M splat-frames/s"))
         print(row("peak RSS", f"{rss / 2 ** 20:,.0f} MiB", "target < 2048 MiB: " + ("met" if rss < TARGET_RSS else
                                                                                        "MISSED")))
-        print("\n".join("    " + x for x in text.splitlines() if not x.startswith("BENCH_CHILD")))
+        print("\n".join("    " + x for x in text.splitlines()))
         shutil.rmtree(os.path.join(root, "frames"))
 
         t = time.perf_counter()
@@ -164,12 +159,9 @@ def main(argv=None) -> int:
             print(row("wall seconds", f"{wall:.1f}"))
             print(row("peak RSS", f"{rss / 2 ** 20:,.0f} MiB", "target < 2048 MiB: " + ("met" if rss < TARGET_RSS
                                                                                            else "MISSED")))
-            keep = [x for x in text.splitlines() if not x.startswith(("BENCH_CHILD", "frame ", " ")) or
+            keep = [x for x in text.splitlines() if not x.startswith(("frame ", " ")) or
                     x.startswith("  segment")]
             print("\n".join("    " + x for x in keep))
-    finally:
-        if not a.keep:
-            shutil.rmtree(root, ignore_errors=True)
     return 0
 
 

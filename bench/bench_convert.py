@@ -34,18 +34,16 @@ from __future__ import annotations
 
 import argparse
 import os
-import platform
-import shutil
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
 
 import splatconv
 from splatconv.formats.ply import LITE_DTYPE, header_bytes
+
+from _harness import CLI, PYTHON, bench_fields, machine_line, medians, row, run_fresh, work_folder
 
 #: Conversion target: seconds of the default conversion over the I/O floor.
 TARGET_RATIO = 2.5
@@ -69,21 +67,6 @@ t = time.perf_counter()
 splatconv.convert(sys.argv[1], sys.argv[2], compat=compat, force=True, zstd_level=level)
 print("BENCH_SECONDS", time.perf_counter() - t)
 """
-
-#: Launcher: run argv[1:] as a child, then print its exit code, wall seconds and ru_maxrss (KiB).
-LAUNCHER = """\
-import os, subprocess, sys, time
-t = time.perf_counter()
-p = subprocess.Popen(sys.argv[1:])
-_, status, usage = os.wait4(p.pid, 0)
-wall = time.perf_counter() - t
-p.returncode = os.waitstatus_to_exitcode(status)
-sys.stdout.flush()
-print("BENCH_CHILD", p.returncode, wall, usage.ru_maxrss, flush=True)
-"""
-
-PYTHON = sys.executable
-CLI = os.path.join(os.path.dirname(sys.executable), "splatconv")
 
 
 def make_ply(path: str, n: int) -> int:
@@ -155,27 +138,14 @@ def time_write(path: str, size: int, repeat: int) -> float:
 
 
 def run_child(argv: list) -> dict:
-    """Run ``argv`` in a fresh process; return wall seconds, peak RSS (MB) and its output.
-
-    The command is started by a small launcher process, not by this one: Linux
-    carries the RSS high-water mark of a forked process's pre-exec image into
-    its ``ru_maxrss``, and this process's high-water mark includes the generated
-    input. The launcher is small, so the figure is the command's own.
-    """
-    p = subprocess.run([PYTHON, "-c", LAUNCHER, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    text = p.stdout.decode("utf-8", "replace")
-    result = {"seconds": None, "load": None}
-    for line in text.splitlines():
-        if line.startswith("BENCH_SECONDS "):
-            result["seconds"] = float(line.split()[1])
-        elif line.startswith("BENCH_LOAD "):
-            result["load"] = float(line.split()[1])
-        elif line.startswith("BENCH_CHILD "):
-            code, wall, maxrss_kib = line.split()[1:]
-            result.update(code=int(code), wall=float(wall), rss_mb=int(maxrss_kib) * 1024 / 1e6)
-    if p.returncode != 0 or result.get("code") != 0:
-        raise RuntimeError(f"{' '.join(argv)} failed:\n{text}")
-    return result
+    """Run ``argv`` in a fresh process (:func:`_harness.run_fresh`, through its launcher, so the
+    peak RSS is the command's own and not this process's, which holds the generated input);
+    return its wall seconds, peak RSS (MB) and the seconds it printed (``None`` where it printed none)."""
+    r = run_fresh(argv, check=True)
+    fields = bench_fields(r["stdout"])
+    return {"seconds": float(fields["BENCH_SECONDS"][0]) if "BENCH_SECONDS" in fields else None,
+            "load": float(fields["BENCH_LOAD"][0]) if "BENCH_LOAD" in fields else None,
+            "code": r["code"], "wall": r["wall"], "rss_mb": r["rss_mb"]}
 
 
 def measure(src: str, dst: str, compat: str | None, repeat: int, cli: bool, level: int | None = None) -> dict:
@@ -185,28 +155,18 @@ def measure(src: str, dst: str, compat: str | None, repeat: int, cli: bool, leve
     """
     args = [PYTHON, "-c", CHILD, src, dst, compat or "-", "-" if level is None else str(level)]
     runs = [run_child(args) for _ in range(repeat)]
-    result = {
-        "seconds": statistics.median(r["seconds"] for r in runs),
-        "load": statistics.median(r["load"] for r in runs),
-        "wall": statistics.median(r["wall"] for r in runs),
-        "rss_mb": max(r["rss_mb"] for r in runs),
-    }
+    result = medians(runs, ("seconds", "load", "wall"))
     if cli:
         argv = [CLI, "convert", src, dst, "--force"] + (["--compat", compat] if compat else [])
-        cli_runs = [run_child(argv) for _ in range(repeat)]
-        result["cli_wall"] = statistics.median(r["wall"] for r in cli_runs)
-        result["cli_rss_mb"] = max(r["rss_mb"] for r in cli_runs)
+        cli_runs = medians([run_child(argv) for _ in range(repeat)], ("wall",))
+        result["cli_wall"] = cli_runs["wall"]
+        result["cli_rss_mb"] = cli_runs["rss_mb"]
     return result
 
 
 def baseline_rss() -> float:
     """Peak RSS (MB) of a child that only imports splatconv and its formats: the fixed cost."""
     return run_child([PYTHON, "-c", "import splatconv.formats.splatv, splatconv.formats.ply"])["rss_mb"]
-
-
-def row(label: str, value: str, note: str = "") -> str:
-    """One line of the text table."""
-    return f"  {label:<44} {value:>12}  {note}".rstrip()
 
 
 def main(argv=None) -> int:
@@ -217,17 +177,8 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=3, help="conversion runs per figure (median; default 3)")
     ap.add_argument("--io-repeat", type=int, default=5, help="read/write runs for the floor (median; default 5)")
     args = ap.parse_args(argv)
-
-    if args.keep:
-        os.makedirs(args.keep, exist_ok=True)
-        work = args.keep
-    else:
-        work = tempfile.mkdtemp(prefix="splatconv-bench-")
-    try:
+    with work_folder(args.keep, "splatconv-bench-") as work:
         return run(args, work)
-    finally:
-        if not args.keep:
-            shutil.rmtree(work, ignore_errors=True)
 
 
 def run(args, work: str) -> int:
@@ -238,8 +189,7 @@ def run(args, work: str) -> int:
     compat_dst = os.path.join(work, "output-compat.splatv")
     back = os.path.join(work, "roundtrip.ply")
 
-    print(f"splatconv {splatconv.__version__} benchmark -- numpy {np.__version__}, "
-          f"Python {platform.python_version()}, {os.cpu_count()} CPUs, {platform.machine()}")
+    print(f"splatconv {splatconv.__version__} benchmark -- {machine_line()}")
     print(f"work folder: {work}")
     t = time.perf_counter()
     in_bytes = make_ply(src, n)

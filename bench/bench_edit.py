@@ -35,18 +35,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
-import shutil
 import statistics
-import subprocess
 import sys
-import tempfile
 import time
 
 import numpy as np
 
 import splatconv
-from bench_convert import CLI, LAUNCHER, PYTHON, make_ply, row
+from _harness import CLI, PYTHON, bench_fields, machine_line, medians, row, run_fresh, work_folder
+from bench_convert import make_ply
 
 #: The target: edited conversion seconds over plain conversion seconds.
 TARGET_RATIO = 1.5
@@ -95,27 +92,16 @@ def plant_nonfinite(path: str, n: int) -> None:
 
 
 def launch(argv: list) -> dict:
-    """Run ``argv`` through the launcher; its BENCH line, wall seconds and peak RSS (MB)."""
-    p = subprocess.run([PYTHON, "-c", LAUNCHER, *argv], stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
-    text = p.stdout.decode("utf-8", "replace")
+    """Run ``argv`` in a fresh process through :func:`_harness.run_fresh`'s launcher (so the
+    peak RSS is the conversion's own); its BENCH line, wall seconds and peak RSS (MB)."""
+    r = run_fresh(argv, check=True)
     out = {}
-    for line in text.splitlines():
-        if line.startswith("BENCH "):
-            wall, cpu, edit_wall, edit_cpu, count = line.split()[1:]
-            out.update(seconds=float(wall), cpu=float(cpu), edit=float(edit_wall), edit_cpu=float(edit_cpu),
-                       count=int(count))
-        elif line.startswith("BENCH_CHILD "):
-            code, wall, maxrss_kib = line.split()[1:]
-            out.update(code=int(code), wall=float(wall), rss_mb=int(maxrss_kib) * 1024 / 1e6)
-    if p.returncode != 0 or out.get("code") != 0:
-        raise RuntimeError(f"{' '.join(argv)} failed:\n{text}")
-    return out
-
-
-def medians(runs: list) -> dict:
-    keys = [k for k in runs[0] if k not in ("code",)]
-    out = {k: statistics.median(r[k] for r in runs) for k in keys}
-    out["rss_mb"] = max(r["rss_mb"] for r in runs)
+    fields = bench_fields(r["stdout"])
+    if "BENCH" in fields:
+        wall, cpu, edit_wall, edit_cpu, count = fields["BENCH"]
+        out.update(seconds=float(wall), cpu=float(cpu), edit=float(edit_wall), edit_cpu=float(edit_cpu),
+                   count=int(count))
+    out.update(code=r["code"], wall=r["wall"], rss_mb=r["rss_mb"])
     return out
 
 
@@ -125,20 +111,14 @@ def main(argv=None) -> int:
     ap.add_argument("--repeat", type=int, default=5, help="runs per figure (median; default 5)")
     ap.add_argument("--keep", metavar="DIR", help="work in DIR and leave the files there")
     args = ap.parse_args(argv)
-    work = args.keep or tempfile.mkdtemp(prefix="splatconv-bench-edit-")
-    os.makedirs(work, exist_ok=True)
-    try:
+    with work_folder(args.keep, "splatconv-bench-edit-") as work:
         return run(args, work)
-    finally:
-        if not args.keep:
-            shutil.rmtree(work, ignore_errors=True)
 
 
 def run(args, work: str) -> int:
     n = args.splats
     src = os.path.join(work, "input.ply")
-    print(f"splatconv {splatconv.__version__} edit benchmark -- numpy {np.__version__}, "
-          f"Python {platform.python_version()}, {os.cpu_count()} CPUs, {platform.machine()}")
+    print(f"splatconv {splatconv.__version__} edit benchmark -- {machine_line()}")
     t = time.perf_counter()
     size = make_ply(src, n)
     plant_nonfinite(src, n)

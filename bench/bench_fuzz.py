@@ -22,14 +22,15 @@ from __future__ import annotations
 
 import argparse
 import os
+import shutil
 import statistics
 import sys
-import tempfile
 import time
 from collections import Counter
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
+from _harness import new_work_folder  # noqa: E402
 from tests.fuzzing import CAMPAIGN_MAX_DECOMPRESSED, campaign  # noqa: E402
 
 
@@ -39,7 +40,7 @@ def main() -> int:
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--keep", help="folder for the campaign's files (kept)")
     args = parser.parse_args()
-    folder = args.keep or tempfile.mkdtemp(prefix="splatconv-fuzz-")
+    folder = new_work_folder(args.keep, "splatconv-fuzz-")  # removed at the end unless kept or a mutant failed
     started = time.perf_counter()
     done = [0]
 
@@ -74,8 +75,6 @@ def main() -> int:
     if failures:
         print(f"  failing mutants kept in {folder}")
     elif not args.keep:
-        import shutil
-
         shutil.rmtree(folder, ignore_errors=True)
     return 1 if failures else 0
 

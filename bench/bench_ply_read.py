@@ -27,16 +27,15 @@ from __future__ import annotations
 
 import argparse
 import os
-import statistics
 import sys
-import tempfile
-import time
 
 import numpy as np
 import plyfile
 
 import splatconv
 from splatconv.formats import ply
+
+from _harness import median_seconds, work_folder
 
 
 def _columns(n: int, seed: int = 0) -> dict:
@@ -97,15 +96,6 @@ def make_files(folder: str, n: int, ascii_rows: int) -> dict:
     return files
 
 
-def _median_seconds(fn, repeat: int) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return statistics.median(times)
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--splats", type=int, default=1_000_000)
@@ -113,7 +103,7 @@ def main() -> int:
     parser.add_argument("--repeat", type=int, default=3)
     parser.add_argument("--plyfile", action="store_true", help="also time plyfile.PlyData.read (slow: minutes)")
     args = parser.parse_args()
-    with tempfile.TemporaryDirectory(prefix="splatconv-bench-") as folder:
+    with work_folder(prefix="splatconv-bench-") as folder:
         files = make_files(folder, args.splats, args.ascii_rows)
         print(f"PLY read, {args.splats:,} binary rows, median of {args.repeat} (seconds)")
         print(f"  {'file':<28} {'MB':>8} {'splatconv':>10}" + (f" {'plyfile':>10}" if args.plyfile else ""))
@@ -122,10 +112,10 @@ def main() -> int:
                 with open(path, "rb") as f:  # into the page cache
                     while f.read(1 << 24):
                         pass
-            ours = _median_seconds(lambda: splatconv.read(path).columns["x"].sum(), args.repeat)
+            ours = median_seconds(lambda: splatconv.read(path).columns["x"].sum(), args.repeat)
             line = f"  {label:<28} {os.path.getsize(path) / 1e6:>8.1f} {ours:>10.3f}"
             if args.plyfile:
-                theirs = _median_seconds(lambda: plyfile.PlyData.read(path, mmap="r")["vertex"].data["x"].sum(), 1)
+                theirs = median_seconds(lambda: plyfile.PlyData.read(path, mmap="r")["vertex"].data["x"].sum(), 1)
                 line += f" {theirs:>10.3f}"
             print(line, flush=True)
     return 0

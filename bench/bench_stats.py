@@ -27,33 +27,16 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
-import platform
-import shutil
-import statistics
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
 import splatconv
 from splatconv.transport import DEFAULT_LEVEL
 
+from _harness import CLI, machine_line, medians, run_fresh, work_folder
+
 #: Targets for the pair: wall seconds and peak RSS in MB (10^6 bytes).
 TARGET_SECONDS = 10.0
 TARGET_RSS_MB = 600.0
-
-CLI = os.path.join(os.path.dirname(sys.executable), "splatconv")
-
-#: Launcher: run argv[1:] with stdout discarded, then print its exit code, wall seconds, ru_maxrss (KiB)
-#: and CPU seconds (user + system, all threads).
-LAUNCHER = """\
-import os, subprocess, sys, time
-t = time.perf_counter()
-p = subprocess.Popen(sys.argv[1:], stdout=subprocess.DEVNULL)
-_, status, usage = os.wait4(p.pid, 0)
-print("BENCH_CHILD", os.waitstatus_to_exitcode(status), time.perf_counter() - t, usage.ru_maxrss,
-      usage.ru_utime + usage.ru_stime, flush=True)
-"""
 
 
 def make_ply(path: str, n: int) -> None:
@@ -63,14 +46,13 @@ def make_ply(path: str, n: int) -> None:
     module.make_ply(path, n)
 
 
-def run(args: list) -> tuple[float, float, float]:
-    """(wall seconds, peak RSS MB, CPU seconds) of one ``splatconv`` run."""
-    out = subprocess.run([sys.executable, "-c", LAUNCHER, CLI, *args], capture_output=True, text=True,
-                         check=True).stdout
-    code, wall, rss, cpu = out.split("BENCH_CHILD", 1)[1].split()
-    if int(code) != 0:
-        raise SystemExit(f"splatconv {' '.join(args)} exited {code}")
-    return float(wall), int(rss) * 1024 / 1e6, float(cpu)
+def run(args: list) -> dict:
+    """Wall seconds, peak RSS (MB) and CPU seconds of one ``splatconv`` run in a fresh process
+    (through :func:`_harness.run_fresh`'s launcher; its output discarded)."""
+    r = run_fresh([CLI, *args], stdout="discard")
+    if r["code"] != 0:
+        raise SystemExit(f"splatconv {' '.join(args)} exited {r['code']}")
+    return r
 
 
 def main() -> None:
@@ -80,15 +62,13 @@ def main() -> None:
     parser.add_argument("--zstd-level", type=int, default=DEFAULT_LEVEL)
     parser.add_argument("--keep", help="write the scenes to DIR and keep them")
     args = parser.parse_args()
-    folder = args.keep or tempfile.mkdtemp(prefix="bench-stats-")
-    os.makedirs(folder, exist_ok=True)
-    ply, splatv = os.path.join(folder, "scene.ply"), os.path.join(folder, "scene.splatv")
-    try:
+    with work_folder(args.keep, "bench-stats-") as folder:
+        ply, splatv = os.path.join(folder, "scene.ply"), os.path.join(folder, "scene.splatv")
         make_ply(ply, args.splats)
         splatconv.convert(ply, splatv, force=True)
         print(f"# splatconv stats: {args.splats:,} splats (PLY {os.path.getsize(ply) / 1e6:.0f} MB, .splatv "
-              f"{os.path.getsize(splatv) / 1e6:.0f} MB), zstd level {args.zstd_level}; {platform.machine()}, "
-              f"{os.cpu_count()} cores, Python {platform.python_version()}; medians of {args.repeat} runs")
+              f"{os.path.getsize(splatv) / 1e6:.0f} MB), zstd level {args.zstd_level}; {machine_line(numpy=False)}; "
+              f"medians of {args.repeat} runs")
         level = ["--zstd-level", str(args.zstd_level)]
         cases = [("pair: stats SCENE.ply SCENE.splatv", [ply, splatv]),
                  ("PLY alone (conversion simulated)", [ply]),
@@ -97,19 +77,15 @@ def main() -> None:
         pair = None
         for label, files in cases:
             runs = [run(["stats", *files, *level]) for _ in range(args.repeat)]
-            wall = statistics.median(r[0] for r in runs)
-            rss = statistics.median(r[1] for r in runs)
-            cpu = statistics.median(r[2] for r in runs)
+            m = medians(runs, ("wall", "rss_mb", "cpu"), peak=())  # the median peak RSS, not the largest
+            wall, rss, cpu = m["wall"], m["rss_mb"], m["cpu"]
             pair = pair or (wall, rss)
             print(f"{label:<36}  {wall:>9.2f}  {cpu:>7.2f}  {rss:>11.0f}   (runs: "
-                  + ", ".join(f"{r[0]:.2f} s" for r in runs) + ")", flush=True)
+                  + ", ".join(f"{r['wall']:.2f} s" for r in runs) + ")", flush=True)
         wall, rss = pair
         print(f"\npair against the targets: {wall:.2f} s (target <= {TARGET_SECONDS:g} s: "
               f"{'met' if wall <= TARGET_SECONDS else 'NOT met'}), {rss:.0f} MB "
               f"(target <= {TARGET_RSS_MB:g} MB: {'met' if rss <= TARGET_RSS_MB else 'NOT met'})")
-    finally:
-        if not args.keep:
-            shutil.rmtree(folder, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -29,15 +29,12 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import platform
-import shutil
-import subprocess
 import sys
-import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 
+from _harness import load_average, machine_line, run_fresh, work_folder  # noqa: E402
 from bench_convert import make_ply  # noqa: E402  (the same generator as the conversion benchmark)
 
 #: Targets from the issue: seconds and MB (10^6 bytes) of peak RSS.
@@ -64,17 +61,12 @@ print(f"verify(): {time.perf_counter() - t:.2f} s, {len(outcome.frames)} frames,
 
 
 def run_child(argv: list) -> dict:
-    """Run ``argv``; its exit code, stdout, stderr, wall seconds and peak RSS (MB) from ``os.wait4``."""
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        t = time.perf_counter()
-        p = subprocess.Popen(argv, stdout=out, stderr=err)
-        _, status, usage = os.wait4(p.pid, 0)
-        wall = time.perf_counter() - t
-        p.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        return {"code": p.returncode, "stdout": out.read().decode(), "stderr": err.read().decode(), "wall": wall,
-                "cpu": usage.ru_utime + usage.ru_stime, "rss_mb": usage.ru_maxrss * 1024 / 1e6}
+    """Run ``argv``; its exit code, stdout, stderr, wall and CPU seconds and peak RSS (MB) from ``os.wait4``.
+
+    Started by this process itself (:func:`_harness.run_fresh` with ``launcher=False``), as this
+    benchmark has always measured: the peak RSS is at least this process's own high-water mark.
+    """
+    return run_fresh(argv, launcher=False)
 
 
 def verify_cli(src: str, out: str, *extra) -> dict:
@@ -92,13 +84,8 @@ def main(argv=None) -> int:
     ap.add_argument("--splats", type=int, default=1_000_000)
     ap.add_argument("--keep", help="Folder for the generated files (kept); default a temporary one.")
     args = ap.parse_args(argv)
-    work = args.keep or tempfile.mkdtemp(prefix="bench_verify_")
-    os.makedirs(work, exist_ok=True)
-    try:
+    with work_folder(args.keep, "bench_verify_") as work:
         return run(args, work)
-    finally:
-        if not args.keep:
-            shutil.rmtree(work, ignore_errors=True)
 
 
 def run(args, work: str) -> int:
@@ -106,9 +93,7 @@ def run(args, work: str) -> int:
 
     n = args.splats
     src, out = os.path.join(work, "scene.ply"), os.path.join(work, "scene.splatv")
-    print(f"splatconv {splatconv.__version__} verify benchmark -- {platform.machine()}, "
-          f"python {platform.python_version()}, {os.cpu_count()} CPUs, load average "
-          + ", ".join(f"{v:.1f}" for v in os.getloadavg()))
+    print(f"splatconv {splatconv.__version__} verify benchmark -- {machine_line(numpy=False, load=True)}")
     t = time.perf_counter()
     size = make_ply(src, n)
     print(f"input: {n:,} splats, {size / 1e6:.1f} MB lite PLY (generated in {time.perf_counter() - t:.1f} s)")
@@ -129,7 +114,7 @@ def run(args, work: str) -> int:
         print(f"  {line}")
     print(f"  peak RSS {stages['rss_mb']:.0f} MB")
 
-    print("load average now " + ", ".join(f"{v:.1f}" for v in os.getloadavg()))
+    print(f"load average now {load_average()}")
     growth = many["rss_mb"] - default["rss_mb"]
     print(f"memory with 4x the frames: {growth:+.0f} MB ({'does not grow' if growth < 25 else 'GROWS'})")
     if n != 1_000_000:

@@ -26,10 +26,10 @@ import os
 import shutil
 import statistics
 import sys
-import tempfile
 import threading
 import time
 
+from _harness import work_folder
 from bench_render import make_scene
 
 import splatconv
@@ -86,8 +86,7 @@ def main() -> None:
         raise SystemExit("needs Chromium: apt-get install chromium (or set SPLATCONV_CHROMIUM)")
     from playwright.sync_api import sync_playwright
 
-    folder = tempfile.mkdtemp(prefix="bench-web-")
-    try:
+    with work_folder(prefix="bench-web-") as folder:
         scene_path = os.path.join(folder, "bench.splatv")
         t0 = time.perf_counter()
         splatconv.write(make_scene(args.splats), scene_path)
@@ -125,8 +124,6 @@ def main() -> None:
                       f"(medians of {len(rows)})")
             browser.close()
         server.stop()
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
 
 
 if __name__ == "__main__":

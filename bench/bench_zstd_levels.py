@@ -27,16 +27,12 @@ from __future__ import annotations
 import argparse
 import importlib.util
 import os
-import platform
-import shutil
-import subprocess
-import sys
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
 import splatconv
+from _harness import PYTHON, bench_fields, machine_line, run_fresh, work_folder
 
 ROOT = Path(__file__).resolve().parent.parent
 LEVELS = (1, 3, 6, 9, 12, 15, 19)
@@ -57,15 +53,6 @@ with open(sys.argv[1], "rb") as f, compressor(int(sys.argv[2])).stream_writer(si
     while chunk := f.read(1 << 22):
         z.write(chunk)
 print("BENCH_BYTES", sink.count, time.perf_counter() - t)
-"""
-
-#: Launcher: run argv[1:], then print its wall seconds and ru_maxrss (KiB).
-LAUNCHER = """\
-import os, subprocess, sys, time
-t = time.perf_counter()
-p = subprocess.Popen(sys.argv[1:])
-_, status, usage = os.wait4(p.pid, 0)
-print("BENCH_CHILD", os.waitstatus_to_exitcode(status), time.perf_counter() - t, usage.ru_maxrss, flush=True)
 """
 
 
@@ -95,14 +82,13 @@ SCENES = {"sample": make_sample_ply, "random": make_random_ply}
 
 
 def compress(path: str, level: int) -> dict:
-    out = subprocess.run([sys.executable, "-c", LAUNCHER, sys.executable, "-c", CHILD, path, str(level)],
-                         capture_output=True, text=True, check=True).stdout
-    fields = {line.split()[0]: line.split()[1:] for line in out.splitlines() if line.startswith("BENCH_")}
-    code, wall, rss = fields["BENCH_CHILD"]
-    if int(code) != 0:
+    """Compressed bytes, seconds and peak RSS (MB) of compressing ``path`` at ``level`` in a
+    fresh process (through :func:`_harness.run_fresh`'s launcher)."""
+    r = run_fresh([PYTHON, "-c", CHILD, path, str(level)])
+    if r["code"] != 0:
         raise SystemExit(f"compressing {path} at level {level} failed")
-    return {"bytes": int(fields["BENCH_BYTES"][0]), "seconds": float(fields["BENCH_BYTES"][1]),
-            "rss_mb": int(rss) * 1024 / 1e6}
+    nbytes, seconds = bench_fields(r["stdout"])["BENCH_BYTES"]
+    return {"bytes": int(nbytes), "seconds": float(seconds), "rss_mb": r["rss_mb"]}
 
 
 def main() -> None:
@@ -113,11 +99,8 @@ def main() -> None:
     parser.add_argument("--keep", help="write the scenes to DIR and keep them")
     args = parser.parse_args()
     levels = [int(v) for v in args.levels.split(",")]
-    folder = args.keep or tempfile.mkdtemp(prefix="bench-zstd-")
-    os.makedirs(folder, exist_ok=True)
-    print(f"# zstd levels: {args.splats:,} splats; {platform.machine()}, {os.cpu_count()} cores, "
-          f"Python {platform.python_version()}")
-    try:
+    print(f"# zstd levels: {args.splats:,} splats; {machine_line(numpy=False)}")
+    with work_folder(args.keep, "bench-zstd-") as folder:
         for scene in args.scenes.split(","):
             ply = os.path.join(folder, f"{scene}.ply")
             splatv = os.path.join(folder, f"{scene}.splatv")
@@ -137,9 +120,6 @@ def main() -> None:
                     cells.append(f"{r['bytes'] / 1e6:>{10 if kind == 'splatv' else 7}.2f}  "
                                  f"{100 * (r['bytes'] / best - 1):>+6.1f}%  {r['seconds']:>6.2f}  {r['rss_mb']:>6.0f}")
                 print(f"{level:>5}  " + "  ".join(cells), flush=True)
-    finally:
-        if not args.keep:
-            shutil.rmtree(folder, ignore_errors=True)
 
 
 if __name__ == "__main__":
