@@ -63,10 +63,11 @@ print(f"verify(): {time.perf_counter() - t:.2f} s, {len(outcome.frames)} frames,
 def run_child(argv: list) -> dict:
     """Run ``argv``; its exit code, stdout, stderr, wall and CPU seconds and peak RSS (MB) from ``os.wait4``.
 
-    Started by this process itself (:func:`_harness.run_fresh` with ``launcher=False``), as this
-    benchmark has always measured: the peak RSS is at least this process's own high-water mark.
+    Started through the harness's small launcher process, so that the peak RSS is the command's
+    own: a child started straight from this process inherits this process's high-water mark in
+    ``ru_maxrss`` (the generated scene), which could hide or inflate verify's own.
     """
-    return run_fresh(argv, launcher=False)
+    return run_fresh(argv)
 
 
 def verify_cli(src: str, out: str, *extra) -> dict:
