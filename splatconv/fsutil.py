@@ -228,6 +228,26 @@ def _locked_part(output: str, parent: str):
     raise OutputError("cannot create a temporary file beside it (removed as soon as made)", output)
 
 
+def _start_part(output: str) -> tuple:
+    """Remove ``output``'s stale parts and create its locked part file, with signals held.
+
+    Returns ``(fd, tmp, lock, held)``: the part's writing descriptor and path, a second
+    descriptor that keeps the part locked after the writing one is closed (an unlocked
+    part is a dead run's), and the signal hold. The caller records what it must clean
+    up and then calls :func:`release_signals` with ``held``: a signal between creating
+    the part and recording it would leave the part behind.
+    """
+    parent = os.path.dirname(os.path.abspath(output))
+    remove_stale_parts(output)
+    held = hold_signals()
+    try:
+        fd, tmp = _locked_part(output, parent)
+        return fd, tmp, os.dup(fd), held
+    except BaseException:
+        release_signals(held)
+        raise
+
+
 @contextlib.contextmanager
 def atomic_writer(output: str | os.PathLike, replace: bool = True):
     """Open a temporary file beside ``output``; rename it to ``output`` on success.
@@ -254,17 +274,7 @@ def atomic_writer(output: str | os.PathLike, replace: bool = True):
         A binary file object to write to.
     """
     output = os.fspath(output)
-    parent = os.path.dirname(os.path.abspath(output))
-    remove_stale_parts(output)
-    held = hold_signals()  # a signal between creating the part and the try would leave it behind
-    try:
-        fd, tmp = _locked_part(output, parent)
-        # A second descriptor holds the lock until the part has its final name, after
-        # the writing one is closed: an unlocked part is a dead run's.
-        lock = os.dup(fd)
-    except BaseException:
-        release_signals(held)
-        raise
+    fd, tmp, lock, held = _start_part(output)
     try:
         release_signals(held)  # a signal that came meanwhile is handled here, inside the try
         with os.fdopen(fd, "wb") as f:
@@ -363,16 +373,8 @@ class AtomicGroup:
     def open(self, output: str | os.PathLike):
         """A binary file to write ``output``'s content to: a temporary file beside it until the group ends."""
         output = os.fspath(output)
-        parent = os.path.dirname(os.path.abspath(output))
-        remove_stale_parts(output)
-        held = hold_signals()  # a signal between creating the part and recording it would leave it behind
-        try:
-            fd, tmp = _locked_part(output, parent)
-            # Held (locked) until the group ends, so no other run takes it for a dead one's.
-            self._locks.append(os.dup(fd))
-        except BaseException:
-            release_signals(held)
-            raise
+        fd, tmp, lock, held = _start_part(output)
+        self._locks.append(lock)  # held until the group ends, so no other run takes it for a dead one's
         self._staged.append((tmp, output))
         release_signals(held)
         try:
