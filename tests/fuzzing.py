@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -332,8 +333,11 @@ class Outcome:
 
 
 def _commands(path: str, work: str) -> list:
-    return [["info", path], ["info", "--json", path], ["convert", path, os.path.join(work, "out.splatv")],
-            ["convert", path, os.path.join(work, "out.ply")]]
+    """Every command run on a mutant, and the output file each writes (None: writes none)."""
+    out = functools.partial(os.path.join, work)
+    converts = [(["convert", path, out(name)], out(name)) for name in ("out.splatv", "out.ply", "out.splat", "out.html")]
+    return [(["info", path], None), (["info", "--json", path], None), (["stats", path, "--zstd-level", "1"], None),
+            *converts, (["bake", path, out("moment.ply"), "--time", "0.5"], out("moment.ply"))]
 
 
 def _check(result, args, problems: list) -> None:
@@ -365,11 +369,10 @@ def run_mutant(index: int, name: str, data: bytes, kind: str, work: str, tmp: st
     start = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        for args in _commands(path, work):
+        for args, out in _commands(path, work):
             result = runner.invoke(main, args)
             codes.append(result.exit_code)
             _check(result, args, problems)
-            out = args[-1] if args[0] == "convert" else None
             if out is not None:
                 if os.path.exists(out) != (result.exit_code == 0):
                     problems.append(f"convert {os.path.basename(out)}: exit {result.exit_code} but output "
