@@ -64,7 +64,7 @@ def main() -> int:
     print("  seed files:        " + ", ".join(f"{k} {v:,}" for k, v in sorted(seeds.items())))
     print(f"  seconds a mutant:  median {statistics.median(seconds):.3f}, p99 "
           f"{seconds[min(len(seconds) - 1, int(0.99 * len(seconds)))]:.3f}, max {seconds[-1]:.3f} "
-          "(four commands, in-process, memory traced)")
+          f"({len(outcomes[0].exit_codes)} commands, in-process, memory traced)")
     peaks = sorted(o.traced_peak for o in outcomes)
     print(f"  traced memory peak: median {statistics.median(peaks) / 2**20:.1f} MiB, max {peaks[-1] / 2**20:.1f} MiB")
     slowest = max(outcomes, key=lambda o: o.seconds)

@@ -21,7 +21,7 @@ from .transport import DEFAULT_LEVEL, compressor, plain_input
 
 
 def _finite_range(values: np.ndarray):
-    v = np.asarray(values, dtype=np.float64)
+    v = viewer.wide(values)
     v = v[np.isfinite(v)]
     if v.size == 0:
         return None
@@ -164,7 +164,7 @@ def _magnitudes(cols: dict, names) -> np.ndarray:
     from float32 values)."""
     total = np.zeros(len(cols[names[0]]), dtype=np.float64)
     for name in names:
-        v = np.asarray(cols[name], dtype=np.float64)
+        v = viewer.wide(cols[name])
         total += v * v
     return np.sqrt(total)
 

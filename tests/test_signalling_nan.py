@@ -12,7 +12,10 @@ from click.testing import CliRunner
 
 from splatconv import io
 from splatconv.cli import main
+from splatconv.formats.splatv_layout import COLOR_WORD
 from splatconv.model import COLUMNS, Scene
+
+from .conftest import splatv_bytes
 
 
 @pytest.fixture(scope="module")
@@ -29,6 +32,15 @@ def snan_files(tmp_path_factory):
         bits[8:16] = 0xFF800123  # negative signalling NaN with a payload
     io.write(Scene(columns=cols), folder / "s.ply")
     io.convert(folder / "s.ply", folder / "s.splatv")
+    # Signalling half floats (0x7C01, 0xFC01) in every half slot of some records: a
+    # .splatv keeps NaN payloads when read, so they reach the maths as signalling float32s.
+    rec = rng.integers(0, 2**32, (n, 16), dtype=np.uint64).astype("<u4")
+    rec[:, 0:3] = np.float32(0.5).view(np.uint32)
+    rec[:8, 3:] = 0x7C017C01
+    rec[8:16, 3:] = 0xFC01FC01
+    rec[:, COLOR_WORD] = 0xFF808080
+    (folder / "h.splatv").write_bytes(splatv_bytes(rec))
+    io.convert(folder / "h.splatv", folder / "hb.ply")
     return folder
 
 
@@ -38,6 +50,9 @@ def snan_files(tmp_path_factory):
     ["diff", "s.ply", "s.splatv", "--size", "64x36"], ["bake", "s.ply", "b.ply", "--time", "0.5"],
     ["convert", "s.ply", "e.splatv", "--drop-nonfinite", "--trim", "0.2,0.8", "--rotate", "x:90"],
     ["merge", "s.ply", "s.ply", "m.splatv"],
+    ["info", "h.splatv"], ["stats", "h.splatv"], ["stats", "h.splatv", "hb.ply"], ["stats", "s.ply", "s.splatv"],
+    ["bake", "h.splatv", "hb.splat", "--time", "0.5"], ["convert", "h.splatv", "h.html"],
+    ["convert", "h.splatv", "hr.splatv", "--drop-nonfinite", "--trim", "0.1,0.9", "--scale", "2"],
 ])
 def test_no_command_warns_on_signalling_nans(snan_files, monkeypatch, args):
     monkeypatch.chdir(snan_files)
