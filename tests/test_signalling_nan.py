@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from splatconv import io
 from splatconv.cli import main
 from splatconv.formats.splatv_layout import COLOR_WORD
-from splatconv.model import COLUMNS, Scene
+from splatconv.model import COLUMNS, MOTION, OMEGA, Scene
 
 from .conftest import splatv_bytes
 
@@ -26,10 +26,13 @@ def snan_files(tmp_path_factory):
     cols = {c: (rng.normal(size=n) * 0.3).astype(np.float32) for c in COLUMNS}
     cols["rot_0"][:] = 1
     cols["trbf_scale"][:] = 1.0
-    for c in COLUMNS:
+    for i, c in enumerate(COLUMNS):
         bits = cols[c].view(np.uint32)
         bits[:8] = 0x7F800001  # signalling NaN
         bits[8:16] = 0xFF800123  # negative signalling NaN with a payload
+        # And rows where only this column holds one, so that no filter drops them all at once.
+        bits[16 + 5 * i:19 + 5 * i] = 0x7F800001
+        bits[19 + 5 * i:21 + 5 * i] = 0xFF800123
     io.write(Scene(columns=cols), folder / "s.ply")
     io.convert(folder / "s.ply", folder / "s.splatv")
     # Signalling half floats (0x7C01, 0xFC01) in every half slot of some records: a
@@ -41,6 +44,14 @@ def snan_files(tmp_path_factory):
     rec[:, COLOR_WORD] = 0xFF808080
     (folder / "h.splatv").write_bytes(splatv_bytes(rec))
     io.convert(folder / "h.splatv", folder / "hb.ply")
+    # Static files with signalling NaNs: a 3DGS PLY and a .splat of the scene's rest state.
+    rest = {c: v.copy() for c, v in cols.items()}
+    for c in MOTION + OMEGA:
+        rest[c][:] = 0
+    rest["trbf_center"][:] = 0.5
+    rest["trbf_scale"][:] = np.inf
+    io.write(Scene(columns=rest), folder / "rest.ply", layout="3dgs")
+    io.write(Scene(columns=rest), folder / "rest.splat")
     return folder
 
 
@@ -52,6 +63,9 @@ def snan_files(tmp_path_factory):
     ["merge", "s.ply", "s.ply", "m.splatv"],
     ["info", "h.splatv"], ["stats", "h.splatv"], ["stats", "h.splatv", "hb.ply"], ["stats", "s.ply", "s.splatv"],
     ["bake", "h.splatv", "hb.splat", "--time", "0.5"], ["convert", "h.splatv", "h.html"],
+    ["bake", "s.ply", "b.splat", "--time", "0.5"], ["convert", "s.ply", "e.splat", "--trim", "0.5,0.6"],
+    ["convert", "s.ply", "s.splat", "--drop-nonfinite"], ["merge", "s.ply", "s.ply", "m.splatv", "--segments"],
+    ["convert", "rest.ply", "r.splat"], ["convert", "rest.splat", "r3.ply"], ["stats", "rest.ply", "rest.splat"],
     ["convert", "h.splatv", "hr.splatv", "--drop-nonfinite", "--trim", "0.1,0.9", "--scale", "2"],
 ])
 def test_no_command_warns_on_signalling_nans(snan_files, monkeypatch, args):

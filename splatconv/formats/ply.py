@@ -27,7 +27,7 @@ from ..fsutil import open_input, populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, GROUPS, Scene, constant_column
 from ..progress import SILENT
-from ..viewer import importance, importance_order
+from ..viewer import importance, importance_order, wide
 from .base import WriteReport, refuse_time_varying
 
 NAME = "ply"
@@ -589,7 +589,7 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
     if color_mode == "sh":
         with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
             for name in model.COLOR:
-                columns[name] = (0.5 + SH_C0 * columns[name].astype(np.float64)).astype(np.float32)
+                columns[name] = (0.5 + SH_C0 * wide(columns[name])).astype(np.float32)
     cameras = _cameras_from_comments(ply.comments, path)
     meta = {
         "format": ply.text and "ascii" or ("binary_" + ("little" if ply.byte_order == "<" else "big") + "_endian"),
@@ -726,7 +726,7 @@ def _write_3dgs(scene: Scene, stream, sort: str | None, progress) -> WriteReport
             for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION:
                 out[name] = np.asarray(cols[name])[rows]
             for name in model.COLOR:
-                rgb = np.asarray(cols[name])[rows].astype(np.float64)
+                rgb = wide(np.asarray(cols[name])[rows])
                 with np.errstate(over="ignore", invalid="ignore"):
                     out[name] = (rgb - 0.5) / SH_C0
             stream.write(memoryview(out).cast("B"))

@@ -34,7 +34,7 @@ from ..fsutil import open_input, populate
 from ..model import Scene, constant_column
 from ..packing import F32_QUIET_BIT
 from ..progress import SILENT
-from ..viewer import importance, importance_order, opacity, scales
+from ..viewer import importance, importance_order, opacity, scales, wide
 from ..wording import plural
 from .base import WriteReport, refuse_time_varying
 from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
@@ -215,7 +215,7 @@ def _encode(block: dict, rec: np.ndarray, report: WriteReport, changed: dict) ->
     with np.errstate(over="ignore"):
         rec["scale"] = linear  # float64 -> float32: past float32's range becomes inf
     changed["scale"] += int(np.count_nonzero(np.isinf(rec["scale"]) & np.isfinite(linear)))
-    rgb = np.stack([np.asarray(block[name], dtype=np.float64) for name in model.COLOR], axis=1)
+    rgb = np.stack([wide(block[name]) for name in model.COLOR], axis=1)
     alpha = opacity(block)
     rec["rgba"][:, :3] = _bytes(rgb, report, "color")
     rec["rgba"][:, 3] = _bytes(alpha, report, "alpha")
@@ -248,7 +248,7 @@ def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
     normalised and rounded. A NaN or infinite quaternion has no direction:
     written as 128s (zero), which viewers draw unrotated.
     """
-    q = q.astype(np.float64)
+    q = wide(q)
     with np.errstate(over="ignore", invalid="ignore"):
         steps = q * ROT_STEPS + ROT_STEPS
         on_grid = np.all((steps == np.rint(steps)) & (steps >= 0) & (steps <= 255), axis=1)

@@ -77,7 +77,7 @@ def baked_opacity(opacity: np.ndarray, temporal: np.ndarray) -> np.ndarray:
     temporal : (N,) float64 ndarray
         Temporal opacities in (0, 1].
     """
-    x = np.asarray(opacity, dtype=np.float64)
+    x = viewer.wide(opacity)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         log_p = -np.logaddexp(0.0, -x) + np.log(temporal)
         out = log_p - np.log(-np.expm1(log_p))

@@ -218,7 +218,7 @@ def peak_time(columns: dict, window=viewer.TIME_RANGE) -> np.ndarray:
     so within a time range its largest value is at the centre clamped to the
     range. NaN where the centre is NaN.
     """
-    centre = np.asarray(columns["trbf_center"], dtype=np.float64)
+    centre = viewer.wide(columns["trbf_center"])
     return np.clip(centre, window[0], window[1])
 
 

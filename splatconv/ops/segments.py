@@ -155,7 +155,7 @@ def place(columns: dict, start: float, end: float) -> dict:
     it did at t.
     """
     d = end - start
-    out = {name: np.array(columns[name], dtype=np.float64) for name in COLUMNS}
+    out = {name: np.array(viewer.wide(columns[name])) for name in COLUMNS}
     remap_columns(out, -start / d, 1.0 / d)
     return out
 

@@ -640,11 +640,11 @@ def _fit_pieces(read_frame, t, rows, cols, level, progress):
     cj = np.tile(centres, m)
     src = np.repeat(np.arange(m), J)
     alpha = _opacity_at(sub, src, cj)
-    out = {name: sub[name][src].astype(np.float64) for name in SCALE + COLOR}
+    out = {name: viewer.wide(sub[name][src]) for name in SCALE + COLOR}
     dt = cj - np.asarray(sub["trbf_center"], np.float64)[src]
     for i in range(4):
         out[ROTATION[i]] = sub[ROTATION[i]][src] + sub[OMEGA[i]][src] * dt
-        out[OMEGA[i]] = sub[OMEGA[i]][src].astype(np.float64)
+        out[OMEGA[i]] = viewer.wide(sub[OMEGA[i]][src])
     for i, name in enumerate(POSITION):
         out[name] = a[:, 0, i]
     for j in range(3):

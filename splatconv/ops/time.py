@@ -80,7 +80,7 @@ def _rewrite(column: np.ndarray, fn) -> int:
     NaN and inf go through as they are. Overflow (in the arithmetic or in the
     cast back to float32) raises, and only then is the column redone and counted.
     """
-    values = column.astype(np.float64)
+    values = viewer.wide(column)
     try:
         with np.errstate(invalid="ignore", over="raise"):
             column[...] = fn(values)

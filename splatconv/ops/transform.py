@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import viewer
 from ..errors import UsageError
 from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
 from ..wording import plural
@@ -284,7 +285,7 @@ def _affine_block(block: dict, names, matrix: np.ndarray, offset=None) -> int:
     int
         Finite values that became infinite.
     """
-    v = [block[name].astype(np.float64) for name in names]
+    v = [viewer.wide(block[name]) for name in names]
     acc, tmp = np.empty_like(v[0]), np.empty_like(v[0])
     grown = 0
     for i, name in enumerate(names):
