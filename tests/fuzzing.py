@@ -337,7 +337,9 @@ def _commands(path: str, work: str) -> list:
     out = functools.partial(os.path.join, work)
     converts = [(["convert", path, out(name)], out(name)) for name in ("out.splatv", "out.ply", "out.splat", "out.html")]
     return [(["info", path], None), (["info", "--json", path], None), (["stats", path, "--zstd-level", "1"], None),
-            *converts, (["bake", path, out("moment.ply"), "--time", "0.5"], out("moment.ply"))]
+            *converts, (["bake", path, out("moment.ply"), "--time", "0.5"], out("moment.ply")),
+            (["render", path, out("frame.png"), "--size", "32x18", "--time", "0.5"], out("frame.png")),
+            (["diff", path, path, "--size", "32x18", "--times", "0.5"], None)]
 
 
 def _check(result, args, problems: list) -> None:

@@ -12,6 +12,8 @@ from PIL import Image
 
 from splatconv.cli import main
 
+from .conftest import lite_columns_with_normals, random_columns, write_ply
+
 SAMPLE = "sample_data/dancers.ply"
 
 
@@ -238,3 +240,15 @@ def test_a_contact_sheet_too_large_to_write_is_refused_before_drawing(tmp_path, 
     assert r.stderr == (f"Error: {tmp_path / 's.png'}: --frames 200 of 1280x720 make a 19200x10080 contact sheet, "
                         "over 16,384 pixels a side: use fewer frames, a smaller --size, or .gif / .webp\n")
     assert not (tmp_path / "s.png").exists()
+
+
+@pytest.mark.parametrize("command", ["render", "diff", "verify"])
+def test_an_empty_scene_file_is_bad_input_not_usage(tmp_path, command):
+    """A PLY that holds no splats: one Error line, exit 1 (the file is at fault, not the command)."""
+    cols = {k: v[:0] for k, v in random_columns(1).items()}
+    empty = write_ply(tmp_path / "empty.ply", lite_columns_with_normals(cols))
+    args = {"render": [empty, tmp_path / "o.png"], "diff": [empty, empty], "verify": [empty, empty]}[command]
+    r = run(command, *args)
+    assert (r.exit_code, r.stdout) == (1, "")
+    assert r.stderr.startswith("Error: ") and r.stderr.count("\n") == 1, r.stderr
+    assert not (tmp_path / "o.png").exists()

@@ -17,7 +17,7 @@ import numpy as np
 
 from .. import viewer
 from ..cameras import framing_camera
-from ..errors import UsageError
+from ..errors import UnsupportedError, UsageError
 from ..formats import splatv
 from ..io import read as read_scene
 from ..io import read_texture
@@ -91,8 +91,9 @@ def load(path: str | os.PathLike, *, color: str = "auto") -> Source:
 
     Raises
     ------
-    UsageError
-        When a file that does not store the viewer's texture holds no splats.
+    UnsupportedError
+        When a file that does not store the viewer's texture holds no splats (exit 1: the
+        input, not the command, is at fault).
     """
     path = os.fspath(path)
     stored = read_texture(path)
@@ -101,7 +102,7 @@ def load(path: str | os.PathLike, *, color: str = "auto") -> Source:
         return Source(path, scene, padded)
     scene = read_scene(path, color=color)
     if scene.count == 0:
-        raise UsageError("holds no splats to draw", path)
+        raise UnsupportedError("holds no splats to draw", path)
     return Source(path, scene)
 
 
