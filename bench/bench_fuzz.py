@@ -5,8 +5,9 @@ the short campaign in ``tests/test_fuzz.py``): bit flips, byte values,
 truncations, extensions, PLY and ``.splatv`` header edits (deleted, duplicated,
 swapped lines; other types and formats; deep nesting and numbers past a double in
 the JSON), huge or negative counts, and zstd bombs. Each mutant is run through
-``info``, ``info --json``, ``convert`` to ``.splatv`` and ``convert`` to ``.ply``
-in-process; a mutant fails on a traceback, a warning, an exit status other than
+every command of ``tests.fuzzing._commands`` in-process (``info``, ``info --json``,
+``stats``, ``convert`` to ``.splatv``, ``.ply``, ``.splat`` and ``.html``, ``bake``,
+``render`` and ``diff``); a mutant fails on a traceback, a warning, an exit status other than
 0 or 1 (1 with exactly one ``Error:`` line), a file left behind, a changed input,
 more than 30 s or more than 512 MiB of traced memory. Failing mutants are kept
 in ``--keep`` (default: a temporary folder, removed).

@@ -2,8 +2,8 @@
 
 Test-only code, shared by ``tests/test_fuzz.py`` (a short campaign in CI) and
 ``bench/bench_fuzz.py`` (a long one that prints figures). A mutant passes when
-every command run on it (``info``, ``info --json``, ``convert`` to ``.splatv`` and
-to ``.ply``) either succeeds or prints note lines and one ``Error: ...`` line with
+every command run on it (:func:`_commands`: ``info``, ``stats``, ``convert`` to every
+format, ``bake``, ``render`` and ``diff``) either succeeds or prints note lines and one ``Error: ...`` line with
 exit status 1, with no traceback, no warning, no file left behind (output, part
 file or decompressed temporary), the input unchanged, and time and traced
 memory under bounds.
