@@ -33,7 +33,7 @@ def _choice(value, allowed, what: str):
         raise UsageError(f"unknown {what} {value!r} (expected one of {', '.join(allowed)})")
 
 
-def read(path: str | os.PathLike, *, color: str = "auto") -> Scene:
+def read(path: str | os.PathLike, *, color: str = "auto", progress=SILENT) -> Scene:
     """Read any supported scene file into a :class:`Scene` (format by suffix).
 
     Parameters
@@ -41,18 +41,22 @@ def read(path: str | os.PathLike, *, color: str = "auto") -> Scene:
     path : path
     color : {"auto", "rgb", "sh"}
         How a PLY's ``f_dc_0..2`` are read (see :func:`splatconv.formats.ply.read`).
+    progress : splatconv.progress.Progress
+        Told the bytes of a ``.zst`` file decompressed.
     """
     _choice(color, COLOR_MODES, "colour mode")
     module = format_for(path, purpose="read")
-    with plain_input(path, declared_size=getattr(module, "declared_size", None)) as plain:
+    with plain_input(path, declared_size=getattr(module, "declared_size", None), progress=progress) as plain:
         scene = module.read(plain, color=color)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)
     return scene
 
 
-def read_texture(path: str | os.PathLike):
+def read_texture(path: str | os.PathLike, *, progress=SILENT):
     """The viewer's texture as a file stores it, and the scene decoded from it, in one read.
+
+    ``progress`` is told the bytes of a ``.zst`` file decompressed.
 
     Returns
     -------
@@ -63,7 +67,7 @@ def read_texture(path: str | os.PathLike):
     module = format_for(path, purpose="read")
     if not getattr(module, "STORES_TEXTURE", False):
         return None
-    with plain_input(path, declared_size=getattr(module, "declared_size", None)) as plain:
+    with plain_input(path, declared_size=getattr(module, "declared_size", None), progress=progress) as plain:
         padded, scene = module.read_texture(plain)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)
@@ -121,7 +125,8 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         A record layout the output's format offers (``LAYOUTS``; ``.ply``:
         ``lite`` or ``3dgs``); None: the format's choice for the scene.
     progress : splatconv.progress.Progress
-        Told the splats written as they are written.
+        Told the splats written as they are written, and, for a ``.zst``
+        output, the bytes compressed after the last write.
 
     Returns
     -------
@@ -135,7 +140,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     extra = {"layout": layout} if layout is not None else {}
     try:
-        with atomic_writer(path, replace=force) as stream, output_stream(stream, path, level) as out:
+        with atomic_writer(path, replace=force) as stream, output_stream(stream, path, level, progress) as out:
             return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, progress=progress,
                                 **extra)
     except SplatconvError as e:
@@ -237,6 +242,9 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         and before writing, e.g. :func:`splatconv.ops.apply_edits` with a plan.
     layout : str, optional
         As for :func:`write`.
+    progress : splatconv.progress.Progress
+        Told the reading (a "reading" stage, and the bytes of a ``.zst`` input
+        decompressed) and the writing (as :func:`write`).
 
     Returns
     -------
@@ -249,7 +257,9 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     # Check the output before the (possibly long) read: fail fast, touch nothing.
     check_output(output, [source], force)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
-    scene = read(source, color=color)
+    with progress.stage("reading", 1, "file") as advance:
+        scene = read(source, color=color, progress=progress)
+        advance()
     if scene.count == 0 and not module.HOLDS_EMPTY:
         raise UnsupportedError(f"holds no splats; a {module.NAME} file cannot hold an empty scene", source)
     if camera_list is not None:

@@ -17,7 +17,7 @@ from .io import read
 from .model import COLOR, COLUMNS, GROUPS, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
-from .transport import DEFAULT_LEVEL, compressor, plain_input
+from .transport import DEFAULT_LEVEL, compressed_bytes, plain_input
 
 
 def _finite_range(values: np.ndarray):
@@ -266,32 +266,6 @@ def _texture_columns(cols: dict) -> dict:
     return out
 
 
-class _Sink:
-    """Counts the compressed bytes and keeps none."""
-
-    def __init__(self):
-        self.count = 0
-
-    def write(self, data) -> int:
-        n = memoryview(data).nbytes
-        self.count += n
-        return n
-
-
-def _zstd_size(pieces, size: int, level: int, label: str, progress) -> int:
-    """Bytes of the ``size`` bytes ``pieces`` yields (buffers), zstd-compressed at ``level`` as one frame.
-
-    The frame declares its content size, as ``zstd FILE`` writes it; nothing is kept.
-    """
-    sink = _Sink()
-    with progress.stage(label, size, "byte") as advance, \
-            compressor(level).stream_writer(sink, size=size, closefd=False) as z:
-        for piece in pieces:
-            z.write(piece)
-            advance(memoryview(piece).nbytes)
-    return sink.count
-
-
 def _file_pieces(path: str):
     with open(path, "rb") as f:
         while chunk := f.read(_READ_BYTES):
@@ -300,9 +274,10 @@ def _file_pieces(path: str):
 
 def _sizes(path: str, level: int, progress) -> tuple:
     """(bytes, zstd bytes at ``level``) of a file's content: a ``.zst`` file's decompressed."""
-    with plain_input(path) as plain:
+    with plain_input(path, progress=progress) as plain:
         size = os.path.getsize(plain)
-        return size, _zstd_size(_file_pieces(plain), size, level, f"zstd-{level} {os.path.basename(path)}", progress)
+        return size, compressed_bytes(_file_pieces(plain), size, level, progress=progress,
+                                      label=f"zstd-{level} {os.path.basename(path)}")
 
 
 def _file_entry(role: str, path, fmt: str, size: int, count: int, zstd_bytes: int, level: int,
@@ -332,7 +307,7 @@ def _simulated_conversion(source: Scene, level: int, progress) -> tuple:
     rows = max(1, _READ_BYTES // splatv.RECORD_BYTES)
     pieces = [header] + [memoryview(records[start:start + rows]) for start in range(0, len(records), rows)]
     size = len(header) + records.nbytes
-    zstd_bytes = _zstd_size(pieces, size, level, f"zstd-{level} (as converted)", progress)
+    zstd_bytes = compressed_bytes(pieces, size, level, progress=progress, label=f"zstd-{level} (as converted)")
     columns, _ = splatv.decode_records(records[:source.count])
     return Scene(columns=columns, cameras=cameras), size, zstd_bytes
 
@@ -454,13 +429,17 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
         Receives a stage per file compressed and one for the comparison.
     """
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
-    source = read(source_path, color=color)
+    with progress.stage("reading", 1, "file") as advance:
+        source = read(source_path, color=color, progress=progress)
+        advance()
     src_mod = format_for(source_path)
     src_bytes, src_zstd = _sizes(source_path, level, progress)
     files = [_file_entry("source", source_path, src_mod.NAME, src_bytes, source.count, src_zstd, level, src_bytes)]
     compare = True
     if converted_path is not None:
-        converted = read(converted_path, color=color)
+        with progress.stage("reading", 1, "file") as advance:
+            converted = read(converted_path, color=color, progress=progress)
+            advance()
         conv_mod = format_for(converted_path)
         order = align(source, converted, source_path, converted_path)
         conv_bytes, conv_zstd = _sizes(converted_path, level, progress)

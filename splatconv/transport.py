@@ -13,6 +13,7 @@ import zstandard
 
 from .errors import FormatError, SplatconvError, UsageError
 from .fsutil import locked_temporary, open_input
+from .progress import SILENT
 
 #: Default zstd level for reports and ``.zst`` output: 3, zstd's own default.
 #: Measured on 1,000,000-splat scenes (``bench/bench_zstd_levels.py``, table in
@@ -36,16 +37,36 @@ class _Counter:
         return n
 
 
-class _Tee:
-    """A write-only stream that counts what passes and hands it on."""
+class _Reporting:
+    """Where a compressor writes: hands its output on and tells ``advance`` the input bytes compressed.
 
-    def __init__(self, counter: _Counter, out):
-        self.counter = counter
+    zstd's worker threads compress in jobs of megabytes; at high levels the
+    frame's last jobs are finished only when it is closed, seconds after the
+    last write. Each piece of compressed output arrives here, so the input
+    bytes consumed so far (``frame_progression``) show how far that is.
+    """
+
+    def __init__(self, out, cctx):
         self.out = out
+        self.cctx = cctx
+        self.advance = None
+        self.done = 0
 
     def write(self, data) -> int:
-        self.counter.write(data)
+        self.report()
         return self.out.write(data)
+
+    def flush(self) -> None:
+        flush = getattr(self.out, "flush", None)
+        if flush is not None:
+            flush()
+
+    def report(self) -> None:
+        if self.advance is not None:
+            consumed = self.cctx.frame_progression()[1]
+            if consumed > self.done:
+                self.advance(consumed - self.done)
+                self.done = consumed
 
 
 def compressor(level: int = DEFAULT_LEVEL):
@@ -55,34 +76,22 @@ def compressor(level: int = DEFAULT_LEVEL):
     return zstandard.ZstdCompressor(level=level, threads=-1, write_content_size=True)
 
 
-def compressed_size(path: str | os.PathLike, level: int = DEFAULT_LEVEL) -> int:
-    """Bytes of ``path`` compressed with zstd at ``level``, streamed, nothing written."""
-    sink = _Counter()
-    with open(path, "rb") as f:
-        compressor(level).copy_stream(f, sink, size=os.fstat(f.fileno()).st_size)
-    return sink.count
+def compressed_bytes(pieces, size: int, level: int = DEFAULT_LEVEL, *, progress=SILENT,
+                     label: str = "compressing") -> int:
+    """Bytes of the ``size`` bytes ``pieces`` yields (buffers), zstd-compressed at ``level`` as one frame.
 
-
-def written_sizes(write, level: int = DEFAULT_LEVEL) -> tuple[int, int]:
-    """Sizes of what ``write(stream)`` writes, plain and zstd-compressed at ``level``.
-
-    The bytes are compressed as they are written and then dropped: nothing is
-    kept but the compressor's own window and in-flight jobs.
-
-    Parameters
-    ----------
-    write : callable
-        Called once with a binary write-only stream.
-
-    Returns
-    -------
-    plain, compressed : int
-        Bytes.
+    The frame declares its content size, as ``zstd FILE`` writes it; nothing is
+    kept. ``progress`` is told the input bytes compressed, in a stage named ``label``.
     """
-    plain, sink = _Counter(), _Counter()
-    with compressor(level).stream_writer(sink, closefd=False) as z:
-        write(_Tee(plain, z))
-    return plain.count, sink.count
+    cctx = compressor(level)
+    sink = _Reporting(_Counter(), cctx)
+    with progress.stage(label, size, "byte") as advance:
+        sink.advance = advance
+        with cctx.stream_writer(sink, size=size, closefd=False) as z:
+            for piece in pieces:
+                z.write(piece)
+        sink.report()
+    return sink.out.count
 
 
 def is_compressed(path) -> bool:
@@ -165,7 +174,7 @@ def _gib(n: int) -> str:
 
 
 @contextlib.contextmanager
-def plain_input(path, declared_size=None):
+def plain_input(path, declared_size=None, progress=SILENT):
     """Yield a path to the uncompressed bytes of ``path``.
 
     A ``.zst`` file is stream-decompressed into a temporary file (removed on
@@ -184,6 +193,8 @@ def plain_input(path, declared_size=None):
         ``declared_size(head) -> int or None``: the file size the format's header
         declares, from the first :data:`HEAD_BYTES` decompressed bytes (None:
         the header does not say, or is longer).
+    progress : splatconv.progress.Progress
+        Told the compressed bytes read, in a "decompressing NAME" stage.
     """
 
     path = os.fspath(path)
@@ -203,9 +214,12 @@ def plain_input(path, declared_size=None):
                                   f"{_gib(ceiling)} allowed (raise it with --max-decompressed or "
                                   f"{MAX_DECOMPRESSED_ENV})", path)
         with locked_temporary(suffix) as (fd, tmp):
-            with os.fdopen(fd, "wb") as out:
+            # Progress in compressed bytes read: the file's size is always known, the content's not always.
+            with os.fdopen(fd, "wb") as out, \
+                    progress.stage(f"decompressing {os.path.basename(path)}", os.fstat(f.fileno()).st_size,
+                                   "byte") as advance:
                 try:
-                    _decompress(f, out, path, ceiling, declared_size)
+                    _decompress(f, out, path, ceiling, declared_size, advance)
                 except zstandard.ZstdError as e:
                     # "zstd decompress error: Unknown frame descriptor": the library's prefix says nothing
                     raise FormatError(f"not a valid zstd stream ({str(e).split('error: ', 1)[-1]})", path) from None
@@ -217,12 +231,12 @@ def plain_input(path, declared_size=None):
                 raise
 
 
-def _decompress(f, out, path: str, ceiling: int, declared_size) -> None:
+def _decompress(f, out, path: str, ceiling: int, declared_size, advance) -> None:
     """Copy the decompressed bytes of ``f`` to ``out``, never more than the limits allow."""
     limit = ceiling
     declared = None
     head = b"" if declared_size is not None else None
-    written = 0
+    written = read = 0
     with zstandard.ZstdDecompressor().stream_reader(f, read_across_frames=True) as reader:
         while True:
             chunk = reader.read(min(_READ_STEP, limit + 1 - written))
@@ -236,6 +250,8 @@ def _decompress(f, out, path: str, ceiling: int, declared_size) -> None:
                                   f"--max-decompressed or {MAX_DECOMPRESSED_ENV})", path)
             out.write(chunk)
             written += len(chunk)
+            advance(f.tell() - read)
+            read = f.tell()
             if head is not None:
                 head += chunk[: HEAD_BYTES - len(head)]
                 if len(head) >= HEAD_BYTES:
@@ -248,17 +264,27 @@ def _decompress(f, out, path: str, ceiling: int, declared_size) -> None:
 
 
 @contextlib.contextmanager
-def output_stream(stream, path, level: int = DEFAULT_LEVEL):
-    """Wrap a binary output stream in a zstd compressor when ``path`` ends in ``.zst``."""
+def output_stream(stream, path, level: int = DEFAULT_LEVEL, progress=SILENT):
+    """Wrap a binary output stream in a zstd compressor when ``path`` ends in ``.zst``.
+
+    Finishing the frame, after the last write, compresses what the worker
+    threads still hold (seconds at high levels): ``progress`` is told those
+    bytes in a "compressing" stage.
+    """
     if not is_compressed(path):
         yield stream
         return
-    z = compressor(level).stream_writer(stream, closefd=False)
+    cctx = compressor(level)
+    sink = _Reporting(stream, cctx)
+    z = cctx.stream_writer(sink, closefd=False)
     # Not ``with``: on an error or a signal the frame is abandoned, not finished
     # (finishing compresses everything still buffered, seconds at high levels,
     # for a file that is about to be removed).
     yield _Pieces(z)
-    z.close()
+    ingested, consumed, _ = cctx.frame_progression()
+    with progress.stage("compressing", ingested - consumed, "byte") as advance:
+        sink.advance, sink.done = advance, consumed
+        z.close()
 
 
 class _Pieces:

@@ -419,3 +419,28 @@ def test_progress_shows_on_a_terminal_and_not_with_quiet_or_in_a_pipe(tmp_path, 
     assert "writing:" not in quiet
     piped = run("convert", lite_ply, tmp_path / "c.splatv")
     assert piped.exit_code == 0 and "writing:" not in piped.stderr
+    # Compressing a .zst output and decompressing a .zst input show too.
+    packed = str(tmp_path / "d.splatv.zst")
+    assert "compressing:" in _stderr_on_a_terminal(["convert", str(lite_ply), packed], root)
+    shown = _stderr_on_a_terminal(["convert", packed, str(tmp_path / "e.ply")], root)
+    assert "reading:" in shown and "decompressing d.splatv.zst:" in shown
+
+
+def test_a_stage_inside_another_gives_the_line_back_when_it_ends():
+    import io
+
+    from splatconv.cli._progress import progress_for
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    screen = Terminal()
+    bar = progress_for(False, screen)
+    with bar.stage("reading", 1, "file") as advance:
+        with bar.stage("decompressing a.zst", 10, "byte") as inner:
+            inner(10)
+        assert screen.getvalue().rsplit("\r", 1)[-1].startswith("reading:")  # the outer bar is back
+        advance()
+    assert screen.getvalue().endswith("\r\x1b[K")  # cleared when the last stage ends
+    assert progress_for(True, screen) is progress_for(False, io.StringIO())  # --quiet, or no terminal: silent

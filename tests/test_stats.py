@@ -719,7 +719,8 @@ def test_a_faithful_conversion_of_a_nasty_scene_is_all_explained(nasty_files):
 
 
 def test_progress_stages_cover_the_work(tmp_path, lite_ply):
-    # stats_report reports a stage per file compressed and one for the comparison, each advanced to its total.
+    # stats_report reports a stage per file read, one per file compressed and one for the comparison,
+    # each advanced to its total.
     import contextlib
 
     from splatconv.progress import Progress
@@ -741,14 +742,16 @@ def test_progress_stages_cover_the_work(tmp_path, lite_ply):
 
     conv = tmp_path / "s.splatv"
     assert run("convert", lite_ply, conv).exit_code == 0
-    for args, expected in (((lite_ply, conv), ["zstd-1 scene.ply", "zstd-1 s.splatv", "comparing"]),
-                           ((lite_ply,), ["zstd-1 scene.ply", "zstd-1 (as converted)", "comparing"]),
-                           ((conv,), ["zstd-1 s.splatv", "reading values"])):
+    for args, expected in (((lite_ply, conv), ["reading", "zstd-1 scene.ply", "reading", "zstd-1 s.splatv",
+                                               "comparing"]),
+                           ((lite_ply,), ["reading", "zstd-1 scene.ply", "zstd-1 (as converted)", "comparing"]),
+                           ((conv,), ["reading", "zstd-1 s.splatv", "reading values"])):
         recorder = Recorder()
         stats_report(*map(str, args), zstd_level=1, progress=recorder)
         assert [s[0] for s in recorder.stages] == expected
         for label, total, unit, done in recorder.stages:
-            assert done == total and unit == ("splat" if label in ("comparing", "reading values") else "byte")
+            units = {"comparing": "splat", "reading values": "splat", "reading": "file"}
+            assert done == total and unit == units.get(label, "byte")
         assert recorder.stages[-1][1] == 3000
 
 

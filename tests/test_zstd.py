@@ -117,6 +117,9 @@ def compressor_writes(monkeypatch):
         def stream_writer(self, *args, **kwargs):
             return _SpyWriter(self.real.stream_writer(*args, **kwargs), sizes)
 
+        def frame_progression(self):
+            return self.real.frame_progression()
+
     monkeypatch.setattr(transport, "compressor", Spy)
     return sizes
 
@@ -148,17 +151,51 @@ def test_zst_output_is_compressed_as_it_is_written(tmp_path, compressor_writes):
     assert len(compressor_writes) >= len(content) // MAX_WRITE
 
 
-def test_sizes_of_a_conversion_are_measured_as_it_is_written(compressor_writes):
-    import io
+def test_sizes_are_measured_piece_by_piece(compressor_writes):
+    from splatconv.transport import compressed_bytes
 
-    from splatconv.formats import splatv
-    from splatconv.transport import written_sizes
-
-    scene = _big_scene()
-    plain, packed = written_sizes(lambda out: splatv.write(scene, out), 1)
-    assert sum(compressor_writes) == plain
+    data = np.arange(STREAM_SPLATS * 16, dtype="<u4").tobytes()
+    pieces = [data[i:i + MAX_WRITE] for i in range(0, len(data), MAX_WRITE)]
+    packed = compressed_bytes(iter(pieces), len(data), 1)
+    assert sum(compressor_writes) == len(data)
     assert max(compressor_writes) <= MAX_WRITE
-    whole = io.BytesIO()
-    splatv.write(scene, whole)
-    assert plain == len(whole.getvalue())
-    assert packed == pytest.approx(len(zstandard.ZstdCompressor(level=1).compress(whole.getvalue())), rel=0.05)
+    assert packed == pytest.approx(len(zstandard.ZstdCompressor(level=1).compress(data)), rel=0.05)
+
+
+class _Recorder:
+    """A :class:`splatconv.progress.Progress` that records each stage as [label, total, unit, done]."""
+
+    def __init__(self):
+        self.stages = []
+
+    def stage(self, label, total=None, unit="it"):
+        import contextlib
+
+        entry = [label, total, unit, 0]
+        self.stages.append(entry)
+
+        def advance(n=1):
+            entry[3] += n
+
+        return contextlib.nullcontext(advance)
+
+
+def test_compressing_and_decompressing_report_progress(tmp_path):
+    # Finishing a .zst frame compresses what zstd's workers still hold (tens of seconds at level 19
+    # for a big scene): a "compressing" stage follows "writing". Reading a .zst reports the
+    # compressed bytes read; convert's read is a stage of its own. Each stage reaches its total.
+    import splatconv
+
+    packed = tmp_path / "big.splatv.zst"
+    rec = _Recorder()
+    splatconv.write(_big_scene(), packed, zstd_level=3, progress=rec)
+    assert [s[0] for s in rec.stages] == ["writing", "compressing"]
+    assert all(done == total for _label, total, _unit, done in rec.stages), rec.stages
+    assert rec.stages[1][2] == "byte" and 0 < rec.stages[1][1] <= len(unzstd(packed))
+
+    rec = _Recorder()
+    splatconv.convert(packed, tmp_path / "back.ply", progress=rec)
+    assert [s[:3] for s in rec.stages] == [["reading", 1, "file"],
+                                          ["decompressing big.splatv.zst", packed.stat().st_size, "byte"],
+                                          ["writing", STREAM_SPLATS, "splat"]]
+    assert all(done == total for _label, total, _unit, done in rec.stages), rec.stages

@@ -2,6 +2,8 @@
 
 Shown only when stderr is a terminal (never in pipes, logs or ``--json`` runs)
 and cleared when the stage ends, so what stays on screen is the command's output.
+A stage begun inside another (decompressing while reading) takes the line
+while it lasts; the outer stage's bar comes back when it ends.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ _WIDTH = 24
 class _Bar(Progress):
     def __init__(self, stream):
         self.stream = stream
+        self._open = []  # redraw functions of the stages begun and not yet ended, innermost last
 
     @contextlib.contextmanager
     def stage(self, label: str, total: int | None = None, unit: str = "it"):
@@ -47,11 +50,15 @@ class _Bar(Progress):
             if now - state["drawn"] >= _INTERVAL:
                 draw(now)
 
+        self._open.append(draw)
         draw(start)
         try:
             yield advance
         finally:
-            if state["shown"]:
+            self._open.pop()
+            if self._open:
+                self._open[-1](time.monotonic())
+            elif state["shown"]:
                 self.stream.write("\r\x1b[K")
                 self.stream.flush()
 

@@ -76,9 +76,12 @@ def _placements(count: int, values: dict) -> dict:
     return {index: make_transform(**args) for index, args in given.items()}
 
 
-def _read(path, color: str, drop_nonfinite: bool):
+def _read(path, color: str, drop_nonfinite: bool, quiet: bool):
     """Read a scene, and with ``drop_nonfinite`` remove its non-finite splats (its notes say so)."""
-    scene = io.read(path, color=color)
+    bar = progress(quiet)
+    with bar.stage("reading", 1, "file") as advance:
+        scene = io.read(path, color=color, progress=bar)
+        advance()
     if drop_nonfinite:
         scene, _report = ops_drop_nonfinite(scene)
     return scene
@@ -145,7 +148,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     if frames is None:
         io.check_write_options(output_path, sort=sort, layout=layout)
         check_output(output_path, [input_path], force)
-        scene = _read(input_path, color, drop_nonfinite)
+        scene = _read(input_path, color, drop_nonfinite, quiet)
         notes(scene.notes)
         baked, report = bake_ops.bake(scene, time)
         notes(report.notes)
@@ -154,7 +157,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
         notes(written.notes)
         _wrote(output_path, written)
         return
-    scene = _read(input_path, color, drop_nonfinite)
+    scene = _read(input_path, color, drop_nonfinite, quiet)
     notes(scene.notes)
     names = bake_ops.frame_names(frames, frame_suffix)
     moments = list(bake_ops.frame_times(frames))
@@ -241,7 +244,7 @@ def merge(paths, mode, translate, rotate, scale, layout, sort, color, drop_nonfi
     check_output(output_path, inputs, force)
     scenes = []
     for number, path in enumerate(inputs, 1):
-        scene = _read(path, color, drop_nonfinite)
+        scene = _read(path, color, drop_nonfinite, quiet)
         if number in placements:
             scene, _report = apply_transform(scene, placements[number])
         notes(f"input {number} ({path}): {line}" for line in scene.notes)

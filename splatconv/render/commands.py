@@ -47,7 +47,7 @@ def render_file(input_path, output_path, *, time: float = 0.5, camera: int | Non
             raise UsageError(f"{name} must be a positive number")
     check_output(output_path, [input_path], force)
     with progress.stage("reading", 1, "file") as advance:
-        source = load(input_path, color=color)
+        source = load(input_path, color=color, progress=progress)
         advance()
     v = resolve_view(cameras_of(source), camera=camera, view=matrix, size=dims, fx=fx, fy=fy, path=source.path)
     times = [time] if frames == 1 else [float(t) for t in np.linspace(0.0, 1.0, frames)]

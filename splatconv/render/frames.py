@@ -86,8 +86,8 @@ class Source:
                                 self.records if records is None else records)
 
 
-def load(path: str | os.PathLike, *, color: str = "auto") -> Source:
-    """Read any scene file for drawing, in one read.
+def load(path: str | os.PathLike, *, color: str = "auto", progress: Progress = SILENT) -> Source:
+    """Read any scene file for drawing, in one read (``progress``: told a ``.zst`` file's decompression).
 
     Raises
     ------
@@ -96,11 +96,11 @@ def load(path: str | os.PathLike, *, color: str = "auto") -> Source:
         input, not the command, is at fault).
     """
     path = os.fspath(path)
-    stored = read_texture(path)
+    stored = read_texture(path, progress=progress)
     if stored is not None:
         padded, scene = stored
         return Source(path, scene, padded)
-    scene = read_scene(path, color=color)
+    scene = read_scene(path, color=color, progress=progress)
     if scene.count == 0:
         raise UnsupportedError("holds no splats to draw", path)
     return Source(path, scene)

@@ -166,7 +166,7 @@ def _load_pair(paths: tuple, color: str, progress: Progress) -> list:
     loaded = []
     with progress.stage("reading", 2, "file") as advance:
         for path in paths:
-            loaded.append(load(path, color=color))
+            loaded.append(load(path, color=color, progress=progress))
             advance()
     return loaded
 
