@@ -255,14 +255,14 @@ def _texture_columns(cols: dict) -> dict:
         replaced by float64 ones.
     """
     out = dict(cols)
-    with np.errstate(all="ignore"):  # 0 -> log 0, bytes 0 and 255 -> infinite logits
+    with np.errstate(all="ignore"):  # 0 -> log 0, a half past 65504 -> inf
         for name in splatv.EXP_ATTRIBUTES:
-            stored = np.exp(np.asarray(cols[name], dtype=np.float64)).astype(np.float16)  # the nearest half
+            stored = viewer.exp(cols[name]).astype(np.float16)  # the nearest half
             out[name] = np.log(stored.astype(np.float64))
         for name in COLOR:
-            out[name] = np.rint(np.asarray(cols[name], dtype=np.float64) * 255) / 255
-        alpha = np.rint(255 / (1 + np.exp(-np.asarray(cols["opacity"], dtype=np.float64)))) / 255
-        out["opacity"] = np.log(alpha) - np.log1p(-alpha)
+            out[name] = np.rint(viewer.wide(cols[name]) * 255) / 255
+    # The alpha byte as the writer rounds it (sigmoid, then x255); bytes 0 and 255 give infinite logits.
+    out["opacity"] = viewer.logit(np.rint(viewer.sigmoid(cols["opacity"]) * 255) / 255)
     return out
 
 

@@ -6,6 +6,7 @@ Reads the source with :mod:`ast`; nothing is imported or run.
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parent.parent / "splatconv"
@@ -129,4 +130,18 @@ def test_operations_do_no_io_and_draw_nothing():
                  "splatconv.cli", "splatconv.report", "splatconv.stats")
     found = [(module, target) for module, targets in graph.items() if module.startswith("splatconv.ops")
              for target in targets if target.startswith(forbidden)]
+    assert not found, found
+
+
+#: The sigmoid and logit of the viewer's opacity, written out: ``1 + exp(-x)`` and ``log(p) - log1p(-p)``.
+_SIGMOID_OR_LOGIT = re.compile(r"1(\.0)?\s*\+\s*np\.exp\(\s*-|np\.log\((?P<p>\w+)\)\s*-\s*np\.log1p\(\s*-(?P=p)\)")
+#: The writer's engine keeps its own in-place float arithmetic: it must match splaTV's converter bit for bit.
+_OWN_ARITHMETIC = {"splatconv.viewer", "splatconv.formats.splatv_engine"}
+
+
+def test_the_viewers_sigmoid_and_logit_are_written_once():
+    """Everything else calls :mod:`splatconv.viewer` (``sigmoid``, ``logit``, ``opacity``)."""
+    found = [f"{module}:{text.count(chr(10), 0, m.start()) + 1}" for module, path in _modules().items()
+             if module not in _OWN_ARITHMETIC
+             for text in [path.read_text(encoding="utf-8")] for m in _SIGMOID_OR_LOGIT.finditer(text)]
     assert not found, found

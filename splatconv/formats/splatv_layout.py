@@ -12,7 +12,7 @@ import struct
 
 import numpy as np
 
-from .. import packing
+from .. import packing, viewer
 
 MAGIC = 0x674B
 PREAMBLE = struct.Struct("<II")
@@ -138,8 +138,8 @@ def _color_table() -> np.ndarray:
 
 
 def _sigmoid255(logit: np.ndarray) -> np.ndarray:
-    """Alpha byte value before rounding, computed the way splaTV's JS does (double)."""
-    return 1.0 / (1.0 + np.exp(-np.asarray(logit, dtype=np.float64))) * 255.0
+    """Alpha byte value before rounding, computed the way splaTV's JS does (double): sigmoid, then x255."""
+    return viewer.sigmoid(logit) * 255.0
 
 
 def _alpha_table() -> np.ndarray:
