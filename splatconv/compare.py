@@ -70,9 +70,7 @@ def quantization_bound(group: str, values: np.ndarray, kind: str | None = None) 
 
 def _unit_rows(q: np.ndarray) -> np.ndarray:
     """Quaternion rows normalised (float64); rows with no direction (zero, NaN, infinite) all NaN."""
-    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        length = np.sqrt(np.square(q).sum(axis=1, keepdims=True))
-        u = q / length
+    u = viewer.unit_quaternions(q)
     u[~np.isfinite(u).all(axis=1)] = np.nan
     return u
 

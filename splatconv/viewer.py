@@ -189,9 +189,14 @@ def rotation_at(cols: dict, t: float, *, normalize: bool = True) -> np.ndarray:
     dt = (float(t) - wide(cols["trbf_center"]))[:, None]
     with np.errstate(over="ignore", invalid="ignore"):
         q = _f64(cols, ROTATION) + _f64(cols, OMEGA) * dt
-        if normalize:
-            q = q / np.sqrt((q * q).sum(axis=1, keepdims=True))
-    return q
+    return unit_quaternions(q) if normalize else q
+
+
+def unit_quaternions(q: np.ndarray) -> np.ndarray:
+    """Quaternion rows ``(N, 4)`` normalised as the shader does, in float64 (a zero row gives NaN)."""
+    q = wide(q)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        return q / np.sqrt((q * q).sum(axis=1, keepdims=True))
 
 
 def group_values(cols: dict, group: str) -> np.ndarray:
