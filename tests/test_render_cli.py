@@ -119,6 +119,9 @@ def test_library_refuses_non_finite_time_and_focal_length(tmp_path, sample_splat
         render_file(sample_splatv, tmp_path / "o.png", time=float("nan"))
     with pytest.raises(UsageError, match="--fx must be a positive number"):
         render_file(sample_splatv, tmp_path / "o.png", fx=float("inf"))
+    for frames in (0, 1001):  # the CLI's range is the library's (MAX_FRAMES)
+        with pytest.raises(UsageError, match=f"--frames: expected 1 to 1000, got {frames}"):
+            render_file(sample_splatv, tmp_path / "o.gif", frames=frames)
     assert not (tmp_path / "o.png").exists()
 
 

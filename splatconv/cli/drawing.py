@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from ..render.camera import MAX_DEFAULT_WIDTH
-from ..render.commands import diff_files, render_file
+from ..render.commands import DEFAULT_TIME, MAX_FRAMES, diff_files, render_file
 from ..render.verify import DEFAULT_CAMERAS, DEFAULT_MIN_PSNR, DEFAULT_TIMES, DIFF_TIMES, VERIFY_MAX_WIDTH
 from ..render.verify import verify as run_verify
 from ..report import attributes_text, frames_text, images_text, images_verdict_text, to_json, verdict_text
@@ -47,7 +47,7 @@ def _finish(data: dict, as_json: bool, parts) -> None:
 @click.argument("input_path", metavar="INPUT", type=click.Path(dir_okay=False))
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
 @options(
-    click.option("--time", "time_", type=FINITE, default=0.5, show_default=True,
+    click.option("--time", "time_", type=FINITE, default=DEFAULT_TIME, show_default=True,
                  help="Scene time of the frame (the viewer plays 0..1)."),
     click.option("--camera", type=int, help="Header camera to view from (default 0)."),
     click.option("--view", help="Column-major view matrix as the viewer keeps it in its URL hash: "
@@ -59,7 +59,7 @@ def _finish(data: dict, as_json: bool, parts) -> None:
                                              "default size)."),
     click.option("--fy", type=POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
                                              "default size)."),
-    click.option("--frames", type=click.IntRange(1, 1000), default=1, show_default=True,
+    click.option("--frames", type=click.IntRange(1, MAX_FRAMES), default=1, show_default=True,
                  help="Sweep N times over [0, 1]: an animated .gif or .webp, or a labelled "
                       "contact sheet for .png."),
     click.option("--reference", is_flag=True,

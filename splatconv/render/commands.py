@@ -21,9 +21,15 @@ from .frames import Frame, cameras_of, load, render_frames, resolve_view
 from .verify import DEFAULT_MIN_PSNR, Outcome, check_min_psnr, diff_scenes
 
 
-def render_file(input_path, output_path, *, time: float = 0.5, camera: int | None = None, view: str | None = None,
-                size: str | None = None, fx: float | None = None, fy: float | None = None, frames: int = 1,
-                reference: bool = False, color: str = "auto", force: bool = False,
+#: Scene time ``render`` draws when not told: the middle of the viewer's clip.
+DEFAULT_TIME = 0.5
+#: Most frames one ``render`` sweeps over [0, 1].
+MAX_FRAMES = 1000
+
+
+def render_file(input_path, output_path, *, time: float = DEFAULT_TIME, camera: int | None = None,
+                view: str | None = None, size: str | None = None, fx: float | None = None, fy: float | None = None,
+                frames: int = 1, reference: bool = False, color: str = "auto", force: bool = False,
                 progress: Progress = SILENT) -> str:
     """Render a scene file to an image file; returns a one-line summary of what was written.
 
@@ -32,6 +38,8 @@ def render_file(input_path, output_path, *, time: float = 0.5, camera: int | Non
     sheet of several frames is larger, and the summary gives its size.
     """
     output_path = os.fspath(output_path)
+    if not 1 <= frames <= MAX_FRAMES:
+        raise UsageError(f"--frames: expected 1 to {MAX_FRAMES}, got {frames}")
     suffix = os.path.splitext(output_path)[1].lower()
     allowed = images.STILL + (images.ANIMATED if frames > 1 else ())
     if suffix not in allowed:
