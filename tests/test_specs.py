@@ -101,3 +101,57 @@ def test_lite_property_order_is_as_written():
         else:
             expanded.append(name)
     assert tuple(expanded) == ply.LITE_LAYOUT
+
+
+# --------------------------------------------------------------------------
+# specs/json.md: one document for every JSON output. The keys of info, stats,
+# verify and diff are checked in tests/test_stats.py and tests/test_verify.py.
+
+JSON_SPEC = (Path(__file__).resolve().parent.parent / "specs" / "json.md").read_text(encoding="utf-8")
+
+
+def _json_section(heading: str) -> str:
+    return JSON_SPEC.split(f"\n## {heading}\n", 1)[1].split("\n## ", 1)[0]
+
+
+def _commands_with_json() -> list:
+    from splatconv.cli import main
+
+    return sorted(name for name, command in main.commands.items()
+                  if any("--json" in getattr(p, "opts", ()) for p in command.params))
+
+
+def test_every_json_output_has_a_section_stating_its_schema(tmp_path):
+    import json
+
+    from click.testing import CliRunner
+    from PIL import Image
+
+    from splatconv import io
+    from splatconv.cli import main
+
+    from .ops_helpers import moving_scene
+
+    headings = re.findall(r"^## (.+)$", JSON_SPEC, re.M)
+    assert _commands_with_json() == sorted({h.split()[0] for h in headings}), "a section per command with --json"
+
+    scene = moving_scene(200)
+    scene.cameras = [cameras.framing_camera(scene.columns["x"], scene.columns["y"], scene.columns["z"])]
+    io.write(scene, tmp_path / "a.ply")
+    io.write(moving_scene(200, seed=1), tmp_path / "b.ply")
+    png = tmp_path / "p.png"
+    Image.new("RGB", (4, 4)).save(png)
+    a, b = str(tmp_path / "a.ply"), str(tmp_path / "b.ply")
+    runs = {"info": ["info", a], "stats": ["stats", a, "--zstd-level", "1"],
+            "verify": ["verify", a, a, "--times", "0.5", "--size", "32x18"], "diff": ["diff", str(png), str(png)],
+            "merge --segments": ["merge", a, b, str(tmp_path / "m.splatv"), "--segments", "--no-check"]}
+    assert sorted(runs) == sorted(headings)
+    for heading, args in runs.items():
+        r = CliRunner().invoke(main, args + ["--json"])
+        assert r.exit_code == 0, (heading, r.output)
+        data = json.loads(r.stdout)
+        assert list(data)[0] == "schema", heading
+        assert f'`"{data["schema"]}"`' in _json_section(heading), heading
+        table = re.findall(r"^\| `(\w+)` \|", _json_section(heading), re.M)
+        if heading == "merge --segments":
+            assert list(data) == table

@@ -12,7 +12,7 @@ from ..wording import plural
 from ._base import Failure, notes, progress
 
 
-#: The first key of ``merge --segments --json`` (specs/segments.md).
+#: The first key of ``merge --segments --json`` (specs/json.md).
 SCHEMA = "splatconv.merge-segments/1"
 
 
@@ -52,7 +52,7 @@ def segment_options():
         click.option("--camera", type=click.IntRange(min=0), default=0, show_default=True,
                      help="--segments: stored camera the fidelity is measured from."),
         click.option("--json", "as_json", is_flag=True,
-                     help="--segments: print the report as JSON (keys in specs/segments.md)."),
+                     help="--segments: print the report as JSON (keys in specs/json.md)."),
     )
 
 
