@@ -176,6 +176,14 @@ def test_motion_one_cubic_cannot_follow_is_split_into_pieces_that_composite_to_t
     (["--frame-times", "0,1"], "Error: --frame-times gives 2 times for 3 frames\n"),
     (["--frame-times", "0,0.5,0.5"], "Error: --frame-times must increase strictly\n"),
     (["--same-splats", "yes"], "Error: --same-splats yes, but the frames hold different counts (10 to 12 splats)\n"),
+    # The viewer plays [0, 1]; far outside it the fit overflowed into NaN with numpy warnings.
+    (["--frame-times", "0,1e300,2e300"], "Error: --frame-times: 1e+300 is not in the viewer's time range [0, 1]\n"),
+    (["--frame-times", "-0.5,0,1"], "Error: --frame-times: -0.5 is not in the viewer's time range [0, 1]\n"),
+    # Temporal centres are float32: two frames there would share one time.
+    (["--frame-times", "0,1e-300,1"], "Error: --frame-times: 0.0 and 1e-300 are one time in float32 (the output's "
+                                      "precision)\n"),
+    (["--frame-times", "0,0.5,0.5000000001"], "Error: --frame-times: 0.5 and 0.5000000001 are one time in float32 "
+                                              "(the output's precision)\n"),
 ])
 def test_sequence_usage_errors(tmp_path, args, message):
     cols = io.read(SAMPLE).columns
@@ -201,3 +209,25 @@ def test_frame_windows_cut_before_neighbours():
     gaps = np.minimum(np.r_[np.inf, np.diff(t)], np.r_[np.diff(t), np.inf])
     assert (gaps > viewer.VISIBLE_RADIUS * s).all()
     assert math.isclose(sequence.frame_windows(np.array([0.3]))[0], float(STATIC_TRBF_SCALE))
+
+
+def test_scales_and_colours_average_the_finite_frames_and_one_frame_reads_as_one(tmp_path):
+    cols = {k: np.asarray(v)[:6] for k, v in io.read(SAMPLE).columns.items()}
+    frames = []
+    for k, t in enumerate((0.0, 0.5, 1.0)):
+        c = {n: np.array(v) for n, v in snapshot(cols, t).columns.items()}
+        c["scale_0"][0] = np.inf          # infinite in every frame: stays infinite (it was a scale of 1)
+        c["f_dc_0"][1] = np.nan           # NaN in every frame: stays NaN (it was 0)
+        if k == 1:
+            c["f_dc_1"][2] = np.nan       # NaN in one frame: the mean of the other two (it was 2/3 of it)
+            c["scale_1"][3] = -np.inf
+        frames.append(Scene(columns=c))
+    scene, _ = sequence.fit_sequence(lambda k: frames[k], 3)
+    out = scene.columns
+    assert out["scale_0"][0] == np.inf and np.isnan(out["f_dc_0"][1])
+    assert out["f_dc_1"][2] == pytest.approx(float(frames[0].columns["f_dc_1"][2]))
+    assert out["scale_1"][3] == pytest.approx(float(frames[0].columns["scale_1"][3]))
+    write_frames(tmp_path / "one", frames[:1])
+    r = run("convert", tmp_path / "one", tmp_path / "one.ply")
+    assert r.exit_code == 0, r.output
+    assert r.stdout.startswith("1 frame (t 0.5), the same 6 splats in each: motion fitted\n")

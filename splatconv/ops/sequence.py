@@ -98,7 +98,11 @@ def default_times(count: int) -> np.ndarray:
 
 
 def check_times(times, count: int) -> np.ndarray:
-    """Frame times as ``(N,) float64``, refusing a wrong count, non-finite or non-increasing values.
+    """Frame times as ``(N,) float64``, refusing a wrong count, values outside [0, 1] or non-increasing ones.
+
+    The viewer plays [0, 1], so a frame outside it would never be shown; and the
+    output stores temporal centres as float32, so times must still increase
+    strictly once rounded to float32 (else two frames would share one time).
 
     Raises
     ------
@@ -106,13 +110,21 @@ def check_times(times, count: int) -> np.ndarray:
     """
     if times is None:
         return default_times(count)
-    t = np.asarray(times, dtype=np.float64)
+    t = np.asarray(times, dtype=np.float64) + 0.0  # -0 is 0
     if t.ndim != 1 or len(t) != count:
         raise UsageError(f"--frame-times gives {plural(t.size, 'time')} for {plural(count, 'frame')}")
     if not np.isfinite(t).all():
         raise UsageError("--frame-times must be finite numbers")
+    outside = t[(t < 0) | (t > 1)]
+    if len(outside):
+        raise UsageError(f"--frame-times: {outside[0]:g} is not in the viewer's time range [0, 1]")
     if count > 1 and not (np.diff(t) > 0).all():
         raise UsageError("--frame-times must increase strictly")
+    same = np.flatnonzero(np.diff(t.astype(np.float32)) <= 0)
+    if len(same):
+        k = int(same[0])
+        raise UsageError(f"--frame-times: {float(t[k])!r} and {float(t[k + 1])!r} are one time in float32 (the output's "
+                         "precision)")
     return t
 
 
@@ -291,6 +303,8 @@ class _Sums:
         self.asum = np.zeros(n)                  # sum of opacities where seen
         self.scale = np.zeros((n, 3))
         self.color = np.zeros((n, 3))
+        self.finite = np.zeros((n, 6), np.int32)       # frames with a finite scale / colour value
+        self.fallback = np.full((n, 6), np.nan, np.float32)  # a seen frame's value, for none finite
         self.lo = np.full((n, 6), np.inf)
         self.hi = np.full((n, 6), -np.inf)
 
@@ -318,6 +332,8 @@ class _Sums:
         ok = seen[:, None] & np.isfinite(sc)
         self.scale += np.where(ok[:, :3], logscale, 0.0)
         self.color += np.where(ok[:, 3:], color, 0.0)
+        self.finite += ok
+        self.fallback[seen] = sc[seen]
         np.minimum(self.lo, np.where(ok, sc, np.inf), out=self.lo)
         np.maximum(self.hi, np.where(ok, sc, -np.inf), out=self.hi)
 
@@ -471,7 +487,10 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     norm = np.sqrt((r * r).sum(axis=1))
     norm = np.where(norm > 1e-12, norm, 1.0)
     r, w = r / norm[:, None], w / norm[:, None]
-    cnt = np.maximum(sums.seen, 1.0)[:, None]
+    # Mean of the frames' finite values; a value finite in no frame stays as the frames had it.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mean = np.where(sums.finite > 0, np.concatenate([sums.scale, sums.color], axis=1) / sums.finite,
+                        sums.fallback)
     cols = {
         "x": motion[:, 0, 0], "y": motion[:, 0, 1], "z": motion[:, 0, 2],
         "trbf_center": centre, "trbf_scale": trbf_scale, "opacity": viewer.logit(np.clip(peak, 1e-7, 1 - 1e-7)),
@@ -479,8 +498,8 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     for j in range(3):
         for i in range(3):
             cols[MOTION[3 * j + i]] = motion[:, j + 1, i]
-        cols[SCALE[j]] = sums.scale[:, j] / cnt[:, 0]
-        cols[COLOR[j]] = sums.color[:, j] / cnt[:, 0]
+        cols[SCALE[j]] = mean[:, j]
+        cols[COLOR[j]] = mean[:, 3 + j]
     for i in range(4):
         cols[ROTATION[i]], cols[OMEGA[i]] = r[:, i], w[:, i]
     spread = np.where(np.isfinite(sums.hi - sums.lo), sums.hi - sums.lo, 0.0) if n else np.zeros((0, 6))
