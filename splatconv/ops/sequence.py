@@ -51,6 +51,9 @@ _WIDE = float(STATIC_TRBF_SCALE)
 #: Tikhonov weight on higher polynomial terms: lets a splat seen in fewer than 4 frames get the
 #: lowest-degree curve through them instead of a singular solve.
 _RIDGE = 1e-9
+#: Fitted terms whose effect over the clip is below this share of the splat's scale are noise (zeroed):
+#: half a float32 step, the resolution of the frames' own values.
+_ROUNDOFF = 2.0 ** -24
 
 
 @dataclass
@@ -487,6 +490,7 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     norm = np.sqrt((r * r).sum(axis=1))
     norm = np.where(norm > 1e-12, norm, 1.0)
     r, w = r / norm[:, None], w / norm[:, None]
+    _snap_roundoff(motion, r, w, t, centre, extent)
     # Mean of the frames' finite values; a value finite in no frame stays as the frames had it.
     with np.errstate(divide="ignore", invalid="ignore"):
         mean = np.where(sums.finite > 0, np.concatenate([sums.scale, sums.color], axis=1) / sums.finite,
@@ -536,6 +540,31 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
         out = {name: np.concatenate([out[name], pieces[name]]) for name in COLUMNS}
     out = {name: v.astype(np.float32) for name, v in out.items()}
     return Scene(columns=out, variant=VARIANT_LITE, meta={"frames": len(t)})
+
+
+def _snap_roundoff(motion: np.ndarray, r: np.ndarray, w: np.ndarray, t: np.ndarray, centre: np.ndarray,
+                   extent: float) -> None:
+    """Zero, in place, fitted terms below the frames' float32 resolution.
+
+    A motion term moving a splat less than :data:`_ROUNDOFF` of its distance from
+    the origin or of the scene's extent over the clip, a unit-quaternion component
+    below it and an angular velocity turning less than it over the clip (only its
+    part across the rotation turns: the part along it is the fit's free direction). Where a
+    splat does not move or turn, the fit of its float32 positions and rotations
+    leaves such terms (round-off and the frames' rounding, 1e-13 to 5e-8 on the
+    sample), which no viewer can show and writers would report as lost values.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = np.maximum(np.abs(t[0] - centre), np.abs(t[-1] - centre))
+        ref = np.maximum(np.sqrt((motion[:, 0] ** 2).sum(axis=1)), extent) * _ROUNDOFF
+        for j in range(1, motion.shape[1]):
+            motion[:, j][np.abs(motion[:, j]) * (reach ** j)[:, None] < ref[:, None]] = 0.0
+        r[np.abs(r) < _ROUNDOFF] = 0.0
+        # normalize(r + w dt) does not turn while w is parallel to r (the rotation fit's free
+        # direction, so a still splat gets some): only the perpendicular part counts.
+        across = w - (w * r).sum(axis=1)[:, None] * r
+        w[np.sqrt((across * across).sum(axis=1)) * reach < _ROUNDOFF] = 0.0
+        w[np.abs(w) * reach[:, None] < _ROUNDOFF] = 0.0
 
 
 def _checked(read_frame, k: int, n: int) -> Scene:
