@@ -236,3 +236,19 @@ def test_scales_and_colours_average_the_finite_frames_and_one_frame_reads_as_one
     r = run("convert", tmp_path / "one", tmp_path / "one.ply")
     assert r.exit_code == 0, r.output
     assert r.stdout.startswith("1 frame (t 0.5), the same 6 splats in each: motion fitted\n")
+
+
+def test_frames_whose_rows_are_not_one_splat_suggest_same_splats_no():
+    cols = {k: np.asarray(v)[:400] for k, v in io.read(SAMPLE).columns.items()}
+    rng = np.random.default_rng(3)
+    frames = []
+    for t in np.linspace(0, 1, 5):
+        c = snapshot(cols, t).columns
+        order = rng.permutation(400)  # as a .splat writer's importance order reshuffles rows
+        frames.append(Scene(columns={k: np.asarray(v)[order] for k, v in c.items()}))
+    _, report = sequence.fit_sequence(lambda k: frames[k], 5)
+    assert any(n.endswith("change colour by more than 0.1 between frames: if row i is not the same splat in every "
+                          "frame (.splat files, for one, are sorted by importance), use --same-splats no")
+               for n in report.notes), report.notes
+    _, report = sequence.fit_sequence(lambda k: Scene(columns=snapshot(cols, k / 4).columns), 5)
+    assert not any("--same-splats no" in n for n in report.notes)

@@ -51,6 +51,9 @@ _WIDE = float(STATIC_TRBF_SCALE)
 #: Tikhonov weight on higher polynomial terms: lets a splat seen in fewer than 4 frames get the
 #: lowest-degree curve through them instead of a singular solve.
 _RIDGE = 1e-9
+#: A colour change (0..1) beyond which a splat is unlikely to be one splat in every frame; when most
+#: splats change this much, a note suggests --same-splats no.
+_RECOLOURED = 0.1
 #: Fitted terms whose effect over the clip is below this share of the splat's scale are noise (zeroed):
 #: half a float32 step, the resolution of the frames' own values.
 _ROUNDOFF = 2.0 ** -24
@@ -512,6 +515,11 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     if report.scale_variation > 1e-6 or report.color_variation > 1e-6:
         report.notes.append(f"scales and colours differ between frames (up to {report.scale_variation:.3g} in log "
                             f"scale, {report.color_variation:.3g} in colour); each splat keeps its mean")
+    recoloured = int((spread[:, 3:].max(axis=1) > _RECOLOURED).sum()) if n else 0
+    if recoloured > n // 2:
+        report.notes.append(f"{plural(recoloured, 'splat')} of {n:,} change colour by more than {_RECOLOURED:g} "
+                            "between frames: if row i is not the same splat in every frame (.splat files, for "
+                            "one, are sorted by importance), use --same-splats no")
 
     errors = _errors(read_frame, t, n, cols, progress)
     keep = sums.seen > 0
