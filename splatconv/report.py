@@ -351,7 +351,9 @@ def _db(v) -> str:
 def segments_text(data: dict) -> str:
     """``merge --segments``'s report (:meth:`SegmentReport.as_dict` + frames + fidelity) as text."""
     lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
-             f"{data['splats_out']:,} ({data['ratio']:.2f}x; budget {data['budget']:g}x), "
+             f"{data['splats_out']:,} ("
+             + (f"{data['ratio']:.2f}x; " if data["ratio"] is not None else "")
+             + f"budget {data['budget']:g}x), "
              f"long-lived splats fade over {plural(data['leak_frames'], 'frame')} of the neighbours"]
     for i, s in enumerate(data["segments"]):
         given = sorted(s["pieces_per_long_lived"].items(), key=lambda kv: int(kv[0]))

@@ -176,6 +176,13 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert io.read(out).count == data["splats_out"]
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
+    # Segments with no splats at all: a report, not a traceback (the ratio is undefined).
+    io.write(Scene(columns={k: np.asarray(v)[:0] for k, v in a.columns.items()}), tmp_path / "empty.ply")
+    r = run("merge", tmp_path / "empty.ply", tmp_path / "empty.ply", tmp_path / "e.ply", "--segments")
+    assert r.exit_code == 0, r.output
+    assert r.stdout.startswith("2 segments on one timeline: 0 splats -> 0 (budget 2x), ")
+    assert r.stderr.endswith("; 0 -> 0 splats\n")
+    assert io.read(tmp_path / "e.ply").count == 0
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations", "5")
     assert (r.exit_code, r.stderr) == (2, "Error: --durations gives 1 value for 2 segments\n")
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")

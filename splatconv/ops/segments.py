@@ -497,6 +497,7 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
     report.notes.append(
         f"segments: {len(scenes)} on one timeline ({', '.join(str(d) for d in durations)} frames); "
         f"{plural(long_total, 'long-lived splat')} split into time-windowed pieces; "
-        f"{report.count_in:,} -> {plural(report.count_out, 'splat')} ({report.count_out / max(report.count_in, 1):.2f}x)")
+        f"{report.count_in:,} -> {plural(report.count_out, 'splat')}"
+        + (f" ({report.count_out / report.count_in:.2f}x)" if report.count_in else ""))
     cameras = next((s.cameras for s in scenes if s.cameras), None)
     return Scene(columns=out, cameras=cameras, variant=VARIANT_LITE, meta={}), report
