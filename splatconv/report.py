@@ -330,12 +330,12 @@ def sequence_text(data: dict) -> str:
     """A frame-sequence fit (:class:`splatconv.ops.sequence.SequenceReport` as a dict) as text."""
     n = data["frames"]
     times = data["times"]
-    span = f"t {times[0]:g} .. {times[-1]:g}" if times else ""
+    span = f"t {times[0]:g}" + (f" .. {times[-1]:g}" if len(times) > 1 else "")
     if not data["same_splats"]:
         per = data["splats_per_frame"]
-        return (f"{n} frames ({span}), different splats per frame: {plural(sum(per), 'splat')}, each frame shown "
+        return (f"{plural(n, 'frame')} ({span}), different splats per frame: {plural(sum(per), 'splat')}, each frame shown "
                 "around its own time")
-    lines = [f"{n} frames ({span}), the same {plural(data['splats_per_frame'][0], 'splat')} in each: motion fitted"]
+    lines = [f"{plural(n, 'frame')} ({span}), the same {plural(data['splats_per_frame'][0], 'splat')} in each: motion fitted"]
     lines.append(f"  position error ({data['max_error']:.3g} allowed): {_dist(data['position_error'], '{:.3g}')}")
     lines.append(f"  rotation error (degrees):  {_dist(data['rotation_error_deg'], '{:.3g}')}")
     lines.append(f"  opacity error:             {_dist(data['opacity_error'], '{:.3g}')}")
@@ -351,7 +351,9 @@ def _db(v) -> str:
 def segments_text(data: dict) -> str:
     """``merge --segments``'s report (:meth:`SegmentReport.as_dict` + frames + fidelity) as text."""
     lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
-             f"{data['splats_out']:,} ({data['ratio']:.2f}x; budget {data['budget']:g}x), "
+             f"{data['splats_out']:,} ("
+             + (f"{data['ratio']:.2f}x; " if data["ratio"] is not None else "")
+             + f"budget {data['budget']:g}x), "
              f"long-lived splats fade over {plural(data['leak_frames'], 'frame')} of the neighbours"]
     for i, s in enumerate(data["segments"]):
         given = sorted(s["pieces_per_long_lived"].items(), key=lambda kv: int(kv[0]))

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -134,8 +135,8 @@ def test_pieces_of_an_opaque_background_splat_composite_near_its_opacity():
     cols = {name: np.zeros(1) for name in COLUMNS}
     cols.update(rot_0=np.ones(1), trbf_scale=np.array([np.inf]), opacity=np.array([viewer.logit(0.95)]),
                 trbf_center=np.array([0.5]))
-    pieces = sg._pieces(cols, np.array([0]), p, 5, 2, (True, True))
-    assert len(pieces["x"]) == len(x[0])
+    pieces, made = sg._pieces(cols, np.array([0]), p, 5, 2, (True, True))
+    assert len(pieces["x"]) == len(x[0]) == made[0]
     own = [p.start + j * (p.end - p.start) / (per - 1) for j in range(per)]
     comp = np.array([1 - np.prod(1 - viewer.opacity(pieces) * viewer.temporal_opacity(pieces, t)) for t in own])
     # One splat's copies composite to its opacity only roughly (a Gaussian window is round, not
@@ -159,9 +160,29 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert [f["frame"] for f in data["frames"]] == list(range(0, 2 * per, 3))
     assert data["splats_out"] <= 2 * data["splats_in"] and data["output"]["splats"] == data["splats_out"]
     assert set(data["fidelity"]) == {"frames", "median_psnr", "min_psnr", "below_40", "below_30"}
+    assert data["schema"] == "splatconv.merge-segments/1"
+    spec = (ROOT / "specs" / "segments.md").read_text(encoding="utf-8").split("\n## JSON", 1)[1]
+    rows = dict(re.findall(r"^\| (`.+?`) \| \w.*? \| (.+) \|$", spec, re.M))
+    assert [k for names in rows for k in re.findall(r"`(\w+)`", names)] == list(data)
+    for key, entries in (("segments", data["segments"][0]), ("frames", data["frames"][0]),
+                         ("fidelity", data["fidelity"]), ("output", data["output"])):
+        named = [k for k in re.findall(r"`(\w+)`", rows[f"`{key}`"].split(":", 1)[-1]) if k != "null"]
+        assert named == list(entries), key
+    # What the pieces count says is what was written: kept splats once, each long-lived one as its pieces.
+    for seg in data["segments"]:
+        pieces = sum(int(k) * n for k, n in seg["pieces_per_long_lived"].items())
+        assert sum(seg["pieces_per_long_lived"].values()) == seg["long_lived"]
+        assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
     assert io.read(out).count == data["splats_out"]
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
+    # Segments with no splats at all: a report, not a traceback (the ratio is undefined).
+    io.write(Scene(columns={k: np.asarray(v)[:0] for k, v in a.columns.items()}), tmp_path / "empty.ply")
+    r = run("merge", tmp_path / "empty.ply", tmp_path / "empty.ply", tmp_path / "e.ply", "--segments")
+    assert r.exit_code == 0, r.output
+    assert r.stdout.startswith("2 segments on one timeline: 0 splats -> 0 (budget 2x), ")
+    assert r.stderr.endswith("; 0 -> 0 splats\n")
+    assert io.read(tmp_path / "e.ply").count == 0
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations", "5")
     assert (r.exit_code, r.stderr) == (2, "Error: --durations gives 1 value for 2 segments\n")
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")

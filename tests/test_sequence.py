@@ -112,6 +112,11 @@ def test_fit_is_exact_for_a_lite_scene_with_unit_or_flipped_quaternions():
     assert report.opacity_error["p99"] < 1e-3
     for t in (0.1, 0.45, 0.93):  # between frames too
         assert np.abs(viewer.position_at(scene.columns, t) - viewer.position_at(cols, t)).max() < 1e-4
+    # Where the scene has no motion or turn, the fit leaves none: not round-off near 1e-13 or the
+    # frames' float32 rounding near 5e-8, which a .splatv writer reported as thousands of lost values.
+    for group in (MOTION, OMEGA):
+        still = np.all([cols[name] == 0 for name in group], axis=0)
+        assert still.any() and all((scene.columns[name][still] == 0).all() for name in group), group
 
 
 def test_different_splats_per_frame_show_each_frame_exactly_at_its_time(tmp_path):
@@ -176,6 +181,14 @@ def test_motion_one_cubic_cannot_follow_is_split_into_pieces_that_composite_to_t
     (["--frame-times", "0,1"], "Error: --frame-times gives 2 times for 3 frames\n"),
     (["--frame-times", "0,0.5,0.5"], "Error: --frame-times must increase strictly\n"),
     (["--same-splats", "yes"], "Error: --same-splats yes, but the frames hold different counts (10 to 12 splats)\n"),
+    # The viewer plays [0, 1]; far outside it the fit overflowed into NaN with numpy warnings.
+    (["--frame-times", "0,1e300,2e300"], "Error: --frame-times: 1e+300 is not in the viewer's time range [0, 1]\n"),
+    (["--frame-times", "-0.5,0,1"], "Error: --frame-times: -0.5 is not in the viewer's time range [0, 1]\n"),
+    # Temporal centres are float32: two frames there would share one time.
+    (["--frame-times", "0,1e-300,1"], "Error: --frame-times: 0.0 and 1e-300 are one time in float32 (the output's "
+                                      "precision)\n"),
+    (["--frame-times", "0,0.5,0.5000000001"], "Error: --frame-times: 0.5 and 0.5000000001 are one time in float32 "
+                                              "(the output's precision)\n"),
 ])
 def test_sequence_usage_errors(tmp_path, args, message):
     cols = io.read(SAMPLE).columns
@@ -201,3 +214,41 @@ def test_frame_windows_cut_before_neighbours():
     gaps = np.minimum(np.r_[np.inf, np.diff(t)], np.r_[np.diff(t), np.inf])
     assert (gaps > viewer.VISIBLE_RADIUS * s).all()
     assert math.isclose(sequence.frame_windows(np.array([0.3]))[0], float(STATIC_TRBF_SCALE))
+
+
+def test_scales_and_colours_average_the_finite_frames_and_one_frame_reads_as_one(tmp_path):
+    cols = {k: np.asarray(v)[:6] for k, v in io.read(SAMPLE).columns.items()}
+    frames = []
+    for k, t in enumerate((0.0, 0.5, 1.0)):
+        c = {n: np.array(v) for n, v in snapshot(cols, t).columns.items()}
+        c["scale_0"][0] = np.inf          # infinite in every frame: stays infinite (it was a scale of 1)
+        c["f_dc_0"][1] = np.nan           # NaN in every frame: stays NaN (it was 0)
+        if k == 1:
+            c["f_dc_1"][2] = np.nan       # NaN in one frame: the mean of the other two (it was 2/3 of it)
+            c["scale_1"][3] = -np.inf
+        frames.append(Scene(columns=c))
+    scene, _ = sequence.fit_sequence(lambda k: frames[k], 3)
+    out = scene.columns
+    assert out["scale_0"][0] == np.inf and np.isnan(out["f_dc_0"][1])
+    assert out["f_dc_1"][2] == pytest.approx(float(frames[0].columns["f_dc_1"][2]))
+    assert out["scale_1"][3] == pytest.approx(float(frames[0].columns["scale_1"][3]))
+    write_frames(tmp_path / "one", frames[:1])
+    r = run("convert", tmp_path / "one", tmp_path / "one.ply")
+    assert r.exit_code == 0, r.output
+    assert r.stdout.startswith("1 frame (t 0.5), the same 6 splats in each: motion fitted\n")
+
+
+def test_frames_whose_rows_are_not_one_splat_suggest_same_splats_no():
+    cols = {k: np.asarray(v)[:400] for k, v in io.read(SAMPLE).columns.items()}
+    rng = np.random.default_rng(3)
+    frames = []
+    for t in np.linspace(0, 1, 5):
+        c = snapshot(cols, t).columns
+        order = rng.permutation(400)  # as a .splat writer's importance order reshuffles rows
+        frames.append(Scene(columns={k: np.asarray(v)[order] for k, v in c.items()}))
+    _, report = sequence.fit_sequence(lambda k: frames[k], 5)
+    assert any(n.endswith("change colour by more than 0.1 between frames: if row i is not the same splat in every "
+                          "frame (.splat files, for one, are sorted by importance), use --same-splats no")
+               for n in report.notes), report.notes
+    _, report = sequence.fit_sequence(lambda k: Scene(columns=snapshot(cols, k / 4).columns), 5)
+    assert not any("--same-splats no" in n for n in report.notes)

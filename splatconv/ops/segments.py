@@ -317,8 +317,15 @@ def _long_lived(cols: dict, p: Placement) -> tuple:
     return split, nan_time
 
 
-def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> dict:
-    """Pieces of splats ``rows`` (placed, float64 columns) for segment ``p``, ``m`` windows each: float64 columns."""
+def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
+    """Pieces of splats ``rows`` (placed, float64 columns) for segment ``p`` with the ``m``-window layout.
+
+    Returns
+    -------
+    (dict, ndarray)
+        The pieces' float64 columns, and how many pieces each row got ``(M,) int64``
+        (the layout may keep fewer windows than ``m``; pieces too faint to draw are left out).
+    """
     left, right = first_last
     x, s, table, _ = windows(p.frames, m, leak, left, right)
     step = (p.end - p.start) / (p.frames - 1)
@@ -365,7 +372,7 @@ def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first
     out["trbf_center"] = cn
     out["trbf_scale"] = np.log(sn)
     out["opacity"] = viewer.logit(np.clip(pk[src, j], 1e-7, 1 - 1e-7))
-    return out
+    return out, ok.sum(axis=1)
 
 
 def _best_layout(n: int, m: int, leak: int, sides) -> int:
@@ -454,9 +461,14 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
                     costs = _best_costs(p.frames, leak, sides)
                     extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - n_long
                     m = allocate(impact(cols, rows), extra, costs)
-                extra_cols = [_pieces(cols, rows[m == k], p, _best_layout(p.frames, int(k), leak, sides), leak, sides)
-                              for k in np.unique(m)]
+                made = np.zeros(n_long, np.int64)
+                extra_cols = []
+                for k in np.unique(m):
+                    piece_cols, made[m == k] = _pieces(cols, rows[m == k], p,
+                                                       _best_layout(p.frames, int(k), leak, sides), leak, sides)
+                    extra_cols.append(piece_cols)
                 kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
+                m = made
             with np.errstate(over="ignore", invalid="ignore"):
                 parts.append({name: kept[name].astype(np.float32) for name in COLUMNS})
             overflow += sum(int((np.isinf(parts[-1][name]) & np.isfinite(kept[name])).sum()) for name in COLUMNS)
@@ -485,6 +497,7 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
     report.notes.append(
         f"segments: {len(scenes)} on one timeline ({', '.join(str(d) for d in durations)} frames); "
         f"{plural(long_total, 'long-lived splat')} split into time-windowed pieces; "
-        f"{report.count_in:,} -> {plural(report.count_out, 'splat')} ({report.count_out / max(report.count_in, 1):.2f}x)")
+        f"{report.count_in:,} -> {plural(report.count_out, 'splat')}"
+        + (f" ({report.count_out / report.count_in:.2f}x)" if report.count_in else ""))
     cameras = next((s.cameras for s in scenes if s.cameras), None)
     return Scene(columns=out, cameras=cameras, variant=VARIANT_LITE, meta={}), report

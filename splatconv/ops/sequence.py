@@ -51,6 +51,12 @@ _WIDE = float(STATIC_TRBF_SCALE)
 #: Tikhonov weight on higher polynomial terms: lets a splat seen in fewer than 4 frames get the
 #: lowest-degree curve through them instead of a singular solve.
 _RIDGE = 1e-9
+#: A colour change (0..1) beyond which a splat is unlikely to be one splat in every frame; when most
+#: splats change this much, a note suggests --same-splats no.
+_RECOLOURED = 0.1
+#: Fitted terms whose effect over the clip is below this share of the splat's scale are noise (zeroed):
+#: half a float32 step, the resolution of the frames' own values.
+_ROUNDOFF = 2.0 ** -24
 
 
 @dataclass
@@ -98,7 +104,11 @@ def default_times(count: int) -> np.ndarray:
 
 
 def check_times(times, count: int) -> np.ndarray:
-    """Frame times as ``(N,) float64``, refusing a wrong count, non-finite or non-increasing values.
+    """Frame times as ``(N,) float64``, refusing a wrong count, values outside [0, 1] or non-increasing ones.
+
+    The viewer plays [0, 1], so a frame outside it would never be shown; and the
+    output stores temporal centres as float32, so times must still increase
+    strictly once rounded to float32 (else two frames would share one time).
 
     Raises
     ------
@@ -106,13 +116,21 @@ def check_times(times, count: int) -> np.ndarray:
     """
     if times is None:
         return default_times(count)
-    t = np.asarray(times, dtype=np.float64)
+    t = np.asarray(times, dtype=np.float64) + 0.0  # -0 is 0
     if t.ndim != 1 or len(t) != count:
         raise UsageError(f"--frame-times gives {plural(t.size, 'time')} for {plural(count, 'frame')}")
     if not np.isfinite(t).all():
         raise UsageError("--frame-times must be finite numbers")
+    outside = t[(t < 0) | (t > 1)]
+    if len(outside):
+        raise UsageError(f"--frame-times: {outside[0]:g} is not in the viewer's time range [0, 1]")
     if count > 1 and not (np.diff(t) > 0).all():
         raise UsageError("--frame-times must increase strictly")
+    same = np.flatnonzero(np.diff(t.astype(np.float32)) <= 0)
+    if len(same):
+        k = int(same[0])
+        raise UsageError(f"--frame-times: {float(t[k])!r} and {float(t[k + 1])!r} are one time in float32 (the output's "
+                         "precision)")
     return t
 
 
@@ -291,6 +309,8 @@ class _Sums:
         self.asum = np.zeros(n)                  # sum of opacities where seen
         self.scale = np.zeros((n, 3))
         self.color = np.zeros((n, 3))
+        self.finite = np.zeros((n, 6), np.int32)       # frames with a finite scale / colour value
+        self.fallback = np.full((n, 6), np.nan, np.float32)  # a seen frame's value, for none finite
         self.lo = np.full((n, 6), np.inf)
         self.hi = np.full((n, 6), -np.inf)
 
@@ -318,6 +338,8 @@ class _Sums:
         ok = seen[:, None] & np.isfinite(sc)
         self.scale += np.where(ok[:, :3], logscale, 0.0)
         self.color += np.where(ok[:, 3:], color, 0.0)
+        self.finite += ok
+        self.fallback[seen] = sc[seen]
         np.minimum(self.lo, np.where(ok, sc, np.inf), out=self.lo)
         np.maximum(self.hi, np.where(ok, sc, -np.inf), out=self.hi)
 
@@ -471,7 +493,11 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     norm = np.sqrt((r * r).sum(axis=1))
     norm = np.where(norm > 1e-12, norm, 1.0)
     r, w = r / norm[:, None], w / norm[:, None]
-    cnt = np.maximum(sums.seen, 1.0)[:, None]
+    _snap_roundoff(motion, r, w, t, centre, extent)
+    # Mean of the frames' finite values; a value finite in no frame stays as the frames had it.
+    with np.errstate(divide="ignore", invalid="ignore"):
+        mean = np.where(sums.finite > 0, np.concatenate([sums.scale, sums.color], axis=1) / sums.finite,
+                        sums.fallback)
     cols = {
         "x": motion[:, 0, 0], "y": motion[:, 0, 1], "z": motion[:, 0, 2],
         "trbf_center": centre, "trbf_scale": trbf_scale, "opacity": viewer.logit(np.clip(peak, 1e-7, 1 - 1e-7)),
@@ -479,8 +505,8 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     for j in range(3):
         for i in range(3):
             cols[MOTION[3 * j + i]] = motion[:, j + 1, i]
-        cols[SCALE[j]] = sums.scale[:, j] / cnt[:, 0]
-        cols[COLOR[j]] = sums.color[:, j] / cnt[:, 0]
+        cols[SCALE[j]] = mean[:, j]
+        cols[COLOR[j]] = mean[:, 3 + j]
     for i in range(4):
         cols[ROTATION[i]], cols[OMEGA[i]] = r[:, i], w[:, i]
     spread = np.where(np.isfinite(sums.hi - sums.lo), sums.hi - sums.lo, 0.0) if n else np.zeros((0, 6))
@@ -489,6 +515,11 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     if report.scale_variation > 1e-6 or report.color_variation > 1e-6:
         report.notes.append(f"scales and colours differ between frames (up to {report.scale_variation:.3g} in log "
                             f"scale, {report.color_variation:.3g} in colour); each splat keeps its mean")
+    recoloured = int((spread[:, 3:].max(axis=1) > _RECOLOURED).sum()) if n else 0
+    if recoloured > n // 2:
+        report.notes.append(f"{plural(recoloured, 'splat')} of {n:,} change colour by more than {_RECOLOURED:g} "
+                            "between frames: if row i is not the same splat in every frame (.splat files, for "
+                            "one, are sorted by importance), use --same-splats no")
 
     errors = _errors(read_frame, t, n, cols, progress)
     keep = sums.seen > 0
@@ -517,6 +548,31 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
         out = {name: np.concatenate([out[name], pieces[name]]) for name in COLUMNS}
     out = {name: v.astype(np.float32) for name, v in out.items()}
     return Scene(columns=out, variant=VARIANT_LITE, meta={"frames": len(t)})
+
+
+def _snap_roundoff(motion: np.ndarray, r: np.ndarray, w: np.ndarray, t: np.ndarray, centre: np.ndarray,
+                   extent: float) -> None:
+    """Zero, in place, fitted terms below the frames' float32 resolution.
+
+    A motion term moving a splat less than :data:`_ROUNDOFF` of its distance from
+    the origin or of the scene's extent over the clip, a unit-quaternion component
+    below it and an angular velocity turning less than it over the clip (only its
+    part across the rotation turns: the part along it is the fit's free direction). Where a
+    splat does not move or turn, the fit of its float32 positions and rotations
+    leaves such terms (round-off and the frames' rounding, 1e-13 to 5e-8 on the
+    sample), which no viewer can show and writers would report as lost values.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        reach = np.maximum(np.abs(t[0] - centre), np.abs(t[-1] - centre))
+        ref = np.maximum(np.sqrt((motion[:, 0] ** 2).sum(axis=1)), extent) * _ROUNDOFF
+        for j in range(1, motion.shape[1]):
+            motion[:, j][np.abs(motion[:, j]) * (reach ** j)[:, None] < ref[:, None]] = 0.0
+        r[np.abs(r) < _ROUNDOFF] = 0.0
+        # normalize(r + w dt) does not turn while w is parallel to r (the rotation fit's free
+        # direction, so a still splat gets some): only the perpendicular part counts.
+        across = w - (w * r).sum(axis=1)[:, None] * r
+        w[np.sqrt((across * across).sum(axis=1)) * reach < _ROUNDOFF] = 0.0
+        w[np.abs(w) * reach[:, None] < _ROUNDOFF] = 0.0
 
 
 def _checked(read_frame, k: int, n: int) -> Scene:
