@@ -44,13 +44,26 @@ def read(path: str | os.PathLike, *, color: str = "auto", progress=SILENT) -> Sc
     progress : splatconv.progress.Progress
         Told the bytes of a ``.zst`` file decompressed.
     """
+    with reading(path, color=color, progress=progress) as (scene, _plain):
+        return scene
+
+
+@contextlib.contextmanager
+def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
+    """:func:`read`, keeping the file's uncompressed bytes at hand while the block runs.
+
+    Yields ``(scene, plain)``: ``plain`` is ``path`` itself, or for a ``.zst``
+    file the temporary file it was decompressed to (removed when the block
+    ends), so a caller that also needs the content (``stats`` measures its
+    size) does not decompress it twice.
+    """
     _choice(color, COLOR_MODES, "colour mode")
     module = format_for(path, purpose="read")
     with plain_input(path, declared_size=getattr(module, "declared_size", None), progress=progress) as plain:
         scene = module.read(plain, color=color)
-    if is_compressed(path):
-        scene.meta["compressed_bytes"] = os.path.getsize(path)
-    return scene
+        if is_compressed(path):
+            scene.meta["compressed_bytes"] = os.path.getsize(path)
+        yield scene, plain
 
 
 def read_texture(path: str | os.PathLike, *, progress=SILENT):

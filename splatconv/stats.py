@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 
@@ -13,11 +14,11 @@ from .cameras import framing_camera
 from .compare import GroupError, align, value_errors
 from .formats import format_for, splatv
 from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
-from .io import read
+from .io import reading
 from .model import COLOR, COLUMNS, GROUPS, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
-from .transport import DEFAULT_LEVEL, compressed_bytes, plain_input
+from .transport import DEFAULT_LEVEL, compressed_bytes
 
 
 def _finite_range(values: np.ndarray):
@@ -272,12 +273,16 @@ def _file_pieces(path: str):
             yield chunk
 
 
-def _sizes(path: str, level: int, progress) -> tuple:
-    """(bytes, zstd bytes at ``level``) of a file's content: a ``.zst`` file's decompressed."""
-    with plain_input(path, progress=progress) as plain:
+def _read_measured(path: str, color: str, level: int, progress) -> tuple:
+    """(scene, bytes, zstd bytes at ``level``) of a file: sizes of its content, a ``.zst`` file's decompressed
+    (decompressed once, for the scene and the sizes alike)."""
+    with contextlib.ExitStack() as held:
+        with progress.stage("reading", 1, "file") as advance:
+            scene, plain = held.enter_context(reading(path, color=color, progress=progress))
+            advance()
         size = os.path.getsize(plain)
-        return size, compressed_bytes(_file_pieces(plain), size, level, progress=progress,
-                                      label=f"zstd-{level} {os.path.basename(path)}")
+        return scene, size, compressed_bytes(_file_pieces(plain), size, level, progress=progress,
+                                             label=f"zstd-{level} {os.path.basename(path)}")
 
 
 def _file_entry(role: str, path, fmt: str, size: int, count: int, zstd_bytes: int, level: int,
@@ -429,20 +434,14 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
         Receives a stage per file compressed and one for the comparison.
     """
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
-    with progress.stage("reading", 1, "file") as advance:
-        source = read(source_path, color=color, progress=progress)
-        advance()
+    source, src_bytes, src_zstd = _read_measured(source_path, color, level, progress)
     src_mod = format_for(source_path)
-    src_bytes, src_zstd = _sizes(source_path, level, progress)
     files = [_file_entry("source", source_path, src_mod.NAME, src_bytes, source.count, src_zstd, level, src_bytes)]
     compare = True
     if converted_path is not None:
-        with progress.stage("reading", 1, "file") as advance:
-            converted = read(converted_path, color=color, progress=progress)
-            advance()
+        converted, conv_bytes, conv_zstd = _read_measured(converted_path, color, level, progress)
         conv_mod = format_for(converted_path)
         order = align(source, converted, source_path, converted_path)
-        conv_bytes, conv_zstd = _sizes(converted_path, level, progress)
         files.append(_file_entry("converted", converted_path, conv_mod.NAME, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
     elif src_mod.STORES_TEXTURE or source.count == 0:

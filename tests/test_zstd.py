@@ -82,6 +82,19 @@ def test_stats_of_zst_inputs_are_of_the_content(tmp_path, lite_ply):
     assert out["zstd_ratio"] == round(out["zstd_bytes"] / src["bytes"], 6)
 
 
+def test_stats_decompresses_each_zst_input_once(tmp_path, lite_ply, monkeypatch):
+    from splatconv import transport
+
+    packed_ply, packed = tmp_path / "s.ply.zst", tmp_path / "s.splatv.zst"
+    assert run("convert", lite_ply, packed_ply, "--zstd-level", "1").exit_code == 0
+    assert run("convert", lite_ply, packed, "--zstd-level", "1").exit_code == 0
+    seen = []
+    real = transport._decompress
+    monkeypatch.setattr(transport, "_decompress", lambda f, out, path, *rest: (seen.append(path), real(f, out, path, *rest))[1])
+    assert run("stats", packed_ply, packed, "--json").exit_code == 0
+    assert sorted(seen) == sorted([str(packed_ply), str(packed)])
+
+
 class _SpyWriter:
     """Wraps a zstd stream writer, recording the size of every write it is given."""
 
