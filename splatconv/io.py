@@ -87,6 +87,13 @@ def read_texture(path: str | os.PathLike, *, progress=SILENT):
     return padded, scene
 
 
+def refuse_empty(module, count: int, path, what: str = "no splats to write") -> None:
+    """Raise :class:`UnsupportedError` (naming ``path``, saying ``what``) when ``count`` is 0 and
+    ``module``'s format cannot hold an empty scene."""
+    if count == 0 and not module.HOLDS_EMPTY:
+        raise UnsupportedError(f"{what}; a {module.SUFFIXES[0]} file cannot hold an empty scene", path)
+
+
 def check_write_options(path, *, compat: str | None = None, sort: str | None = None, layout: str | None = None):
     """Refuse options the output's format does not take; the format module.
 
@@ -147,8 +154,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         Counts and ``notes`` describing every lossy step.
     """
     module = check_write_options(path, compat=compat, sort=sort, layout=layout)
-    if scene.count == 0 and not module.HOLDS_EMPTY:
-        raise UnsupportedError(f"no splats to write; a {module.NAME} file cannot hold an empty scene", path)
+    refuse_empty(module, scene.count, path)
     check_output(path, inputs, force)
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     extra = {"layout": layout} if layout is not None else {}
@@ -193,8 +199,7 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     reports = []
     with atomic_group(replace=force) as group, progress.stage("files", len(paths), "file") as advance:
         for module, path, scene in zip(modules, paths, scenes):
-            if scene.count == 0 and not module.HOLDS_EMPTY:
-                raise UnsupportedError(f"no splats to write; a {module.NAME} file cannot hold an empty scene", path)
+            refuse_empty(module, scene.count, path)
             try:
                 with group.open(path) as stream, output_stream(stream, path, level) as out:
                     reports.append(module.write(scene, out, sort=sort or module.DEFAULT_SORT, **extra))
@@ -273,8 +278,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     with progress.stage("reading", 1, "file") as advance:
         scene = read(source, color=color, progress=progress)
         advance()
-    if scene.count == 0 and not module.HOLDS_EMPTY:
-        raise UnsupportedError(f"holds no splats; a {module.NAME} file cannot hold an empty scene", source)
+    refuse_empty(module, scene.count, source, "holds no splats")
     if camera_list is not None:
         scene.cameras = camera_list
     if edit is not None:

@@ -221,7 +221,7 @@ def test_bake_frames_all_or_nothing(tmp_path):
     out = tmp_path / "frames"
     r = run("bake", src, out, "--frames", "4", "--frame-suffix", ".splat")
     assert r.exit_code == 1
-    assert r.stderr.splitlines()[-1] == (f"Error: {out / 'frame_0001.splat'}: no splats to write; a splat file "
+    assert r.stderr.splitlines()[-1] == (f"Error: {out / 'frame_0001.splat'}: no splats to write; a .splat file "
                                          "cannot hold an empty scene")
     assert not out.exists()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["early.ply"]

@@ -66,7 +66,7 @@ INVALID_CASES = [
      + _ARR.tobytes(), "cameras comment: camera 0: missing id, img_name, width, height, position, rotation, "
      "fy, fx"),
     ("zero.ply", _HDR.replace(b"vertex 20", b"vertex 0"),
-     "holds no splats; a splatv file cannot hold an empty scene"),
+     "holds no splats; a .splatv file cannot hold an empty scene"),
     ("short.splatv", b"\x4b\x67", "2 bytes is too short for a .splatv file (8-byte preamble)"),
     ("magic.splatv", struct.pack("<II", 0x1234, 2) + b"[]", "not a .splatv file: magic 0x00001234, expected 0x0000674b"),
     ("jsonlen.splatv", _raw(b"[]", 1000), "header declares 1000 bytes of JSON but the file ends after 2"),
@@ -91,7 +91,7 @@ INVALID_CASES = [
     ("badcam.splatv", _sv([dict(OK_CHUNK, cameras=[{"id": 0}])]),
      "chunk 0: cameras: camera 0: missing img_name, width, height, position, rotation, fy, fx"),
     ("empty.splatv", _sv([OK_CHUNK], bytes(4096 * 16)),
-     "holds no splats; a splatv file cannot hold an empty scene"),
+     "holds no splats; a .splatv file cannot hold an empty scene"),
 ]
 
 

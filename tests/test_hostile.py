@@ -148,7 +148,7 @@ def test_texture_without_bytes_or_height_reads_as_no_splats(tmp_path):
         assert splatconv.read(path).count == 0
         r = run("convert", path, tmp_path / "out.splatv")
         assert (r.exit_code, r.stderr.splitlines()[-1]) == (
-            1, f"Error: {path}: holds no splats; a splatv file cannot hold an empty scene")
+            1, f"Error: {path}: holds no splats; a .splatv file cannot hold an empty scene")
         assert run("convert", path, tmp_path / f"{name}.ply").exit_code == 0
 
 

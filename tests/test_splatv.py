@@ -12,7 +12,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import splatconv
-from splatconv import packing
+from splatconv import packing, viewer
 from splatconv.formats import splatv
 from splatconv.model import COLUMNS, Scene
 from tests import reference
@@ -220,7 +220,7 @@ def test_inverse_tables_are_exhaustively_exact():
     c = np.arange(256)
     assert np.array_equal(reference.unorm8_nearest(splatv.COLOR_OF_BYTE.astype(np.float64) * 255)[0], c)
     assert np.array_equal(reference.unorm8_truncate(splatv.COLOR_OF_BYTE.astype(np.float64) * 255)[0], c)
-    a = splatv._sigmoid255(splatv.LOGIT_OF_BYTE)
+    a = viewer.sigmoid(splatv.LOGIT_OF_BYTE) * 255.0
     assert np.array_equal(reference.unorm8_nearest(a)[0], c)
     assert np.array_equal(reference.unorm8_truncate(a)[0], c)
     assert np.isfinite(splatv.LOGIT_OF_BYTE).all()
@@ -357,7 +357,7 @@ def reference_texture(cols: dict, compat: bool, sort: bool) -> np.ndarray:
             recs[:, w] = reference.pack_half2(halves(lo), halves(hi) if hi else np.zeros(n, np.uint16))
         unorm = reference.unorm8_truncate if compat else reference.unorm8_nearest
         rgba = [unorm(cols[f"f_dc_{i}"].astype(np.float64) * 255.0)[0] for i in range(3)]
-        rgba.append(unorm(splatv._sigmoid255(cols["opacity"]))[0])
+        rgba.append(unorm(viewer.sigmoid(cols["opacity"]) * 255.0)[0])
         recs[:, 7] = reference.pack_rgba8(*rgba)
         if sort:
             key = viewer.importance(cols)

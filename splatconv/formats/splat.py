@@ -32,7 +32,7 @@ from .. import model
 from ..errors import FormatError
 from ..fsutil import open_input, populate
 from ..model import Scene, constant_column
-from ..packing import F32_QUIET_BIT
+from ..packing import F32_EXP_MASK, F32_MANT_MASK, F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales, wide
 from ..wording import plural
@@ -134,8 +134,8 @@ def _quiet_nans(values: np.ndarray, notes: list) -> np.ndarray:
     either way, so only its quiet bit is set (noted).
     """
     bits = values.view(np.uint32)
-    signalling = ((bits & np.uint32(0x7F800000)) == np.uint32(0x7F800000)) & (
-        (bits & np.uint32(0x007FFFFF)) != 0) & ((bits & np.uint32(F32_QUIET_BIT)) == 0)
+    signalling = ((bits & np.uint32(F32_EXP_MASK)) == np.uint32(F32_EXP_MASK)) & (
+        (bits & np.uint32(F32_MANT_MASK)) != 0) & ((bits & np.uint32(F32_QUIET_BIT)) == 0)
     count = int(np.count_nonzero(signalling))
     if not count:
         return values

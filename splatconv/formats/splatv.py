@@ -24,7 +24,7 @@ from ..progress import SILENT
 from ..wording import plural
 from . import splatv_engine as engine
 from .base import WriteReport
-from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE, _sigmoid255,
+from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE,
                             COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
                             MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXWIDTH,
                             WORDS_PER_SPLAT, header_bytes, texture_bytes, texture_height)
