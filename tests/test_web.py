@@ -253,6 +253,28 @@ def test_bare_splatv_hash_form(browser, sample):
         page.close()
 
 
+@pytest.mark.parametrize("fragment, time, playing", [
+    ("#%E0%A4%A", None, True),  # a broken %-escape, as a hand-edited link may hold
+    ("#view=%E0%A4%A&t=0.3", 0.3, False),
+    ("#t=%ZZ&ui=0", None, True),
+    ("#t=&view=[1,2", None, True),
+    ("#view=[1e999,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]&t=nan", None, True),
+    ("#t=%30.25", 0.25, False),
+])
+def test_a_broken_hash_is_ignored_not_fatal(browser, sample, fragment, time, playing):
+    """What the hash cannot say is ignored; the scene still plays (never a blank page)."""
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + fragment, W, H)  # fails on any script error
+        status = page.evaluate("window.splatconvPlayer.status()")
+        assert status["error"] is None and status["loaded"] and status["drawn"]["count"] == 5 * 1024
+        assert status["playing"] is playing
+        if time is not None:
+            assert status["time"] == time
+        # Not from the hash: camera 0, as without one.
+        assert status["view"] == cam.view_matrix(CAMERAS[0])
+        page.close()
+
+
 @pytest.mark.parametrize("data, message", [
     (b"not a scene at all", "not a .splatv file"),
     (b"ply\nformat binary_little_endian 1.0\n", "this is a PLY file"),

@@ -432,9 +432,14 @@
     if (fromUser) writeHash();
   }
 
+  // A hash pasted by hand may hold a broken %-escape: read such a part as it is.
+  function decoded(text) {
+    try { return decodeURIComponent(text); } catch (e) { return text; }
+  }
+
   function parseMatrix(text) {
     let values;
-    try { values = JSON.parse(decodeURIComponent(text)); } catch (e) { return null; }
+    try { values = JSON.parse(decoded(text)); } catch (e) { return null; }
     if (!Array.isArray(values) || values.length !== 16 || !values.every((v) => typeof v === "number" && Number.isFinite(v))) {
       return null;
     }
@@ -446,7 +451,7 @@
     const hash = location.hash.replace(/^#/, "");
     if (!hash) return;
     const params = {};
-    if (decodeURIComponent(hash).startsWith("[")) {
+    if (decoded(hash).startsWith("[")) {
       params.view = hash;
     } else {
       for (const part of hash.split("&")) {
@@ -458,8 +463,8 @@
       const m = parseMatrix(params.view);
       if (m) { state.view = m; state.viewFromHash = true; }
     }
-    if (params.t !== undefined) {
-      const t = Number(params.t);
+    if (params.t !== undefined && params.t !== "") {
+      const t = Number(decoded(params.t));
       if (Number.isFinite(t)) { state.time = Math.min(1, Math.max(0, t)); setPlaying(false); }
     }
     if (params.ui !== undefined) document.body.classList.toggle("noui", params.ui === "0");
