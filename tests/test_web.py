@@ -334,6 +334,25 @@ def test_ui_shows_count_frame_time_and_hides_with_ui_0(browser, sample):
         page.close()
 
 
+@pytest.mark.parametrize("width, height", [(375, 667), (640, 360), (1280, 720)])
+def test_controls_fit_the_window_without_overlapping(browser, sample, width, height):
+    """On a phone-sized window too, every control is on screen and none covers another."""
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.5", width, height)
+        boxes = page.evaluate("""() => [...document.querySelectorAll(
+            '#bar > button, #bar > input, #bar > span, #bar > select, #bar > label:not([hidden]), #panel')]
+            .map((e) => { const r = e.getBoundingClientRect(); return [e.id || e.textContent.trim().slice(0, 8),
+                                                                    r.left, r.top, r.right, r.bottom]; })""")
+        page.close()
+    assert len(boxes) == 8
+    for name, left, top, right, bottom in boxes:
+        assert 0 <= left < right <= width and 0 <= top < bottom <= height, (name, left, top, right, bottom)
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            apart = a[3] <= b[1] or b[3] <= a[1] or a[4] <= b[2] or b[4] <= a[2]
+            assert apart, (a, b)
+
+
 def test_readme_screenshot_is_the_page(browser, sample, tmp_path):
     """docs/player.png is this page as the test browser shows it (controls included).
 
