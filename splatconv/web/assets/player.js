@@ -723,7 +723,8 @@
         ? `${count.toLocaleString()} splats` : `${seg.total.toLocaleString()} splat slots`);
     }
     if (state.segments.length > 1) parts.push(`segment ${where.index + 1} of ${state.segments.length}`);
-    parts.push(`${state.frameMs.toFixed(1)} ms/frame`);
+    // No frame drawn twice in a row yet (paused from the start): nothing measured, so no number.
+    parts.push(state.frameMs ? `${state.frameMs.toFixed(1)} ms/frame` : "– ms/frame");
     if (state.sortMs !== null) parts.push(`sort ${state.sortMs.toFixed(1)} ms`);
     $("stats").textContent = parts.join(" · ");
     const progress = $("progress");
