@@ -172,6 +172,61 @@ def test_segment_boundary_has_the_next_segment_ready(browser, sample, nonfinite)
         page.close()
 
 
+class _StallingHandler(http.server.BaseHTTPRequestHandler):
+    """Serves the page, then the scene's first ``head`` bytes, and the rest only once ``release`` is set."""
+
+    page = scene = b""
+    head = 0
+    release = None
+
+    def do_GET(self):  # noqa: N802
+        data = self.page if self.path == "/" else self.scene if self.path == "/scene.splatv" else None
+        if data is None:
+            self.send_error(404)
+            return
+        self.send_response(200)
+        self.send_header("Content-Length", str(len(data)))
+        self.end_headers()
+        if data is self.scene:
+            self.wfile.write(data[: self.head])
+            self.wfile.flush()
+            self.release.wait(60)
+            data = data[self.head:]
+        self.wfile.write(data)
+
+    def log_message(self, *args):
+        pass
+
+
+def test_draws_what_arrived_while_the_file_streams_in(browser, sample):
+    """Records are drawn as they arrive, the most important first; the panel shows the load progress."""
+    scene = sample.read_bytes()
+    texture_at = 8 + int.from_bytes(scene[4:8], "little")
+    handler = type("Handler", (_StallingHandler,), {
+        "page": build_page([SceneRef(name="dancers.splatv", url="scene.splatv")]), "scene": scene,
+        "head": texture_at + 2 * 1024 * 64, "release": threading.Event()})  # two of five texture rows
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        page = open_page(browser, f"http://127.0.0.1:{httpd.server_address[1]}/#t=0.5", W, H, settle=False)
+        page.wait_for_function("() => window.splatconvPlayer.status().drawn?.count === 2048", timeout=30000)
+        status = page.evaluate("window.splatconvPlayer.status()")
+        assert not status["loaded"] and status["segments"][0]["received"] == 2 * 1024 * 64
+        assert page.locator("#progress").is_visible()
+        assert page.locator("#progress").evaluate("(e) => e.value") == pytest.approx(0.4)
+        partial = capture(page)
+        assert partial[..., :3].max() > 64  # the first records already show the scene
+        handler.release.set()
+        status = wait_settled(page)
+        assert status["loaded"] and status["drawn"]["count"] == 5 * 1024
+        assert page.locator("#progress").is_hidden()
+        page.close()
+    finally:
+        handler.release.set()
+        httpd.shutdown()
+        httpd.server_close()
+
+
 def test_drag_changes_view_and_hash_reproduces_frame_after_reload(browser, sample):
     with serving([sample]) as server:
         page = open_page(browser, server.url + "#t=0.3", W, H)
