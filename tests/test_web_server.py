@@ -84,6 +84,19 @@ def test_every_other_path_is_404(sample, path):
         assert b"root:" not in body and b"<canvas" not in body
 
 
+def test_a_scene_file_gone_while_serving_is_a_404(sample, tmp_path, capfd):
+    scene = tmp_path / "gone.splatv"
+    scene.write_bytes(sample.read_bytes())
+    with serving([scene]) as server:
+        assert get(server.port, "/scene/0.splatv")[0] == 200
+        scene.unlink()
+        for method in ("GET", "HEAD"):
+            status, _, response = get(server.port, "/scene/0.splatv", method=method)
+            assert (status, response.reason) == (404, "The scene file can no longer be read")
+        assert get(server.port, "/")[0] == 200
+    assert capfd.readouterr().err == ""  # no traceback from the server's threads
+
+
 def test_other_hosts_are_refused(sample):
     """A page elsewhere that rebinds its DNS name to 127.0.0.1 cannot read the scene."""
     with serving([sample]) as server:
