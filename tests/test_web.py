@@ -288,6 +288,32 @@ def test_slider_sets_the_time_and_pauses(browser, sample):
     assert_matches(frame, rendered(sample, 0.8, view), "after moving the slider to 0.8")
 
 
+@pytest.mark.parametrize("mode", ["loop", "pingpong"])
+def test_loop_and_ping_pong_at_the_end(browser, sample, mode):
+    """Played past the end at 4x, the clip wraps to 0 (loop) or turns back (ping-pong)."""
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.8", 480, 270)
+        page.select_option("#mode", mode)
+        page.select_option("#speed", "4")
+        page.click("#play")
+        times = page.evaluate("""() => new Promise((resolve) => {
+            const seen = [], start = performance.now();
+            const poll = () => {
+              seen.push(window.splatconvPlayer.status().time);
+              if (performance.now() - start < 700) requestAnimationFrame(poll); else resolve(seen);
+            };
+            requestAnimationFrame(poll);
+        })""")
+        page.close()
+    # A frame advances the clip by at most 0.25 s x 4 / 4 s = 0.25 (the page caps a frame's step).
+    steps = np.diff(times)
+    assert steps[0] >= 0 and max(times) > 0.9
+    if mode == "loop":
+        assert steps.min() < -0.5  # a jump back to the start
+    else:
+        assert np.abs(steps).max() <= 0.25 + 1e-9 and times[-1] < max(times) - 0.1  # it turns and runs back
+
+
 def test_choosing_a_camera_moves_to_it(browser, sample):
     with serving([sample]) as server:
         page = open_page(browser, server.url + "#t=0.5", W, H)
