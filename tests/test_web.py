@@ -260,6 +260,36 @@ def test_drag_changes_view_and_hash_reproduces_frame_after_reload(browser, sampl
         again.close()
 
 
+def test_touch_orbits_and_pinch_zooms(browser, sample):
+    """One finger orbits; two fingers spreading apart move the camera towards the scene."""
+    with serving([sample]) as server:
+        context = browser.new_context(viewport={"width": W, "height": H}, device_scale_factor=1, has_touch=True)
+        page = context.new_page()
+        page.js_errors = []
+        page.goto(server.url + "#t=0.5")
+        start = wait_settled(page)["view"]
+        cdp = context.new_cdp_session(page)
+
+        def touch(kind, points):
+            cdp.send("Input.dispatchTouchEvent", {
+                "type": kind, "touchPoints": [{"x": x, "y": y, "id": i} for i, (x, y) in enumerate(points)]})
+
+        touch("touchStart", [(300, 180)])
+        for k in range(1, 6):
+            touch("touchMove", [(300 + 10 * k, 180)])
+        touch("touchEnd", [])
+        orbited = page.evaluate("window.splatconvPlayer.status().view")
+        assert orbited != start
+        touch("touchStart", [(300, 180), (340, 180)])
+        for k in range(1, 6):
+            touch("touchMove", [(300 - 10 * k, 180), (340 + 10 * k, 180)])
+        touch("touchEnd", [])
+        pinched = wait_settled(page)["view"]
+        # The camera moved forward along its axis: the scene is nearer (camera-space z shrinks).
+        assert pinched[14] < orbited[14] - 1
+        context.close()
+
+
 def test_keys_move_the_camera_and_toggle_play(browser, sample):
     with serving([sample]) as server:
         page = open_page(browser, server.url + "#t=0.5", W, H)
