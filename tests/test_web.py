@@ -405,6 +405,19 @@ def test_bad_file_shows_a_message(browser, tmp_path, data, message):
     page.close()
 
 
+@pytest.mark.parametrize("width, height", [(375, 667), (1280, 720)])
+def test_the_message_uses_the_window_width(browser, tmp_path, width, height):
+    """A long message wraps at 32em or the window's width less 32 px, not at half the window."""
+    page_path = tmp_path / "bad.html"
+    page_path.write_bytes(build_page([SceneRef(name="scene.splatv", data=b"ply\nformat ascii 1.0\n")]))
+    page = open_page(browser, page_path.as_uri(), width, height)
+    box = page.locator("#message").bounding_box()
+    page.close()
+    limit = min(32 * 15, width - 32)  # the message's font is 15 px
+    assert limit - 1 <= box["width"] <= limit + 1
+    assert box["x"] >= 0 and box["y"] >= 0 and box["x"] + box["width"] <= width
+
+
 def test_missing_external_scene_shows_a_message(browser, tmp_path):
     page_path = tmp_path / "lonely.html"
     page_path.write_bytes(build_page([SceneRef(name="gone.splatv", url="gone.splatv")]))
