@@ -172,6 +172,61 @@ def test_segment_boundary_has_the_next_segment_ready(browser, sample, nonfinite)
         page.close()
 
 
+class _StallingHandler(http.server.BaseHTTPRequestHandler):
+    """Serves the page, then the scene's first ``head`` bytes, and the rest only once ``release`` is set."""
+
+    page = scene = b""
+    head = 0
+    release = None
+
+    def do_GET(self):  # noqa: N802
+        data = self.page if self.path == "/" else self.scene if self.path == "/scene.splatv" else None
+        if data is None:
+            self.send_error(404)
+            return
+        self.send_response(200)
+        self.send_header("Content-Length", str(len(data)))
+        self.end_headers()
+        if data is self.scene:
+            self.wfile.write(data[: self.head])
+            self.wfile.flush()
+            self.release.wait(60)
+            data = data[self.head:]
+        self.wfile.write(data)
+
+    def log_message(self, *args):
+        pass
+
+
+def test_draws_what_arrived_while_the_file_streams_in(browser, sample):
+    """Records are drawn as they arrive, the most important first; the panel shows the load progress."""
+    scene = sample.read_bytes()
+    texture_at = 8 + int.from_bytes(scene[4:8], "little")
+    handler = type("Handler", (_StallingHandler,), {
+        "page": build_page([SceneRef(name="dancers.splatv", url="scene.splatv")]), "scene": scene,
+        "head": texture_at + 2 * 1024 * 64, "release": threading.Event()})  # two of five texture rows
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    threading.Thread(target=httpd.serve_forever, daemon=True).start()
+    try:
+        page = open_page(browser, f"http://127.0.0.1:{httpd.server_address[1]}/#t=0.5", W, H, settle=False)
+        page.wait_for_function("() => window.splatconvPlayer.status().drawn?.count === 2048", timeout=30000)
+        status = page.evaluate("window.splatconvPlayer.status()")
+        assert not status["loaded"] and status["segments"][0]["received"] == 2 * 1024 * 64
+        assert page.locator("#progress").is_visible()
+        assert page.locator("#progress").evaluate("(e) => e.value") == pytest.approx(0.4)
+        partial = capture(page)
+        assert partial[..., :3].max() > 64  # the first records already show the scene
+        handler.release.set()
+        status = wait_settled(page)
+        assert status["loaded"] and status["drawn"]["count"] == 5 * 1024
+        assert page.locator("#progress").is_hidden()
+        page.close()
+    finally:
+        handler.release.set()
+        httpd.shutdown()
+        httpd.server_close()
+
+
 def test_drag_changes_view_and_hash_reproduces_frame_after_reload(browser, sample):
     with serving([sample]) as server:
         page = open_page(browser, server.url + "#t=0.3", W, H)
@@ -205,6 +260,36 @@ def test_drag_changes_view_and_hash_reproduces_frame_after_reload(browser, sampl
         again.close()
 
 
+def test_touch_orbits_and_pinch_zooms(browser, sample):
+    """One finger orbits; two fingers spreading apart move the camera towards the scene."""
+    with serving([sample]) as server:
+        context = browser.new_context(viewport={"width": W, "height": H}, device_scale_factor=1, has_touch=True)
+        page = context.new_page()
+        page.js_errors = []
+        page.goto(server.url + "#t=0.5")
+        start = wait_settled(page)["view"]
+        cdp = context.new_cdp_session(page)
+
+        def touch(kind, points):
+            cdp.send("Input.dispatchTouchEvent", {
+                "type": kind, "touchPoints": [{"x": x, "y": y, "id": i} for i, (x, y) in enumerate(points)]})
+
+        touch("touchStart", [(300, 180)])
+        for k in range(1, 6):
+            touch("touchMove", [(300 + 10 * k, 180)])
+        touch("touchEnd", [])
+        orbited = page.evaluate("window.splatconvPlayer.status().view")
+        assert orbited != start
+        touch("touchStart", [(300, 180), (340, 180)])
+        for k in range(1, 6):
+            touch("touchMove", [(300 - 10 * k, 180), (340 + 10 * k, 180)])
+        touch("touchEnd", [])
+        pinched = wait_settled(page)["view"]
+        # The camera moved forward along its axis: the scene is nearer (camera-space z shrinks).
+        assert pinched[14] < orbited[14] - 1
+        context.close()
+
+
 def test_keys_move_the_camera_and_toggle_play(browser, sample):
     with serving([sample]) as server:
         page = open_page(browser, server.url + "#t=0.5", W, H)
@@ -233,6 +318,32 @@ def test_slider_sets_the_time_and_pauses(browser, sample):
     assert_matches(frame, rendered(sample, 0.8, view), "after moving the slider to 0.8")
 
 
+@pytest.mark.parametrize("mode", ["loop", "pingpong"])
+def test_loop_and_ping_pong_at_the_end(browser, sample, mode):
+    """Played past the end at 4x, the clip wraps to 0 (loop) or turns back (ping-pong)."""
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.8", 480, 270)
+        page.select_option("#mode", mode)
+        page.select_option("#speed", "4")
+        page.click("#play")
+        times = page.evaluate("""() => new Promise((resolve) => {
+            const seen = [], start = performance.now();
+            const poll = () => {
+              seen.push(window.splatconvPlayer.status().time);
+              if (performance.now() - start < 700) requestAnimationFrame(poll); else resolve(seen);
+            };
+            requestAnimationFrame(poll);
+        })""")
+        page.close()
+    # A frame advances the clip by at most 0.25 s x 4 / 4 s = 0.25 (the page caps a frame's step).
+    steps = np.diff(times)
+    assert steps[0] >= 0 and max(times) > 0.9
+    if mode == "loop":
+        assert steps.min() < -0.5  # a jump back to the start
+    else:
+        assert np.abs(steps).max() <= 0.25 + 1e-9 and times[-1] < max(times) - 0.1  # it turns and runs back
+
+
 def test_choosing_a_camera_moves_to_it(browser, sample):
     with serving([sample]) as server:
         page = open_page(browser, server.url + "#t=0.5", W, H)
@@ -253,6 +364,28 @@ def test_bare_splatv_hash_form(browser, sample):
         page.close()
 
 
+@pytest.mark.parametrize("fragment, time, playing", [
+    ("#%E0%A4%A", None, True),  # a broken %-escape, as a hand-edited link may hold
+    ("#view=%E0%A4%A&t=0.3", 0.3, False),
+    ("#t=%ZZ&ui=0", None, True),
+    ("#t=&view=[1,2", None, True),
+    ("#view=[1e999,0,0,0,0,1,0,0,0,0,1,0,0,0,0,1]&t=nan", None, True),
+    ("#t=%30.25", 0.25, False),
+])
+def test_a_broken_hash_is_ignored_not_fatal(browser, sample, fragment, time, playing):
+    """What the hash cannot say is ignored; the scene still plays (never a blank page)."""
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + fragment, W, H)  # fails on any script error
+        status = page.evaluate("window.splatconvPlayer.status()")
+        assert status["error"] is None and status["loaded"] and status["drawn"]["count"] == 5 * 1024
+        assert status["playing"] is playing
+        if time is not None:
+            assert status["time"] == time
+        # Not from the hash: camera 0, as without one.
+        assert status["view"] == cam.view_matrix(CAMERAS[0])
+        page.close()
+
+
 @pytest.mark.parametrize("data, message", [
     (b"not a scene at all", "not a .splatv file"),
     (b"ply\nformat binary_little_endian 1.0\n", "this is a PLY file"),
@@ -270,6 +403,19 @@ def test_bad_file_shows_a_message(browser, tmp_path, data, message):
     assert text.startswith("Cannot show bad.splatv: ")
     assert message in text
     page.close()
+
+
+@pytest.mark.parametrize("width, height", [(375, 667), (1280, 720)])
+def test_the_message_uses_the_window_width(browser, tmp_path, width, height):
+    """A long message wraps at 32em or the window's width less 32 px, not at half the window."""
+    page_path = tmp_path / "bad.html"
+    page_path.write_bytes(build_page([SceneRef(name="scene.splatv", data=b"ply\nformat ascii 1.0\n")]))
+    page = open_page(browser, page_path.as_uri(), width, height)
+    box = page.locator("#message").bounding_box()
+    page.close()
+    limit = min(32 * 15, width - 32)  # the message's font is 15 px
+    assert limit - 1 <= box["width"] <= limit + 1
+    assert box["x"] >= 0 and box["y"] >= 0 and box["x"] + box["width"] <= width
 
 
 def test_missing_external_scene_shows_a_message(browser, tmp_path):
@@ -310,6 +456,25 @@ def test_ui_shows_count_frame_time_and_hides_with_ui_0(browser, sample):
         page = open_page(browser, server.url + "#t=0.5&ui=0", W, H)
         assert page.locator("#bar").is_hidden() and page.locator("#panel").is_hidden()
         page.close()
+
+
+@pytest.mark.parametrize("width, height", [(375, 667), (640, 360), (1280, 720)])
+def test_controls_fit_the_window_without_overlapping(browser, sample, width, height):
+    """On a phone-sized window too, every control is on screen and none covers another."""
+    with serving([sample]) as server:
+        page = open_page(browser, server.url + "#t=0.5", width, height)
+        boxes = page.evaluate("""() => [...document.querySelectorAll(
+            '#bar > button, #bar > input, #bar > span, #bar > select, #bar > label:not([hidden]), #panel')]
+            .map((e) => { const r = e.getBoundingClientRect(); return [e.id || e.textContent.trim().slice(0, 8),
+                                                                    r.left, r.top, r.right, r.bottom]; })""")
+        page.close()
+    assert len(boxes) == 8
+    for name, left, top, right, bottom in boxes:
+        assert 0 <= left < right <= width and 0 <= top < bottom <= height, (name, left, top, right, bottom)
+    for i, a in enumerate(boxes):
+        for b in boxes[i + 1:]:
+            apart = a[3] <= b[1] or b[3] <= a[1] or a[4] <= b[2] or b[4] <= a[2]
+            assert apart, (a, b)
 
 
 def test_readme_screenshot_is_the_page(browser, sample, tmp_path):

@@ -84,6 +84,19 @@ def test_every_other_path_is_404(sample, path):
         assert b"root:" not in body and b"<canvas" not in body
 
 
+def test_a_scene_file_gone_while_serving_is_a_404(sample, tmp_path, capfd):
+    scene = tmp_path / "gone.splatv"
+    scene.write_bytes(sample.read_bytes())
+    with serving([scene]) as server:
+        assert get(server.port, "/scene/0.splatv")[0] == 200
+        scene.unlink()
+        for method in ("GET", "HEAD"):
+            status, _, response = get(server.port, "/scene/0.splatv", method=method)
+            assert (status, response.reason) == (404, "The scene file can no longer be read")
+        assert get(server.port, "/")[0] == 200
+    assert capfd.readouterr().err == ""  # no traceback from the server's threads
+
+
 def test_other_hosts_are_refused(sample):
     """A page elsewhere that rebinds its DNS name to 127.0.0.1 cannot read the scene."""
     with serving([sample]) as server:
@@ -194,6 +207,32 @@ def test_convert_external_and_segments(sample, tmp_path):
     assert run("convert", sample, one, "--external").exit_code == 0
     assert (tmp_path / "one.splatv").read_bytes() == sample.read_bytes()
     assert '"url":"one.splatv"' in one.read_text()
+
+
+def test_convert_external_plays_a_splatv_input_where_it_is(sample, tmp_path):
+    """`convert scene.splatv scene.html --external`: the input is the file the page fetches, left as it is."""
+    scene = tmp_path / "scene.splatv"
+    scene.write_bytes(sample.read_bytes())
+    before = scene.stat()
+    r = run("convert", scene, tmp_path / "scene.html", "--external")
+    assert r.exit_code == 0, r.output
+    assert r.stdout == f"wrote {tmp_path / 'scene.html'}: {(tmp_path / 'scene.html').stat().st_size:,} bytes\n"
+    assert r.stderr == f"note: {scene}: the page plays this input where it is\n"
+    assert scene.stat().st_mtime_ns == before.st_mtime_ns and scene.read_bytes() == sample.read_bytes()
+    assert '"url":"scene.splatv"' in (tmp_path / "scene.html").read_text()
+    # Segments named as the page would name them; a PLY among them is still written.
+    for i in (0, 2):
+        (tmp_path / f"clip.{i}.splatv").write_bytes(sample.read_bytes())
+    r = run("convert", tmp_path / "clip.0.splatv", SAMPLE, tmp_path / "clip.2.splatv", tmp_path / "clip.html",
+            "--external")
+    assert r.exit_code == 0, r.output
+    assert [line.split(":")[0] for line in r.stdout.splitlines()] == [
+        f"wrote {tmp_path / 'clip.html'}", f"wrote {tmp_path / 'clip.1.splatv'}"]
+    # A damaged .splatv input is refused, not published.
+    (tmp_path / "bad.splatv").write_bytes(b"nope, not a scene")
+    r = run("convert", tmp_path / "bad.splatv", tmp_path / "bad.html", "--external")
+    assert r.exit_code == 1 and r.stderr.startswith(f"Error: {tmp_path / 'bad.splatv'}: not a .splatv file")
+    assert not (tmp_path / "bad.html").exists()
 
 
 def test_convert_html_refusals(sample, tmp_path):

@@ -9,7 +9,7 @@ from urllib.parse import quote
 from ..errors import UsageError
 from ..fsutil import atomic_group, check_output
 from .page import SceneRef, build_page, parse_durations
-from .scenes import splatv_bytes
+from .scenes import check_splatv, is_plain_splatv, splatv_bytes
 
 
 @dataclass
@@ -37,7 +37,8 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
         ``OUT.0.splatv``, ``OUT.1.splatv``, ... for segments) and have the page
         fetch it, instead of embedding it: for scenes too large to embed. Such a
         page must be served over HTTP (browsers refuse fetches from a page opened
-        from disk).
+        from disk). A plain ``.splatv`` input that already has that name (``convert
+        scene.splatv scene.html --external``) is left as it is and played from there.
     force : bool
         Replace existing outputs (never an input).
     durations : str, optional
@@ -56,7 +57,9 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
     shares = parse_durations(durations, len(inputs))
     stem = output[: -len(".html")]
     names = [f"{stem}.splatv"] if len(inputs) == 1 else [f"{stem}.{i}.splatv" for i in range(len(inputs))]
-    outputs = [output] + (names if external else [])
+    # An input that is already the .splatv the page would fetch stays where it is.
+    kept = [external and is_plain_splatv(path) and _same_file(path, name) for path, name in zip(inputs, names)]
+    outputs = [output] + ([name for name, keep in zip(names, kept) if not keep] if external else [])
     for path in outputs:
         check_output(path, inputs, force)
     if len(set(map(os.path.abspath, outputs))) != len(outputs):  # pragma: no cover (names are distinct)
@@ -65,7 +68,12 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
     refs = []
     # All files or none: a page never points at a scene file that was not written.
     with atomic_group(replace=force) as group:
-        for path, name, share in zip(inputs, names, shares):
+        for path, name, share, keep in zip(inputs, names, shares, kept):
+            if keep:
+                check_splatv(path)
+                report.notes.append(f"{name}: the page plays this input where it is")
+                refs.append(SceneRef(name=os.path.basename(path), url=quote(os.path.basename(name)), duration=share))
+                continue
             data, notes = splatv_bytes(path)
             report.notes.extend(f"{path}: {n}" for n in notes)
             if external:
@@ -80,3 +88,10 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
             stream.write(page)
     report.written.insert(0, (output, len(page)))
     return report
+
+
+def _same_file(a: str, b: str) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:  # b not there yet
+        return False

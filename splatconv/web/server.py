@@ -48,7 +48,7 @@ def scene_resources(paths, durations=None) -> tuple[dict, list, list]:
         url = f"scene/{i}.splatv"
         if is_plain_splatv(path):
             check_splatv(path)
-            resources["/" + url] = _Resource("application/octet-stream", path=path)
+            resources["/" + url] = _Resource("application/octet-stream", path=os.path.abspath(path))
         else:
             data, lost = splatv_bytes(path)
             notes.extend(f"{path}: {n}" for n in lost)
@@ -84,6 +84,15 @@ def _handler(routes: dict, port_holder: list):
             self.send_header("X-Content-Type-Options", "nosniff")
             self.end_headers()
 
+        def _open(self, resource):
+            """The scene file served from disk, open; None (a 404 sent) once it cannot be read."""
+            try:
+                return open(resource.path, "rb")
+            except OSError:
+                # Moved or deleted while `view` runs: the page says the server answered this.
+                self.send_error(404, "The scene file can no longer be read")
+                return None
+
         def do_GET(self):  # noqa: N802 (the http.server protocol)
             resource = self._resource()
             if resource is None:
@@ -92,10 +101,13 @@ def _handler(routes: dict, port_holder: list):
                 if resource.data is not None:
                     self._headers(resource, len(resource.data))
                     self.wfile.write(resource.data)
-                else:
-                    with open(resource.path, "rb") as f:
-                        self._headers(resource, os.fstat(f.fileno()).st_size)
-                        shutil.copyfileobj(f, self.wfile, _COPY_CHUNK)
+                    return
+                f = self._open(resource)
+                if f is None:
+                    return
+                with f:
+                    self._headers(resource, os.fstat(f.fileno()).st_size)
+                    shutil.copyfileobj(f, self.wfile, _COPY_CHUNK)
             except (BrokenPipeError, ConnectionResetError):
                 pass  # the browser went away mid-file (a reload): nothing to tell anyone
 
@@ -103,8 +115,13 @@ def _handler(routes: dict, port_holder: list):
             resource = self._resource()
             if resource is None:
                 return
-            size = len(resource.data) if resource.data is not None else os.path.getsize(resource.path)
-            self._headers(resource, size)
+            if resource.data is not None:
+                self._headers(resource, len(resource.data))
+                return
+            f = self._open(resource)
+            if f is not None:
+                with f:
+                    self._headers(resource, os.fstat(f.fileno()).st_size)
 
         def log_message(self, format, *args):  # noqa: A002
             pass  # quiet: the terminal shows the one line `view` prints

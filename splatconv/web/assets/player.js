@@ -432,9 +432,14 @@
     if (fromUser) writeHash();
   }
 
+  // A hash pasted by hand may hold a broken %-escape: read such a part as it is.
+  function decoded(text) {
+    try { return decodeURIComponent(text); } catch (e) { return text; }
+  }
+
   function parseMatrix(text) {
     let values;
-    try { values = JSON.parse(decodeURIComponent(text)); } catch (e) { return null; }
+    try { values = JSON.parse(decoded(text)); } catch (e) { return null; }
     if (!Array.isArray(values) || values.length !== 16 || !values.every((v) => typeof v === "number" && Number.isFinite(v))) {
       return null;
     }
@@ -446,7 +451,7 @@
     const hash = location.hash.replace(/^#/, "");
     if (!hash) return;
     const params = {};
-    if (decodeURIComponent(hash).startsWith("[")) {
+    if (decoded(hash).startsWith("[")) {
       params.view = hash;
     } else {
       for (const part of hash.split("&")) {
@@ -458,8 +463,8 @@
       const m = parseMatrix(params.view);
       if (m) { state.view = m; state.viewFromHash = true; }
     }
-    if (params.t !== undefined) {
-      const t = Number(params.t);
+    if (params.t !== undefined && params.t !== "") {
+      const t = Number(decoded(params.t));
       if (Number.isFinite(t)) { state.time = Math.min(1, Math.max(0, t)); setPlaying(false); }
     }
     if (params.ui !== undefined) document.body.classList.toggle("noui", params.ui === "0");
@@ -718,7 +723,8 @@
         ? `${count.toLocaleString()} splats` : `${seg.total.toLocaleString()} splat slots`);
     }
     if (state.segments.length > 1) parts.push(`segment ${where.index + 1} of ${state.segments.length}`);
-    parts.push(`${state.frameMs.toFixed(1)} ms/frame`);
+    // No frame drawn twice in a row yet (paused from the start): nothing measured, so no number.
+    parts.push(state.frameMs ? `${state.frameMs.toFixed(1)} ms/frame` : "– ms/frame");
     if (state.sortMs !== null) parts.push(`sort ${state.sortMs.toFixed(1)} ms`);
     $("stats").textContent = parts.join(" · ");
     const progress = $("progress");
