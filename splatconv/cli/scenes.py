@@ -7,7 +7,7 @@ import os
 import click
 
 from .. import clips, io
-from ..formats import format_for
+from ..formats import format_for, plays_segments
 from ..ops.sequence import SAME_SPLATS_MODES
 from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
 from ..stats import describe, stats_report
@@ -109,7 +109,7 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
       splatconv convert scene.splatv scene.html
     """
     # Player pages of several segments or with --external: splatconv.web.publish.
-    if external or durations or (len(input_paths) > 1 and output_path.lower().endswith(".html")):
+    if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
         if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
             raise Failure("--external and several inputs take no other options but --durations and --force", 2)
         report = publish(input_paths, output_path, external=external, force=force, durations=durations)

@@ -2,7 +2,8 @@
 
 Every format module declares what it supports (see :mod:`splatconv.formats.base`):
 ``NAME``, ``SUFFIXES``, ``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``,
-``DEFAULT_SORT``, ``HOLDS_EMPTY``, ``DYNAMIC``, ``STORES_TEXTURE``, and provides
+``DEFAULT_SORT``, ``HOLDS_EMPTY``, ``DYNAMIC``, ``STORES_TEXTURE`` (and, for a player
+page, ``PLAYS_SEGMENTS``), and provides
 ``read``, ``write``, ``info_fields`` and ``storage`` (how it stores each attribute
 group, which ``verify`` and ``stats`` judge errors by). Callers look a module up with :func:`format_for` and ask it
 those questions; none of them names a format. Adding a format is adding a module
@@ -22,6 +23,15 @@ _MODULES = (ply, splatv, splat, html)
 REGISTRY = {suffix: module for module in _MODULES for suffix in module.SUFFIXES}
 
 
+def _lookup(path: str):
+    """The module whose suffix ``path`` ends in (case-insensitive, after any ``.zst``), or None."""
+    lower = inner_name(path).lower()
+    for suffix, module in REGISTRY.items():
+        if lower.endswith(suffix):
+            return module
+    return None
+
+
 def format_for(path: str | os.PathLike, *, purpose: str | None = None):
     """The format module for ``path``, chosen by its (case-insensitive) suffix.
 
@@ -37,16 +47,21 @@ def format_for(path: str | os.PathLike, *, purpose: str | None = None):
         For a suffix no format claims, or one that cannot serve ``purpose``.
     """
     path = os.fspath(path)
-    lower = inner_name(path).lower()
-    for suffix, module in REGISTRY.items():
-        if lower.endswith(suffix):
-            if purpose == "read" and not module.CAN_READ:
-                raise UsageError(f"{module.NAME} files can be written, not read", path)
-            if purpose == "write" and not module.CAN_WRITE:
-                raise UsageError(f"{module.NAME} files can be read, not written", path)
-            return module
-    known = ", ".join(sorted(REGISTRY))
-    raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)
+    module = _lookup(path)
+    if module is None:
+        known = ", ".join(sorted(REGISTRY))
+        raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)
+    if purpose == "read" and not module.CAN_READ:
+        raise UsageError(f"{module.NAME} files can be written, not read", path)
+    if purpose == "write" and not module.CAN_WRITE:
+        raise UsageError(f"{module.NAME} files can be read, not written", path)
+    return module
+
+
+def plays_segments(path: str | os.PathLike) -> bool:
+    """Whether ``path``'s format plays several scenes as the segments of one clip (``PLAYS_SEGMENTS``);
+    False for a suffix no format claims."""
+    return bool(getattr(_lookup(os.fspath(path)), "PLAYS_SEGMENTS", False))
 
 
 def compat_modes() -> tuple:

@@ -1,8 +1,8 @@
 """What every format module shares: the report a write returns.
 
 A format module (see :mod:`splatconv.formats`) declares ``NAME``, ``SUFFIXES``,
-``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``, ``DEFAULT_SORT``, ``HOLDS_EMPTY``
-and ``DYNAMIC`` and provides ``read(path, **options) -> Scene``,
+``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``, ``DEFAULT_SORT``, ``HOLDS_EMPTY``,
+``DYNAMIC`` and ``STORES_TEXTURE`` (a player page also ``PLAYS_SEGMENTS``) and provides ``read(path, **options) -> Scene``,
 ``write(scene, stream, *, compat=None, sort=None, **options) -> WriteReport`` and
 ``info_fields(scene) -> dict``.
 """

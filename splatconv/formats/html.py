@@ -28,6 +28,9 @@ HOLDS_EMPTY = False
 DYNAMIC = True
 #: Not the texture itself: a page around it, which nothing here reads back.
 STORES_TEXTURE = False
+#: Several scenes given for one page play as the segments of one clip
+#: (:func:`splatconv.web.publish.publish`), not as a frame sequence.
+PLAYS_SEGMENTS = True
 
 
 def read(path, **options) -> Scene:
