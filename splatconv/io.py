@@ -161,7 +161,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     try:
         with atomic_writer(path, replace=force) as stream, output_stream(stream, path, level, progress) as out:
             return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, progress=progress,
-                                **extra)
+                                name=os.path.basename(path), **extra)
     except SplatconvError as e:
         if e.path is not None:
             raise
@@ -202,7 +202,8 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
             refuse_empty(module, scene.count, path)
             try:
                 with group.open(path) as stream, output_stream(stream, path, level) as out:
-                    reports.append(module.write(scene, out, sort=sort or module.DEFAULT_SORT, **extra))
+                    reports.append(module.write(scene, out, sort=sort or module.DEFAULT_SORT,
+                                                name=os.path.basename(path), **extra))
             except SplatconvError as e:
                 if e.path is not None:
                     raise

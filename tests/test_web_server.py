@@ -190,6 +190,8 @@ def test_convert_to_html_embeds_the_splatv(tmp_path):
     page = out.read_text()
     embedded = re.search(r'data-asset="scene-0">\n(.*?)\n</script>', page, re.S).group(1)
     assert base64.b64decode(embedded.replace("\n", "")) == ref.read_bytes()
+    # Titled and its scene named by the page's file name, as publish titles its pages.
+    assert "<title>dancers</title>" in page and '"name":"dancers"' in page
     assert run("convert", SAMPLE, out).exit_code == 1  # exists; --force replaces
     assert run("convert", SAMPLE, out, "--force").exit_code == 0
 

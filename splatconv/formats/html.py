@@ -10,9 +10,11 @@ the page instead (:func:`splatconv.web.publish.publish`).
 from __future__ import annotations
 
 import io
+import os
 
 from ..errors import UnsupportedError
 from ..model import Scene
+from ..transport import inner_name
 from ..web.page import SceneRef, build_page
 from . import splatv
 
@@ -38,7 +40,8 @@ def read(path, **options) -> Scene:
     raise UnsupportedError("an .html player page cannot be read as a scene (convert its .splatv instead)", path)
 
 
-def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, **options):
+def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, name: str | None = None,
+          **options):
     """Write the player page with ``scene`` embedded.
 
     Parameters
@@ -48,6 +51,8 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     compat, sort
         As for ``.splatv`` (the embedded texture is exactly what a ``.splatv``
         write would give).
+    name : str, optional
+        The page's file name: its stem titles the page and names the scene.
 
     Returns
     -------
@@ -55,7 +60,9 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     """
     buffer = io.BytesIO()
     report = splatv.write(scene, buffer, compat=compat, sort=sort or DEFAULT_SORT, **options)
-    stream.write(build_page([SceneRef(name="scene", data=buffer.getvalue())]))
+    stem = os.path.splitext(inner_name(name))[0] if name else ""
+    title = {"title": stem} if stem else {}
+    stream.write(build_page([SceneRef(name=stem or "scene", data=buffer.getvalue())], **title))
     return report
 
 
