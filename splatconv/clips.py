@@ -17,7 +17,7 @@ from .cameras import load_cameras
 from .errors import UnsupportedError, UsageError
 from .formats import REGISTRY, format_for
 from .fsutil import check_output
-from .io import check_write_options, read, write
+from .io import check_write_options, read, splat_count, write
 from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, merge_segments
 from .render.fidelity import fidelity
 from .ops.sequence import fit_sequence
@@ -116,8 +116,9 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
             found["cameras"] = scene.cameras
         return scene
 
+    # Counted from headers, not by reading: only the fit's own passes read the frames.
     scene, fit = fit_sequence(read_frame, len(paths), times=frame_times, same_splats=same_splats,
-                              max_error=max_error, progress=progress)
+                              max_error=max_error, counts=[splat_count(p) for p in paths], progress=progress)
     if scene.count == 0 and not module.HOLDS_EMPTY:
         raise UnsupportedError(f"the frames hold no splats; a {module.NAME} file cannot hold an empty scene",
                                paths[0])
