@@ -360,7 +360,8 @@ def segments_text(data: dict) -> str:
         pieces = ", ".join(f"{n:,} x {k}" for k, n in given)
         lines.append(f"  segment {i}: frames {s['first_frame']}..{s['first_frame'] + s['frames'] - 1} "
                      f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {plural(s['splats_out'], 'splat')}, "
-                     f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else ""))
+                     f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else "")
+                     + (f", {s['dropped']:,} dropped" if s["dropped"] else ""))
     frames = data.get("frames") or []
     if frames:
         lines.append("frame  time      segment  local    PSNR vs the segment alone")

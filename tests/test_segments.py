@@ -188,3 +188,29 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")
     assert r.exit_code == 2 and "apply to --segments only" in r.stderr
     assert not (tmp_path / "x.splatv").exists()
+
+
+def test_every_removed_splat_is_counted_and_said(tmp_path, source):
+    a, b = halves(source, 8)
+    cols = {k: np.array(v, np.float32) for k, v in b.columns.items()}
+    cols["trbf_center"][:3] = [np.inf, -np.inf, np.nan]   # never shown, never shown, no time
+    cols["trbf_scale"][3:5] = 10.0                         # long-lived ...
+    cols["opacity"][3:5] = -30.0                           # ... and too faint for any piece
+    io.write(a, tmp_path / "a.ply")
+    io.write(Scene(columns=cols, cameras=b.cameras), tmp_path / "b.ply")
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "m.ply", "--segments", "--durations", "8,8",
+            "--no-check", "--json")
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    seg = data["segments"][1]
+    assert seg["dropped"] == 5
+    pieces = sum(int(k) * n for k, n in seg["pieces_per_long_lived"].items())
+    assert "0" not in seg["pieces_per_long_lived"]
+    assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
+    assert "1 splat with a NaN temporal centre or scale dropped (they have no place in time)" in data["notes"]
+    assert "2 splats with an infinite temporal centre dropped (the viewer never shows them)" in data["notes"]
+    assert ("2 long-lived splats dropped: every piece of each was fainter than half an 8-bit step in its "
+            "segment's frames") in data["notes"]
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "m2.ply", "--segments", "--durations", "8,8",
+            "--no-check")
+    assert ", 5 dropped" in r.stdout and "infinite temporal centre dropped" in r.stderr

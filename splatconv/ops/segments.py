@@ -309,12 +309,17 @@ def _lookup_peaks(table: np.ndarray, alpha: np.ndarray) -> np.ndarray:
 
 
 def _long_lived(cols: dict, p: Placement) -> tuple:
-    """Rows to split (visible at or beyond a cut) and rows with no time (NaN centre or scale)."""
+    """Rows to split (visible at or beyond a cut), rows with no time (NaN centre or scale), and rows never shown.
+
+    A splat whose temporal centre is infinite has temporal opacity 0 (or NaN,
+    cut) at every finite time: the viewer never shows it.
+    """
     lo, hi = viewer.visible_interval(cols)
     nan_time = np.isnan(lo) | np.isnan(hi)
+    never = ~nan_time & np.isinf(np.asarray(cols["trbf_center"]))
     with np.errstate(invalid="ignore"):
-        split = ~nan_time & ((lo <= p.cut_before) | (hi >= p.cut_after))
-    return split, nan_time
+        split = ~nan_time & ~never & ((lo <= p.cut_before) | (hi >= p.cut_after))
+    return split, nan_time, never
 
 
 def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
@@ -444,12 +449,14 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
     places = placements(durations, leak)
     parts, report = [], SegmentReport(places, [], [], [], [], [], leak, budget)
     overflow = 0
+    removed = {"nan": 0, "never": 0, "faint": 0}
     with progress.stage("placing segments", len(scenes), "segment") as advance:
         for i, (scene, p) in enumerate(zip(scenes, places)):
             cols = place(scene.columns, p.start, p.end)
-            split, nan_time = _long_lived(cols, p)
-            keep = ~split & ~nan_time
+            split, nan_time, never = _long_lived(cols, p)
+            keep = ~split & ~nan_time & ~never
             n_long = int(split.sum())
+            faint = 0
             kept = {name: v[keep] for name, v in cols.items()}
             m = np.zeros(0, np.int64)
             if n_long:
@@ -468,7 +475,10 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
                                                        _best_layout(p.frames, int(k), leak, sides), leak, sides)
                     extra_cols.append(piece_cols)
                 kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
-                m = made
+                # A splat with no piece bright enough to draw is removed, and counted as such.
+                faint = int((made == 0).sum())
+                n_long -= faint
+                m = made[made > 0]
             with np.errstate(over="ignore", invalid="ignore"):
                 parts.append({name: kept[name].astype(np.float32) for name in COLUMNS})
             overflow += sum(int((np.isinf(parts[-1][name]) & np.isfinite(kept[name])).sum()) for name in COLUMNS)
@@ -476,7 +486,10 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
             report.counts_out.append(len(parts[-1]["x"]))
             report.long_lived.append(n_long)
             report.pieces.append({str(int(k)): int((m == k).sum()) for k in np.unique(m)})
-            report.dropped.append(int(nan_time.sum()))
+            report.dropped.append(int(nan_time.sum()) + int(never.sum()) + faint)
+            removed["nan"] += int(nan_time.sum())
+            removed["never"] += int(never.sum())
+            removed["faint"] += faint
             del kept, cols
             advance()
     total = sum(report.counts_out)
@@ -488,9 +501,15 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         for name in COLUMNS:
             out[name][at:at + k] = part[name]
         at += k
-    if sum(report.dropped):
-        report.notes.append(f"{plural(sum(report.dropped), 'splat')} with a NaN temporal centre or scale dropped "
+    if removed["nan"]:
+        report.notes.append(f"{plural(removed['nan'], 'splat')} with a NaN temporal centre or scale dropped "
                             "(they have no place in time)")
+    if removed["never"]:
+        report.notes.append(f"{plural(removed['never'], 'splat')} with an infinite temporal centre dropped "
+                            "(the viewer never shows them)")
+    if removed["faint"]:
+        report.notes.append(f"{plural(removed['faint'], 'long-lived splat')} dropped: every piece of each was "
+                            "fainter than half an 8-bit step in its segment's frames")
     if overflow:
         report.notes.append(f"{overflow:,} finite values grew beyond float32 and are now infinite")
     long_total = sum(report.long_lived)
