@@ -18,7 +18,7 @@ from .errors import UnsupportedError, UsageError
 from .formats import REGISTRY, format_for
 from .fsutil import check_output
 from .io import check_write_options, read, splat_count, write
-from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, merge_segments
+from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, check_durations, merge_segments
 from .render.fidelity import fidelity
 from .ops.sequence import fit_sequence
 from .progress import SILENT
@@ -145,6 +145,8 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
         The merged scene, what merging did, what the writer did, the per-frame fidelity ([] unless ``check``).
     """
     inputs = [os.fspath(p) for p in inputs]
+    if durations is not None:
+        check_durations(durations)  # before any reading
     for p in inputs:
         format_for(p, purpose="read")
     check_write_options(output, sort=sort, layout=layout)

@@ -185,6 +185,12 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert io.read(tmp_path / "e.ply").count == 0
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations", "5")
     assert (r.exit_code, r.stderr) == (2, "Error: --durations gives 1 value for 2 segments\n")
+    # Durations are bounded before anything is read (100 million frames once ended in "out of memory").
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations",
+            "100000000,5")
+    assert (r.exit_code, r.stderr) == (2, f"Error: --durations: 100,000,005 frames in all; a merge lays out at most "
+                                          f"{sg.MAX_FRAMES:,}\n")
+    assert f"at most {sg.MAX_FRAMES:,} frames in all" in " ".join(run("merge", "--help").stdout.split())
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")
     assert r.exit_code == 2 and "apply to --segments only" in r.stderr
     assert not (tmp_path / "x.splatv").exists()

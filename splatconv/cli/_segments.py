@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from .. import clips
-from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK
+from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
 from ..render.fidelity import fidelity_summary
 from ..report import segments_text, to_json
 from ..wording import plural
@@ -40,7 +40,8 @@ def segment_options():
                      help="Lay the inputs end to end (segment i in its own interval of [0, 1]) instead of together."),
         click.option("--durations", type=_Counts(), default=None,
                      help=f"--segments: frames of each segment, comma-separated; segment i gets that share of "
-                          f"the timeline and its frames stay at frame times [default: {DEFAULT_FRAMES} each]."),
+                          f"the timeline and its frames stay at frame times; at most {MAX_FRAMES:,} frames in all "
+                          f"[default: {DEFAULT_FRAMES} each]."),
         click.option("--leak", type=click.IntRange(min=0), default=DEFAULT_LEAK, show_default=True,
                      help="--segments: frames of the next (previous) segment through which a segment's "
                           "long-lived splats fade out (in)."),

@@ -44,6 +44,9 @@ DEFAULT_FRAMES = 50
 DEFAULT_BUDGET = 2.0
 #: Frames of the neighbouring segment through which a segment's long-lived splats may still fade.
 DEFAULT_LEAK = 12
+#: Most frames a merge lays out, all segments together (5.5 minutes at 30 frames a second; Spacetime
+#: Gaussians clips are about 300): bounds the window search, whose time and memory grow with a segment's frames.
+MAX_FRAMES = 10_000
 #: Most windows a long-lived splat is split into.
 MAX_PIECES = 7
 #: Radii are kept this much inside a cut, for the viewer's float32 maths.
@@ -119,6 +122,21 @@ class SegmentReport:
         }
 
 
+def check_durations(durations) -> list:
+    """Segment frame counts as ints, checked: at least 2 each, at most :data:`MAX_FRAMES` together.
+
+    Raises
+    ------
+    UsageError
+    """
+    n = [int(d) for d in durations]
+    if any(d < 2 for d in n):
+        raise UsageError("--durations: every segment needs at least 2 frames")
+    if sum(n) > MAX_FRAMES:
+        raise UsageError(f"--durations: {sum(n):,} frames in all; a merge lays out at most {MAX_FRAMES:,}")
+    return n
+
+
 def placements(durations, leak: int = DEFAULT_LEAK) -> list:
     """Each segment's interval and cuts on the output's [0, 1].
 
@@ -129,11 +147,9 @@ def placements(durations, leak: int = DEFAULT_LEAK) -> list:
     leak : int
         Frames of a neighbour a segment's pieces may still show in (0: cut before its first).
     """
-    n = [int(d) for d in durations]
+    n = check_durations(durations)
     if len(n) < 2:
         raise UsageError("--segments needs at least two segments")
-    if any(d < 2 for d in n):
-        raise UsageError("--durations: every segment needs at least 2 frames")
     total = sum(n)
     step = 1.0 / (total - 1)
     out, first = [], 0
