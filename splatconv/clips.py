@@ -19,7 +19,7 @@ from .formats import REGISTRY, format_for
 from .fsutil import check_output
 from .io import check_write_options, read, splat_count, write
 from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, check_durations, merge_segments
-from .render.fidelity import fidelity
+from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity
 from .ops.sequence import fit_sequence
 from .progress import SILENT
 from .transport import inner_name
@@ -131,7 +131,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
 def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
                         sort=None, layout=None, color: str = "auto", force: bool = False, zstd_level=None,
                         check: bool = True,
-                        check_every: int = 1, camera: int = 0, progress=SILENT):
+                        check_every: int = DEFAULT_EVERY, camera: int = DEFAULT_CAMERA, progress=SILENT):
     """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
 
     Parameters

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from splatconv.render.fidelity import fidelity, fidelity_summary
-from splatconv import io, viewer
+from splatconv.render.fidelity import DEFAULT_EVERY, fidelity, fidelity_summary
+from splatconv import clips, io, viewer
+from splatconv.report import SEGMENTS_SCHEMA, segments_data, to_json
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import segments as sg
@@ -174,6 +175,13 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
         assert sum(seg["pieces_per_long_lived"].values()) == seg["long_lived"]
         assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
     assert io.read(out).count == data["splats_out"]
+    # The CLI prints what the library assembles (report.segments_data), schema included.
+    merged, report, written, frames = clips.merge_segment_files([tmp_path / "a.ply", tmp_path / "b.ply"], out,
+                                                                durations=[per, per], check_every=3, force=True)
+    assert json.loads(to_json(segments_data(report, written, out, frames))) == data
+    assert data["schema"] == SEGMENTS_SCHEMA
+    help_text = run("merge", "--help").stdout
+    assert f"[default: {DEFAULT_EVERY}; x>=1]" in " ".join(help_text.split())
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
     # Segments with no splats at all: a report, not a traceback (the ratio is undefined).
