@@ -228,3 +228,22 @@ def test_every_removed_splat_is_counted_and_said(tmp_path, source):
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "m2.ply", "--segments", "--durations", "8,8",
             "--no-check")
     assert ", 5 dropped" in r.stdout and "infinite temporal centre dropped" in r.stderr
+
+
+def test_the_budget_is_spent_on_pieces_that_are_drawn(source):
+    """Steps are charged the pieces a splat is drawn with: what a layout drops or a faint piece leaves goes on."""
+    k, per = 6, 50
+    total = k * per
+    segs = []
+    for i in range(k):
+        s, _ = trim(source, per * i / (total - 1), (per * i + per - 1) / (total - 1))
+        segs.append(perturbed(s, i) if i % 2 else s)
+    _, report = sg.merge_segments(segs, [per] * k)
+    for n_in, n_out in zip(report.counts_in, report.counts_out):
+        assert 2 * n_in - sg.MAX_PIECES < n_out <= 2 * n_in, (n_in, n_out)
+    # Layouts on offer: pieces rising, cost falling, each piece more buying less.
+    options = sg.layout_options(per, sg.DEFAULT_LEAK, (True, True))
+    sizes, costs = [o[1] for o in options], [o[2] for o in options]
+    assert sizes == sorted(set(sizes)) and costs == sorted(costs, reverse=True)
+    per_piece = np.diff(costs) / np.diff(sizes)
+    assert (np.diff(per_piece) >= 0).all()

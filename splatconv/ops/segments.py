@@ -338,14 +338,11 @@ def _long_lived(cols: dict, p: Placement) -> tuple:
     return split, nan_time, never
 
 
-def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
-    """Pieces of splats ``rows`` (placed, float64 columns) for segment ``p`` with the ``m``-window layout.
+def _windowed(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
+    """Each splat of ``rows`` times each window of the ``m``-window layout: centres, scales, peaks, which to keep.
 
-    Returns
-    -------
-    (dict, ndarray)
-        The pieces' float64 columns, and how many pieces each row got ``(M,) int64``
-        (the layout may keep fewer windows than ``m``; pieces too faint to draw are left out).
+    Returns ``(c_new, s_new, pk, ok)``, each ``(M, J)``: ``ok`` marks the pieces
+    drawn (inside the cuts, finite, and at least half an 8-bit step at peak).
     """
     left, right = first_last
     x, s, table, _ = windows(p.frames, m, leak, left, right)
@@ -368,6 +365,19 @@ def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first
     s_new = np.minimum(s_new, reach)
     pk = _lookup_peaks(table, peak[:, None] * mu)
     ok = (reach > 0) & (pk >= _MIN_PEAK) & np.isfinite(c_new) & (s_new > 0)
+    return c_new, s_new, pk, ok
+
+
+def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
+    """Pieces of splats ``rows`` (placed, float64 columns) for segment ``p`` with the ``m``-window layout.
+
+    Returns
+    -------
+    (dict, ndarray)
+        The pieces' float64 columns, and how many pieces each row got ``(M,) int64``
+        (the layout may keep fewer windows than ``m``; pieces too faint to draw are left out).
+    """
+    c_new, s_new, pk, ok = _windowed(cols, rows, p, m, leak, first_last)
     src, j = np.nonzero(ok)
     rows_src = rows[src]
     cn, sn = c_new[src, j], s_new[src, j]
@@ -401,8 +411,30 @@ def _best_layout(n: int, m: int, leak: int, sides) -> int:
     return min(range(1, m + 1), key=lambda k: (windows(n, k, leak, *sides)[3], k))
 
 
-def _best_costs(n: int, leak: int, sides) -> dict:
-    return {m: windows(n, _best_layout(n, m, leak, sides), leak, *sides)[3] for m in range(1, MAX_PIECES + 1)}
+def layout_options(n: int, leak: int, sides) -> list:
+    """The layouts a long-lived splat may get, as ``(m, pieces, cost)``: each a piece more buys less.
+
+    ``m`` is the windows asked of :func:`windows`, ``pieces`` the windows its
+    layout keeps (the search may keep fewer than ``m``: for a 50-frame middle
+    segment, 5 to 7 asked keep 3), ``cost`` its composited error. Pieces rise
+    and cost falls strictly, and the cost is convex in the pieces (the lower
+    hull), so that allotting in order of gain per piece never skips a step.
+    """
+    best = {}
+    for m in range(1, MAX_PIECES + 1):
+        x, _s, _table, cost = windows(n, m, leak, *sides)
+        if len(x) and (len(x) not in best or cost < best[len(x)][1]):
+            best[len(x)] = (m, cost)
+    hull = []
+    for size in sorted(best):
+        m, cost = best[size]
+        if hull and cost >= hull[-1][2]:
+            continue
+        while len(hull) >= 2 and ((hull[-1][2] - cost) * (hull[-1][1] - hull[-2][1])
+                                  >= (hull[-2][2] - hull[-1][2]) * (size - hull[-1][1])):
+            hull.pop()
+        hull.append((m, size, cost))
+    return hull
 
 
 def impact(cols: dict, rows: np.ndarray) -> np.ndarray:
@@ -413,24 +445,38 @@ def impact(cols: dict, rows: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(v), v, 0.0)
 
 
-def allocate(weights: np.ndarray, extra: int, costs: dict) -> np.ndarray:
-    """Pieces per long-lived splat (1 .. MAX_PIECES) given ``extra`` pieces beyond one each.
+def allocate(weights: np.ndarray, extra: int, options: list, sizes: np.ndarray | None = None) -> np.ndarray:
+    """Which of ``options`` (:func:`layout_options`) each long-lived splat gets: indices ``(M,) int64``.
 
-    Greedy on marginal gains: each extra piece goes where weight x (cost(m) -
-    cost(m + 1)) is largest, ``costs[m]`` being the best composited error with at
-    most m pieces (non-increasing). Ties and order are deterministic (stable sort).
+    Every splat starts at ``options[0]``; ``extra`` pieces beyond that are
+    spent greedily where weight x (cost drop per piece) is largest, each step
+    costing the pieces it adds, until the next step in that order no longer
+    fits. ``sizes`` ``(M, len(options))`` are the pieces each splat would be
+    drawn with at each option (default the options' own: a splat's pieces too
+    faint to draw are left out, so it may get fewer); counting those, not the
+    windows asked, leaves no budget unspent. Ties and order are deterministic
+    (stable sort).
     """
     n = len(weights)
-    m = np.ones(n, dtype=np.int64)
-    if n == 0 or extra <= 0:
-        return m
-    steps = [max(costs[k] - costs[k + 1], 0.0) for k in range(1, MAX_PIECES)]
-    gains = (weights[:, None] * np.array(steps)[None, :]).ravel()
-    take = min(extra, len(gains))
-    order = np.argsort(-gains, kind="stable")[:take]
+    level = np.zeros(n, dtype=np.int64)
+    if n == 0 or len(options) < 2:
+        return level
+    costs = np.array([o[2] for o in options])
+    if sizes is None:
+        sizes = np.broadcast_to(np.array([o[1] for o in options], np.int64), (n, len(options)))
+    steps = np.diff(sizes, axis=1)                                       # (M, L - 1); <= 0: no piece more
+    with np.errstate(invalid="ignore"):
+        per_piece = np.where(steps > 0, weights[:, None] * (costs[:-1] - costs[1:])[None, :] / np.maximum(steps, 1),
+                             np.inf)
+    # A splat's steps come in order: none is worth more than the one before it.
+    gains = np.minimum.accumulate(per_piece, axis=1).ravel()
+    order = np.argsort(-gains, kind="stable")
     order = order[gains[order] > 0]
-    np.add.at(m, order // len(steps), 1)
-    return m
+    spend = np.cumsum(steps.ravel()[order])
+    over = np.flatnonzero(spend > extra)
+    order = order[:over[0]] if len(over) else order
+    np.add.at(level, order // steps.shape[1], 1)
+    return level
 
 
 def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
@@ -479,16 +525,18 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
                 rows = np.flatnonzero(split)
                 sides = (i > 0, i < len(scenes) - 1)
                 if pieces is not None:
-                    m = np.full(n_long, pieces, np.int64)
+                    m = np.full(n_long, _best_layout(p.frames, pieces, leak, sides), np.int64)
                 else:
-                    costs = _best_costs(p.frames, leak, sides)
-                    extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - n_long
-                    m = allocate(impact(cols, rows), extra, costs)
+                    options = layout_options(p.frames, leak, sides)
+                    sizes = np.stack([_windowed(cols, rows, p, o[0], leak, sides)[3].sum(axis=1) for o in options],
+                                     axis=1)
+                    extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - int(sizes[:, 0].sum())
+                    m = np.array([o[0] for o in options], np.int64)[allocate(impact(cols, rows), extra, options,
+                                                                             sizes)]
                 made = np.zeros(n_long, np.int64)
                 extra_cols = []
                 for k in np.unique(m):
-                    piece_cols, made[m == k] = _pieces(cols, rows[m == k], p,
-                                                       _best_layout(p.frames, int(k), leak, sides), leak, sides)
+                    piece_cols, made[m == k] = _pieces(cols, rows[m == k], p, int(k), leak, sides)
                     extra_cols.append(piece_cols)
                 kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
                 # A splat with no piece bright enough to draw is removed, and counted as such.
