@@ -14,12 +14,12 @@ import os
 import re
 
 from .cameras import load_cameras
-from .errors import UnsupportedError, UsageError
+from .errors import UsageError
 from .formats import REGISTRY, format_for
 from .fsutil import check_output
-from .io import check_write_options, read, write
-from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, merge_segments
-from .render.fidelity import fidelity
+from .io import check_write_options, read, refuse_empty, splat_count, write
+from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, check_durations, merge_segments
+from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity
 from .ops.sequence import fit_sequence
 from .progress import SILENT
 from .transport import inner_name
@@ -116,11 +116,10 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
             found["cameras"] = scene.cameras
         return scene
 
+    # Counted from headers, not by reading: only the fit's own passes read the frames.
     scene, fit = fit_sequence(read_frame, len(paths), times=frame_times, same_splats=same_splats,
-                              max_error=max_error, progress=progress)
-    if scene.count == 0 and not module.HOLDS_EMPTY:
-        raise UnsupportedError(f"the frames hold no splats; a {module.NAME} file cannot hold an empty scene",
-                               paths[0])
+                              max_error=max_error, counts=[splat_count(p) for p in paths], progress=progress)
+    refuse_empty(module, scene.count, paths[0], "the frames hold no splats")
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
                    layout=layout, progress=progress)
@@ -130,7 +129,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
 def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
                         sort=None, layout=None, color: str = "auto", force: bool = False, zstd_level=None,
                         check: bool = True,
-                        check_every: int = 1, camera: int = 0, progress=SILENT):
+                        check_every: int = DEFAULT_EVERY, camera: int = DEFAULT_CAMERA, progress=SILENT):
     """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
 
     Parameters
@@ -144,6 +143,8 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
         The merged scene, what merging did, what the writer did, the per-frame fidelity ([] unless ``check``).
     """
     inputs = [os.fspath(p) for p in inputs]
+    if durations is not None:
+        check_durations(durations)  # before any reading
     for p in inputs:
         format_for(p, purpose="read")
     check_write_options(output, sort=sort, layout=layout)

@@ -66,6 +66,17 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
         yield scene, plain
 
 
+def splat_count(path: str | os.PathLike) -> int | None:
+    """The splats :func:`read` gives for ``path``, found without reading them (format by suffix).
+
+    From the format's header or the file's size (each readable format's
+    ``splat_count``); None when only reading tells: a ``.zst`` file (its header
+    is compressed), or a file whose header the format cannot vouch for.
+    """
+    module = format_for(path, purpose="read")
+    return None if is_compressed(path) else module.splat_count(path)
+
+
 def read_texture(path: str | os.PathLike, *, progress=SILENT):
     """The viewer's texture as a file stores it, and the scene decoded from it, in one read.
 

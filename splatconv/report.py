@@ -5,7 +5,11 @@ from __future__ import annotations
 import json
 import textwrap
 
+from .render.fidelity import fidelity_summary
 from .wording import plural
+
+#: The first key of ``merge --segments --json`` (specs/json.md).
+SEGMENTS_SCHEMA = "splatconv.merge-segments/1"
 
 
 def to_json(data) -> str:
@@ -348,8 +352,26 @@ def _db(v) -> str:
     return "identical" if v is None else f"{v:.2f} dB"
 
 
+def segments_data(report, written, output, rows: list) -> dict:
+    """``merge --segments``'s report as data, the keys of specs/json.md in order.
+
+    Parameters
+    ----------
+    report : splatconv.ops.segments.SegmentReport
+    written : splatconv.formats.base.WriteReport
+    output : path
+    rows : list of dict
+        Per-frame fidelity (:func:`splatconv.render.fidelity.fidelity`; [] when not measured).
+    """
+    data = {"schema": SEGMENTS_SCHEMA, **report.as_dict()}
+    data["output"] = {"path": str(output), "splats": written.count}
+    data["frames"] = list(rows)
+    data["fidelity"] = fidelity_summary(rows)
+    return data
+
+
 def segments_text(data: dict) -> str:
-    """``merge --segments``'s report (:meth:`SegmentReport.as_dict` + frames + fidelity) as text."""
+    """``merge --segments``'s report (:func:`segments_data`) as text."""
     lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
              f"{data['splats_out']:,} ("
              + (f"{data['ratio']:.2f}x; " if data["ratio"] is not None else "")
@@ -360,7 +382,8 @@ def segments_text(data: dict) -> str:
         pieces = ", ".join(f"{n:,} x {k}" for k, n in given)
         lines.append(f"  segment {i}: frames {s['first_frame']}..{s['first_frame'] + s['frames'] - 1} "
                      f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {plural(s['splats_out'], 'splat')}, "
-                     f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else ""))
+                     f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else "")
+                     + (f", {s['dropped']:,} dropped" if s["dropped"] else ""))
     frames = data.get("frames") or []
     if frames:
         lines.append("frame  time      segment  local    PSNR vs the segment alone")

@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from splatconv.render.fidelity import fidelity, fidelity_summary
-from splatconv import io, viewer
+from splatconv.render.fidelity import DEFAULT_EVERY, fidelity, fidelity_summary
+from splatconv import clips, io, viewer
+from splatconv.report import SEGMENTS_SCHEMA, segments_data, to_json
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import segments as sg
@@ -174,6 +175,13 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
         assert sum(seg["pieces_per_long_lived"].values()) == seg["long_lived"]
         assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
     assert io.read(out).count == data["splats_out"]
+    # The CLI prints what the library assembles (report.segments_data), schema included.
+    merged, report, written, frames = clips.merge_segment_files([tmp_path / "a.ply", tmp_path / "b.ply"], out,
+                                                                durations=[per, per], check_every=3, force=True)
+    assert json.loads(to_json(segments_data(report, written, out, frames))) == data
+    assert data["schema"] == SEGMENTS_SCHEMA
+    help_text = run("merge", "--help").stdout
+    assert f"[default: {DEFAULT_EVERY}; x>=1]" in " ".join(help_text.split())
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
     # Segments with no splats at all: a report, not a traceback (the ratio is undefined).
@@ -185,6 +193,57 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert io.read(tmp_path / "e.ply").count == 0
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations", "5")
     assert (r.exit_code, r.stderr) == (2, "Error: --durations gives 1 value for 2 segments\n")
+    # Durations are bounded before anything is read (100 million frames once ended in "out of memory").
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--segments", "--durations",
+            "100000000,5")
+    assert (r.exit_code, r.stderr) == (2, f"Error: --durations: 100,000,005 frames in all; a merge lays out at most "
+                                          f"{sg.MAX_FRAMES:,}\n")
+    assert f"at most {sg.MAX_FRAMES:,} frames in all" in " ".join(run("merge", "--help").stdout.split())
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")
     assert r.exit_code == 2 and "apply to --segments only" in r.stderr
     assert not (tmp_path / "x.splatv").exists()
+
+
+def test_every_removed_splat_is_counted_and_said(tmp_path, source):
+    a, b = halves(source, 8)
+    cols = {k: np.array(v, np.float32) for k, v in b.columns.items()}
+    cols["trbf_center"][:3] = [np.inf, -np.inf, np.nan]   # never shown, never shown, no time
+    cols["trbf_scale"][3:5] = 10.0                         # long-lived ...
+    cols["opacity"][3:5] = -30.0                           # ... and too faint for any piece
+    io.write(a, tmp_path / "a.ply")
+    io.write(Scene(columns=cols, cameras=b.cameras), tmp_path / "b.ply")
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "m.ply", "--segments", "--durations", "8,8",
+            "--no-check", "--json")
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    seg = data["segments"][1]
+    assert seg["dropped"] == 5
+    pieces = sum(int(k) * n for k, n in seg["pieces_per_long_lived"].items())
+    assert "0" not in seg["pieces_per_long_lived"]
+    assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
+    assert "1 splat with a NaN temporal centre or scale dropped (they have no place in time)" in data["notes"]
+    assert "2 splats with an infinite temporal centre dropped (the viewer never shows them)" in data["notes"]
+    assert ("2 long-lived splats dropped: every piece of each was fainter than half an 8-bit step in its "
+            "segment's frames") in data["notes"]
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "m2.ply", "--segments", "--durations", "8,8",
+            "--no-check")
+    assert ", 5 dropped" in r.stdout and "infinite temporal centre dropped" in r.stderr
+
+
+def test_the_budget_is_spent_on_pieces_that_are_drawn(source):
+    """Steps are charged the pieces a splat is drawn with: what a layout drops or a faint piece leaves goes on."""
+    k, per = 6, 50
+    total = k * per
+    segs = []
+    for i in range(k):
+        s, _ = trim(source, per * i / (total - 1), (per * i + per - 1) / (total - 1))
+        segs.append(perturbed(s, i) if i % 2 else s)
+    _, report = sg.merge_segments(segs, [per] * k)
+    for n_in, n_out in zip(report.counts_in, report.counts_out):
+        assert 2 * n_in - sg.MAX_PIECES < n_out <= 2 * n_in, (n_in, n_out)
+    # Layouts on offer: pieces rising, cost falling, each piece more buying less.
+    options = sg.layout_options(per, sg.DEFAULT_LEAK, (True, True))
+    sizes, costs = [o[1] for o in options], [o[2] for o in options]
+    assert sizes == sorted(set(sizes)) and costs == sorted(costs, reverse=True)
+    per_piece = np.diff(costs) / np.diff(sizes)
+    assert (np.diff(per_piece) >= 0).all()

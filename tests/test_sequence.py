@@ -252,3 +252,49 @@ def test_frames_whose_rows_are_not_one_splat_suggest_same_splats_no():
                for n in report.notes), report.notes
     _, report = sequence.fit_sequence(lambda k: Scene(columns=snapshot(cols, k / 4).columns), 5)
     assert not any("--same-splats no" in n for n in report.notes)
+
+
+def test_each_format_counts_splats_from_its_header_as_read_would(tmp_path, gs_ply):
+    scene = io.read(SAMPLE)
+    small = Scene(columns={k: np.asarray(v)[:1500] for k, v in scene.columns.items()})
+    paths = [tmp_path / "a.ply", tmp_path / "a.splatv", tmp_path / "a.splat", gs_ply]
+    io.write(small, paths[0])
+    io.write(small, paths[1])
+    io.write(snapshot(small.columns, 0.5), paths[2])
+    ascii_ply = tmp_path / "ascii.ply"
+    text = b"ply\nformat ascii 1.0\nelement vertex 2\n" + b"".join(
+        b"property float %s\n" % n.encode() for n in ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                                                      "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2",
+                                                      "rot_3")) + b"end_header\n" + b"0 " * 13 + b"1\n" + b"1 " * 14 + b"\n"
+    ascii_ply.write_bytes(text)
+    for p in paths + [ascii_ply]:
+        assert io.splat_count(p) == io.read(p).count, p
+    # Where only reading can tell, the answer is None, never a wrong count.
+    truncated = tmp_path / "cut.ply"
+    truncated.write_bytes(paths[0].read_bytes()[:-10])
+    odd = tmp_path / "odd.splat"
+    odd.write_bytes(paths[2].read_bytes()[:-3])
+    padded = tmp_path / "padded.splatv"
+    raw = bytearray(paths[1].read_bytes())
+    raw[-64:] = b"\x01" * 64  # data in the padding after the header's count: read counts up to it
+    padded.write_bytes(bytes(raw))
+    compressed = tmp_path / "a.ply.zst"
+    io.write(small, compressed)
+    empty = tmp_path / "empty.splat"
+    empty.write_bytes(b"")
+    for p in (truncated, odd, padded, compressed, empty):
+        assert io.splat_count(p) is None, p
+    assert io.read(padded).count > small.count
+
+
+def test_convert_reads_each_frame_once_when_the_counts_come_from_headers(tmp_path, monkeypatch):
+    from splatconv import clips
+    source = io.read(SAMPLE)
+    frames = [snapshot({name: np.asarray(v)[: 1000 + 10 * k] for name, v in source.columns.items()}, k / 3)
+              for k in range(4)]
+    write_frames(tmp_path / "f", frames)
+    reads = []
+    real = clips.read
+    monkeypatch.setattr(clips, "read", lambda path, **kw: reads.append(path) or real(path, **kw))
+    clips.convert_frames([tmp_path / "f"], tmp_path / "out.splatv")
+    assert len(reads) == len(frames)

@@ -5,15 +5,11 @@ from __future__ import annotations
 import click
 
 from .. import clips
-from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK
-from ..render.fidelity import fidelity_summary
-from ..report import segments_text, to_json
+from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
+from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY
+from ..report import segments_data, segments_text, to_json
 from ..wording import plural
 from ._base import Failure, notes, progress
-
-
-#: The first key of ``merge --segments --json`` (specs/json.md).
-SCHEMA = "splatconv.merge-segments/1"
 
 
 class _Counts(click.ParamType):
@@ -40,16 +36,17 @@ def segment_options():
                      help="Lay the inputs end to end (segment i in its own interval of [0, 1]) instead of together."),
         click.option("--durations", type=_Counts(), default=None,
                      help=f"--segments: frames of each segment, comma-separated; segment i gets that share of "
-                          f"the timeline and its frames stay at frame times [default: {DEFAULT_FRAMES} each]."),
+                          f"the timeline and its frames stay at frame times; at most {MAX_FRAMES:,} frames in all "
+                          f"[default: {DEFAULT_FRAMES} each]."),
         click.option("--leak", type=click.IntRange(min=0), default=DEFAULT_LEAK, show_default=True,
                      help="--segments: frames of the next (previous) segment through which a segment's "
                           "long-lived splats fade out (in)."),
         click.option("--budget", type=click.FloatRange(min=1.0), default=DEFAULT_BUDGET, show_default=True,
                      help="--segments: at most this many times the segments' splats."),
-        click.option("--check-every", type=click.IntRange(min=1), default=1, show_default=True,
+        click.option("--check-every", type=click.IntRange(min=1), default=DEFAULT_EVERY, show_default=True,
                      help="--segments: measure every K-th output frame against its segment."),
         click.option("--no-check", is_flag=True, help="--segments: skip the per-frame fidelity measurement."),
-        click.option("--camera", type=click.IntRange(min=0), default=0, show_default=True,
+        click.option("--camera", type=click.IntRange(min=0), default=DEFAULT_CAMERA, show_default=True,
                      help="--segments: stored camera the fidelity is measured from."),
         click.option("--json", "as_json", is_flag=True,
                      help="--segments: print the report as JSON (keys in specs/json.md)."),
@@ -59,7 +56,8 @@ def segment_options():
 def given(options: dict) -> bool:
     """Whether any --segments-only option differs from its default."""
     return (options["durations"] is not None or options["leak"] != DEFAULT_LEAK or options["budget"] != DEFAULT_BUDGET
-            or options["check_every"] != 1 or options["no_check"] or options["camera"] != 0 or options["as_json"])
+            or options["check_every"] != DEFAULT_EVERY or options["no_check"] or options["camera"] != DEFAULT_CAMERA
+            or options["as_json"])
 
 
 def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, leak, budget, check_every, no_check,
@@ -73,8 +71,5 @@ def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, le
     notes(merged.notes)
     notes(report.notes)
     notes(written.notes)
-    data = {"schema": SCHEMA, **report.as_dict()}
-    data["output"] = {"path": str(output_path), "splats": written.count}
-    data["frames"] = rows
-    data["fidelity"] = fidelity_summary(rows)
+    data = segments_data(report, written, output_path, rows)
     click.echo(to_json(data) if as_json else segments_text(data))

@@ -3,9 +3,11 @@
 Every format module declares what it supports (see :mod:`splatconv.formats.base`):
 ``NAME``, ``SUFFIXES``, ``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``,
 ``DEFAULT_SORT``, ``HOLDS_EMPTY``, ``DYNAMIC``, ``STORES_TEXTURE`` (and, for a player
-page, ``PLAYS_SEGMENTS``), and provides
-``read``, ``write``, ``info_fields`` and ``storage`` (how it stores each attribute
-group, which ``verify`` and ``stats`` judge errors by). Callers look a module up with :func:`format_for` and ask it
+page, ``PLAYS_SEGMENTS``), and provides ``read``, ``write``, ``info_fields``,
+``storage`` (how it stores each attribute group, which ``verify`` and ``stats``
+judge errors by) and, when it can be read, ``splat_count`` (the splats ``read``
+would give, from the header or the file size without reading them, or None when
+only reading tells). Callers look a module up with :func:`format_for` and ask it
 those questions; none of them names a format. Adding a format is adding a module
 and one line to ``_MODULES``. A ``.zst`` suffix after a format's suffix means the
 same format, zstd-compressed (see :mod:`splatconv.transport`).

@@ -2,9 +2,12 @@
 
 A format module (see :mod:`splatconv.formats`) declares ``NAME``, ``SUFFIXES``,
 ``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``, ``DEFAULT_SORT``, ``HOLDS_EMPTY``,
-``DYNAMIC`` and ``STORES_TEXTURE`` (a player page also ``PLAYS_SEGMENTS``) and provides ``read(path, **options) -> Scene``,
-``write(scene, stream, *, compat=None, sort=None, **options) -> WriteReport`` and
-``info_fields(scene) -> dict``.
+``DYNAMIC`` and ``STORES_TEXTURE`` (a player page also ``PLAYS_SEGMENTS``) and
+provides ``read(path, **options) -> Scene``,
+``write(scene, stream, *, compat=None, sort=None, **options) -> WriteReport``,
+``info_fields(scene) -> dict`` and, when ``CAN_READ``, ``splat_count(path) -> int or None``
+(the splats ``read`` would give, found from the header or the file size without
+reading them; None when only reading tells).
 """
 
 from __future__ import annotations

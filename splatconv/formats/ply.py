@@ -264,6 +264,25 @@ def _open(path: str) -> _PlyFile:
         return _read_binary(f, path, header, layout, counts)
 
 
+def splat_count(path: str | os.PathLike) -> int | None:
+    """The splats :func:`read` gives for ``path``: its header's vertex count, read without the rows.
+
+    None when only reading tells: no ``vertex`` element, or a header or size
+    :func:`read` refuses (reading says why).
+    """
+    path = os.fspath(path)
+    try:
+        with open_input(path) as f:
+            size = os.fstat(f.fileno()).st_size
+            layout = _Layout(_read_header_bytes(f, size), path)
+            _minimum_body(layout, path, size)
+    except FormatError:
+        return None
+    if layout.header_bytes is None:
+        return None
+    return next((count for name, count, *_rest in layout.elements if name == "vertex"), None)
+
+
 def _check_list_types(header, path: str) -> None:
     """A list's length must be an integer type (plyfile takes ``property list float int x``)."""
     for element in header.elements:

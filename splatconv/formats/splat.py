@@ -126,6 +126,17 @@ def read(path: str | os.PathLike, **_options) -> Scene:
                  meta=meta, notes=notes)
 
 
+def splat_count(path: str | os.PathLike) -> int | None:
+    """The splats :func:`read` gives for ``path``, from its size; None for a size :func:`read` refuses."""
+    path = os.fspath(path)
+    try:
+        with open_input(path) as f:
+            size = os.fstat(f.fileno()).st_size
+    except FormatError:
+        return None
+    return size // RECORD_BYTES if size and size % RECORD_BYTES == 0 else None
+
+
 def _quiet_nans(values: np.ndarray, notes: list) -> np.ndarray:
     """``values`` (float32), with signalling NaNs made quiet: a copy only when there are any.
 

@@ -26,8 +26,8 @@ from . import splatv_engine as engine
 from .base import WriteReport
 from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE,
                             COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
-                            MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXWIDTH,
-                            WORDS_PER_SPLAT, header_bytes, texture_bytes, texture_height)
+                            MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXEL_BYTES,
+                            TEXWIDTH, WORDS_PER_SPLAT, header_bytes, texture_bytes, texture_height)
 
 NAME = "splatv"
 SUFFIXES = (".splatv",)
@@ -228,6 +228,69 @@ def declared_size(head: bytes):
     return PREAMBLE.size + json_len + sum(c["size"] for c in chunks)
 
 
+def _splat_chunk(f, path: str, file_size: int):
+    """Read the header and find the first splat chunk (checked).
+
+    Returns
+    -------
+    chunks : list of dict
+    chunk : dict
+        The splat chunk's header object.
+    start : int
+        File offset of its bytes.
+    end : int
+        File offset after the last chunk.
+    skipped : list of dict
+        The other chunks' types and sizes.
+    """
+    chunks, offset = read_header(f, path, file_size)
+    splat = None
+    skipped = []
+    for i, chunk in enumerate(chunks):
+        if splat is None and offset + chunk["size"] > file_size and chunk["type"] != "splat":
+            raise FormatError(f"declares {chunk['size']} bytes but the file ends {file_size - offset} "
+                              "bytes after its start, before any splat chunk", path,
+                              (f"chunk {i} ({_shown(chunk['type'])})",))
+        if chunk["type"] == "splat" and splat is None:
+            _check_splat_chunk(chunk, path, (f"chunk {i}",))
+            splat = (chunk, offset)
+        else:
+            skipped.append({"type": chunk["type"], "size": chunk["size"]})
+        offset += chunk["size"]
+    if splat is None:
+        raise FormatError("header has no 'splat' chunk", path)
+    return chunks, splat[0], splat[1], offset, skipped
+
+
+def splat_count(path: str | os.PathLike) -> int | None:
+    """The splats :func:`read` gives for ``path``, found without reading them; None when only reading tells.
+
+    The header's count (:data:`COUNT_KEY`) where :func:`_splat_count` would
+    trust it: within the texture, and the records after it (at most a texture
+    row, read here) all zero. Files without a count, with a bad one, or with
+    more padding give None, as does a header :func:`read` refuses (reading says why).
+    """
+    path = os.fspath(path)
+    try:
+        with open_input(path) as f:
+            file_size = os.fstat(f.fileno()).st_size
+            _chunks, chunk, start, _end, _skipped = _splat_chunk(f, path, file_size)
+            count = chunk.get(COUNT_KEY)
+            if not _is_count(count) or count > chunk["texheight"] * SPLATS_PER_ROW:
+                return None
+            actual = max(0, min(chunk["size"], file_size - start))
+            records = -(-actual // RECORD_BYTES)
+            if count >= records:
+                return records
+            tail = actual - count * RECORD_BYTES
+            if tail > TEXWIDTH * TEXEL_BYTES:
+                return None
+            f.seek(start + count * RECORD_BYTES)
+            return count if f.read(tail).count(0) == tail else None
+    except FormatError:
+        return None
+
+
 def read_records(path: str | os.PathLike):
     """Read the raw texture records of a ``.splatv`` file.
 
@@ -246,23 +309,7 @@ def read_records(path: str | os.PathLike):
     notes = []
     with open_input(path) as f:
         file_size = os.fstat(f.fileno()).st_size
-        chunks, offset = read_header(f, path, file_size)
-        splat = None
-        skipped = []
-        for i, chunk in enumerate(chunks):
-            if splat is None and offset + chunk["size"] > file_size and chunk["type"] != "splat":
-                raise FormatError(f"declares {chunk['size']} bytes but the file ends {file_size - offset} "
-                                  "bytes after its start, before any splat chunk", path,
-                                  (f"chunk {i} ({_shown(chunk['type'])})",))
-            if chunk["type"] == "splat" and splat is None:
-                _check_splat_chunk(chunk, path, (f"chunk {i}",))
-                splat = (i, chunk, offset)
-            else:
-                skipped.append({"type": chunk["type"], "size": chunk["size"]})
-            offset += chunk["size"]
-        if splat is None:
-            raise FormatError("header has no 'splat' chunk", path)
-        index, chunk, start = splat
+        chunks, chunk, start, offset, skipped = _splat_chunk(f, path, file_size)
         declared = chunk["size"]
         actual = max(0, min(declared, file_size - start))
         if actual < declared:

@@ -44,6 +44,9 @@ DEFAULT_FRAMES = 50
 DEFAULT_BUDGET = 2.0
 #: Frames of the neighbouring segment through which a segment's long-lived splats may still fade.
 DEFAULT_LEAK = 12
+#: Most frames a merge lays out, all segments together (5.5 minutes at 30 frames a second; Spacetime
+#: Gaussians clips are about 300): bounds the window search, whose time and memory grow with a segment's frames.
+MAX_FRAMES = 10_000
 #: Most windows a long-lived splat is split into.
 MAX_PIECES = 7
 #: Radii are kept this much inside a cut, for the viewer's float32 maths.
@@ -119,6 +122,21 @@ class SegmentReport:
         }
 
 
+def check_durations(durations) -> list:
+    """Segment frame counts as ints, checked: at least 2 each, at most :data:`MAX_FRAMES` together.
+
+    Raises
+    ------
+    UsageError
+    """
+    n = [int(d) for d in durations]
+    if any(d < 2 for d in n):
+        raise UsageError("--durations: every segment needs at least 2 frames")
+    if sum(n) > MAX_FRAMES:
+        raise UsageError(f"--durations: {sum(n):,} frames in all; a merge lays out at most {MAX_FRAMES:,}")
+    return n
+
+
 def placements(durations, leak: int = DEFAULT_LEAK) -> list:
     """Each segment's interval and cuts on the output's [0, 1].
 
@@ -129,11 +147,9 @@ def placements(durations, leak: int = DEFAULT_LEAK) -> list:
     leak : int
         Frames of a neighbour a segment's pieces may still show in (0: cut before its first).
     """
-    n = [int(d) for d in durations]
+    n = check_durations(durations)
     if len(n) < 2:
         raise UsageError("--segments needs at least two segments")
-    if any(d < 2 for d in n):
-        raise UsageError("--durations: every segment needs at least 2 frames")
     total = sum(n)
     step = 1.0 / (total - 1)
     out, first = [], 0
@@ -309,22 +325,24 @@ def _lookup_peaks(table: np.ndarray, alpha: np.ndarray) -> np.ndarray:
 
 
 def _long_lived(cols: dict, p: Placement) -> tuple:
-    """Rows to split (visible at or beyond a cut) and rows with no time (NaN centre or scale)."""
+    """Rows to split (visible at or beyond a cut), rows with no time (NaN centre or scale), and rows never shown.
+
+    A splat whose temporal centre is infinite has temporal opacity 0 (or NaN,
+    cut) at every finite time: the viewer never shows it.
+    """
     lo, hi = viewer.visible_interval(cols)
     nan_time = np.isnan(lo) | np.isnan(hi)
+    never = ~nan_time & np.isinf(np.asarray(cols["trbf_center"]))
     with np.errstate(invalid="ignore"):
-        split = ~nan_time & ((lo <= p.cut_before) | (hi >= p.cut_after))
-    return split, nan_time
+        split = ~nan_time & ~never & ((lo <= p.cut_before) | (hi >= p.cut_after))
+    return split, nan_time, never
 
 
-def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
-    """Pieces of splats ``rows`` (placed, float64 columns) for segment ``p`` with the ``m``-window layout.
+def _windowed(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
+    """Each splat of ``rows`` times each window of the ``m``-window layout: centres, scales, peaks, which to keep.
 
-    Returns
-    -------
-    (dict, ndarray)
-        The pieces' float64 columns, and how many pieces each row got ``(M,) int64``
-        (the layout may keep fewer windows than ``m``; pieces too faint to draw are left out).
+    Returns ``(c_new, s_new, pk, ok)``, each ``(M, J)``: ``ok`` marks the pieces
+    drawn (inside the cuts, finite, and at least half an 8-bit step at peak).
     """
     left, right = first_last
     x, s, table, _ = windows(p.frames, m, leak, left, right)
@@ -347,6 +365,19 @@ def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first
     s_new = np.minimum(s_new, reach)
     pk = _lookup_peaks(table, peak[:, None] * mu)
     ok = (reach > 0) & (pk >= _MIN_PEAK) & np.isfinite(c_new) & (s_new > 0)
+    return c_new, s_new, pk, ok
+
+
+def _pieces(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, first_last) -> tuple:
+    """Pieces of splats ``rows`` (placed, float64 columns) for segment ``p`` with the ``m``-window layout.
+
+    Returns
+    -------
+    (dict, ndarray)
+        The pieces' float64 columns, and how many pieces each row got ``(M,) int64``
+        (the layout may keep fewer windows than ``m``; pieces too faint to draw are left out).
+    """
+    c_new, s_new, pk, ok = _windowed(cols, rows, p, m, leak, first_last)
     src, j = np.nonzero(ok)
     rows_src = rows[src]
     cn, sn = c_new[src, j], s_new[src, j]
@@ -380,8 +411,30 @@ def _best_layout(n: int, m: int, leak: int, sides) -> int:
     return min(range(1, m + 1), key=lambda k: (windows(n, k, leak, *sides)[3], k))
 
 
-def _best_costs(n: int, leak: int, sides) -> dict:
-    return {m: windows(n, _best_layout(n, m, leak, sides), leak, *sides)[3] for m in range(1, MAX_PIECES + 1)}
+def layout_options(n: int, leak: int, sides) -> list:
+    """The layouts a long-lived splat may get, as ``(m, pieces, cost)``: each a piece more buys less.
+
+    ``m`` is the windows asked of :func:`windows`, ``pieces`` the windows its
+    layout keeps (the search may keep fewer than ``m``: for a 50-frame middle
+    segment, 5 to 7 asked keep 3), ``cost`` its composited error. Pieces rise
+    and cost falls strictly, and the cost is convex in the pieces (the lower
+    hull), so that allotting in order of gain per piece never skips a step.
+    """
+    best = {}
+    for m in range(1, MAX_PIECES + 1):
+        x, _s, _table, cost = windows(n, m, leak, *sides)
+        if len(x) and (len(x) not in best or cost < best[len(x)][1]):
+            best[len(x)] = (m, cost)
+    hull = []
+    for size in sorted(best):
+        m, cost = best[size]
+        if hull and cost >= hull[-1][2]:
+            continue
+        while len(hull) >= 2 and ((hull[-1][2] - cost) * (hull[-1][1] - hull[-2][1])
+                                  >= (hull[-2][2] - hull[-1][2]) * (size - hull[-1][1])):
+            hull.pop()
+        hull.append((m, size, cost))
+    return hull
 
 
 def impact(cols: dict, rows: np.ndarray) -> np.ndarray:
@@ -392,24 +445,38 @@ def impact(cols: dict, rows: np.ndarray) -> np.ndarray:
     return np.where(np.isfinite(v), v, 0.0)
 
 
-def allocate(weights: np.ndarray, extra: int, costs: dict) -> np.ndarray:
-    """Pieces per long-lived splat (1 .. MAX_PIECES) given ``extra`` pieces beyond one each.
+def allocate(weights: np.ndarray, extra: int, options: list, sizes: np.ndarray | None = None) -> np.ndarray:
+    """Which of ``options`` (:func:`layout_options`) each long-lived splat gets: indices ``(M,) int64``.
 
-    Greedy on marginal gains: each extra piece goes where weight x (cost(m) -
-    cost(m + 1)) is largest, ``costs[m]`` being the best composited error with at
-    most m pieces (non-increasing). Ties and order are deterministic (stable sort).
+    Every splat starts at ``options[0]``; ``extra`` pieces beyond that are
+    spent greedily where weight x (cost drop per piece) is largest, each step
+    costing the pieces it adds, until the next step in that order no longer
+    fits. ``sizes`` ``(M, len(options))`` are the pieces each splat would be
+    drawn with at each option (default the options' own: a splat's pieces too
+    faint to draw are left out, so it may get fewer); counting those, not the
+    windows asked, leaves no budget unspent. Ties and order are deterministic
+    (stable sort).
     """
     n = len(weights)
-    m = np.ones(n, dtype=np.int64)
-    if n == 0 or extra <= 0:
-        return m
-    steps = [max(costs[k] - costs[k + 1], 0.0) for k in range(1, MAX_PIECES)]
-    gains = (weights[:, None] * np.array(steps)[None, :]).ravel()
-    take = min(extra, len(gains))
-    order = np.argsort(-gains, kind="stable")[:take]
+    level = np.zeros(n, dtype=np.int64)
+    if n == 0 or len(options) < 2:
+        return level
+    costs = np.array([o[2] for o in options])
+    if sizes is None:
+        sizes = np.broadcast_to(np.array([o[1] for o in options], np.int64), (n, len(options)))
+    steps = np.diff(sizes, axis=1)                                       # (M, L - 1); <= 0: no piece more
+    with np.errstate(invalid="ignore"):
+        per_piece = np.where(steps > 0, weights[:, None] * (costs[:-1] - costs[1:])[None, :] / np.maximum(steps, 1),
+                             np.inf)
+    # A splat's steps come in order: none is worth more than the one before it.
+    gains = np.minimum.accumulate(per_piece, axis=1).ravel()
+    order = np.argsort(-gains, kind="stable")
     order = order[gains[order] > 0]
-    np.add.at(m, order // len(steps), 1)
-    return m
+    spend = np.cumsum(steps.ravel()[order])
+    over = np.flatnonzero(spend > extra)
+    order = order[:over[0]] if len(over) else order
+    np.add.at(level, order // steps.shape[1], 1)
+    return level
 
 
 def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
@@ -444,31 +511,38 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
     places = placements(durations, leak)
     parts, report = [], SegmentReport(places, [], [], [], [], [], leak, budget)
     overflow = 0
+    removed = {"nan": 0, "never": 0, "faint": 0}
     with progress.stage("placing segments", len(scenes), "segment") as advance:
         for i, (scene, p) in enumerate(zip(scenes, places)):
             cols = place(scene.columns, p.start, p.end)
-            split, nan_time = _long_lived(cols, p)
-            keep = ~split & ~nan_time
+            split, nan_time, never = _long_lived(cols, p)
+            keep = ~split & ~nan_time & ~never
             n_long = int(split.sum())
+            faint = 0
             kept = {name: v[keep] for name, v in cols.items()}
             m = np.zeros(0, np.int64)
             if n_long:
                 rows = np.flatnonzero(split)
                 sides = (i > 0, i < len(scenes) - 1)
                 if pieces is not None:
-                    m = np.full(n_long, pieces, np.int64)
+                    m = np.full(n_long, _best_layout(p.frames, pieces, leak, sides), np.int64)
                 else:
-                    costs = _best_costs(p.frames, leak, sides)
-                    extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - n_long
-                    m = allocate(impact(cols, rows), extra, costs)
+                    options = layout_options(p.frames, leak, sides)
+                    sizes = np.stack([_windowed(cols, rows, p, o[0], leak, sides)[3].sum(axis=1) for o in options],
+                                     axis=1)
+                    extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - int(sizes[:, 0].sum())
+                    m = np.array([o[0] for o in options], np.int64)[allocate(impact(cols, rows), extra, options,
+                                                                             sizes)]
                 made = np.zeros(n_long, np.int64)
                 extra_cols = []
                 for k in np.unique(m):
-                    piece_cols, made[m == k] = _pieces(cols, rows[m == k], p,
-                                                       _best_layout(p.frames, int(k), leak, sides), leak, sides)
+                    piece_cols, made[m == k] = _pieces(cols, rows[m == k], p, int(k), leak, sides)
                     extra_cols.append(piece_cols)
                 kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
-                m = made
+                # A splat with no piece bright enough to draw is removed, and counted as such.
+                faint = int((made == 0).sum())
+                n_long -= faint
+                m = made[made > 0]
             with np.errstate(over="ignore", invalid="ignore"):
                 parts.append({name: kept[name].astype(np.float32) for name in COLUMNS})
             overflow += sum(int((np.isinf(parts[-1][name]) & np.isfinite(kept[name])).sum()) for name in COLUMNS)
@@ -476,7 +550,10 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
             report.counts_out.append(len(parts[-1]["x"]))
             report.long_lived.append(n_long)
             report.pieces.append({str(int(k)): int((m == k).sum()) for k in np.unique(m)})
-            report.dropped.append(int(nan_time.sum()))
+            report.dropped.append(int(nan_time.sum()) + int(never.sum()) + faint)
+            removed["nan"] += int(nan_time.sum())
+            removed["never"] += int(never.sum())
+            removed["faint"] += faint
             del kept, cols
             advance()
     total = sum(report.counts_out)
@@ -488,9 +565,15 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         for name in COLUMNS:
             out[name][at:at + k] = part[name]
         at += k
-    if sum(report.dropped):
-        report.notes.append(f"{plural(sum(report.dropped), 'splat')} with a NaN temporal centre or scale dropped "
+    if removed["nan"]:
+        report.notes.append(f"{plural(removed['nan'], 'splat')} with a NaN temporal centre or scale dropped "
                             "(they have no place in time)")
+    if removed["never"]:
+        report.notes.append(f"{plural(removed['never'], 'splat')} with an infinite temporal centre dropped "
+                            "(the viewer never shows them)")
+    if removed["faint"]:
+        report.notes.append(f"{plural(removed['faint'], 'long-lived splat')} dropped: every piece of each was "
+                            "fainter than half an 8-bit step in its segment's frames")
     if overflow:
         report.notes.append(f"{overflow:,} finite values grew beyond float32 and are now infinite")
     long_total = sum(report.long_lived)

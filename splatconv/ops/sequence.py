@@ -152,8 +152,9 @@ def fit_sequence(read_frame, count: int, *, times=None, same_splats: str = "auto
     max_error : float, optional
         Largest position error (scene units) before a splat is split into pieces;
         default :data:`DEFAULT_MAX_ERROR_SHARE` of the first frame's extent.
-    counts : list of int, optional
-        Splats per frame, when the caller knows them without reading (else one pass reads them).
+    counts : list of (int or None), optional
+        Splats per frame, where the caller knows them without reading; a frame
+        whose count is missing (None, or no list) is read once more to count it.
 
     Returns
     -------
@@ -171,11 +172,14 @@ def fit_sequence(read_frame, count: int, *, times=None, same_splats: str = "auto
     t = check_times(times, count)
     if max_error is not None and not (math.isfinite(max_error) and max_error > 0):
         raise UsageError("--max-error must be a positive number")
-    if counts is None:
-        with progress.stage("counting splats", count, "frame") as advance:
-            counts = []
-            for k in range(count):
-                counts.append(read_frame(k).count)
+    counts = [None] * count if counts is None else list(counts)
+    if len(counts) != count:
+        raise ValueError(f"counts holds {len(counts)} entries for {count} frames")
+    unknown = [k for k, c in enumerate(counts) if c is None]
+    if unknown:
+        with progress.stage("counting splats", len(unknown), "frame") as advance:
+            for k in unknown:
+                counts[k] = read_frame(k).count
                 advance()
     counts = [int(c) for c in counts]
     same = len(set(counts)) == 1 if same_splats == "auto" else same_splats == "yes"

@@ -23,6 +23,10 @@ from .layout import float_attributes
 from .preview import Renderer, View
 
 
+#: Output frames measured: every this many (1: all).
+DEFAULT_EVERY = 1
+#: Stored camera the fidelity is measured from.
+DEFAULT_CAMERA = 0
 #: Width of the fidelity renders (the camera's size scaled down to it).
 FIDELITY_WIDTH = 320
 #: Splats drawn per frame are those at or above this temporal opacity (below the viewer's
@@ -43,7 +47,8 @@ def _visible_rows(columns: dict, t: float) -> np.ndarray:
     return np.flatnonzero(~(viewer.temporal_opacity(columns, t, cut=False) < _PRESELECT))
 
 
-def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: int = 0, every: int = 1,
+def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: int = DEFAULT_CAMERA,
+             every: int = DEFAULT_EVERY,
              width: int = FIDELITY_WIDTH, progress=SILENT) -> list:
     """PSNR of the merged scene at each output frame time against its segment at the local time.
 
