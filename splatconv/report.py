@@ -9,7 +9,7 @@ from .render.fidelity import fidelity_summary
 from .wording import plural
 
 #: The first key of ``merge --segments --json`` (specs/json.md).
-SEGMENTS_SCHEMA = "splatconv.merge-segments/1"
+SEGMENTS_SCHEMA = "splatconv.merge-segments/2"
 
 
 def to_json(data) -> str:

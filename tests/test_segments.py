@@ -161,7 +161,7 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert [f["frame"] for f in data["frames"]] == list(range(0, 2 * per, 3))
     assert data["splats_out"] <= 2 * data["splats_in"] and data["output"]["splats"] == data["splats_out"]
     assert set(data["fidelity"]) == {"frames", "median_psnr", "min_psnr", "below_40", "below_30"}
-    assert data["schema"] == "splatconv.merge-segments/1"
+    assert data["schema"] == "splatconv.merge-segments/2"
     spec = (ROOT / "specs" / "json.md").read_text(encoding="utf-8").split("\n## merge --segments", 1)[1]
     rows = dict(re.findall(r"^\| (`.+?`) \| \w.*? \| (.+) \|$", spec, re.M))
     assert [k for names in rows for k in re.findall(r"`(\w+)`", names)] == list(data)
