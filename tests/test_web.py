@@ -336,12 +336,18 @@ def test_loop_and_ping_pong_at_the_end(browser, sample, mode):
         })""")
         page.close()
     # A frame advances the clip by at most 0.25 s x 4 / 4 s = 0.25 (the page caps a frame's step).
+    # Frames come as the machine allows (a loaded one samples coarsely): judge the shape, not the samples.
     steps = np.diff(times)
-    assert steps[0] >= 0 and max(times) > 0.9
+    assert steps[0] >= 0
     if mode == "loop":
-        assert steps.min() < -0.5  # a jump back to the start
+        jump = int(np.argmin(steps))
+        assert steps[jump] < -0.5 and times[jump] > 0.75  # from near the end back to the start
+        assert (steps[:jump] >= 0).all()
     else:
-        assert np.abs(steps).max() <= 0.25 + 1e-9 and times[-1] < max(times) - 0.1  # it turns and runs back
+        peak = int(np.argmax(times))
+        assert np.abs(steps).max() <= 0.25 + 1e-9 and times[peak] > 0.75  # it runs on towards the end
+        assert (steps[:peak] >= 0).all() and (steps[peak:] <= 0).all()  # then turns and runs back
+        assert times[-1] < times[peak] - 0.1
 
 
 def test_choosing_a_camera_moves_to_it(browser, sample):
