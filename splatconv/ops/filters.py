@@ -173,7 +173,8 @@ def opacity_tester(minimum: float):
 
 
 def opacity_threshold(minimum: float) -> np.float32:
-    """The least float32 opacity x with sigmoid(x) >= ``minimum`` (+inf when none; -inf when all).
+    """The least float32 opacity x with sigmoid(x) >= ``minimum`` (-inf when all do; NaN, which no
+    comparison passes, when none does).
 
     The viewer's float64 sigmoid (:func:`splatconv.viewer.opacity`) never
     decreases, so ``opacity >= threshold`` keeps exactly the rows whose peak
@@ -194,7 +195,7 @@ def opacity_threshold(minimum: float) -> np.float32:
     if reaches(lo):
         return value(lo)
     if not reaches(hi):
-        return np.float32(np.inf) if minimum > 1 else value(hi)
+        return np.float32(np.nan)
     while hi - lo > 1:  # reaches(hi) and not reaches(lo)
         mid = (lo + hi) // 2
         lo, hi = (lo, mid) if reaches(mid) else (mid, hi)
