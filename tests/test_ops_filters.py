@@ -12,6 +12,7 @@ from splatconv import io, viewer
 from splatconv.cli import main
 from splatconv.errors import UsageError
 from splatconv.model import COLUMNS, Scene
+from splatconv.ops import filters
 from splatconv.ops import (EditPlan, apply_edits, apply_transform, crop, drop_nonfinite, make_transform, max_splats,
                            min_opacity, trim)
 from tests.ops_helpers import moving_scene
@@ -113,6 +114,21 @@ def test_min_opacity_keeps_peak_opacity_at_or_above():
         min_opacity(Scene(cols), 1.5)
 
 
+@pytest.mark.parametrize("minimum", [0.0, 1e-300, 0.02, 0.5, 0.999999, 1.0])
+def test_min_opacity_threshold_decides_as_the_sigmoid(minimum):
+    # The mask compares the float32 opacity with one threshold: it must keep exactly the rows
+    # whose float64 sigmoid reaches the minimum, at the threshold's neighbours too.
+    least = filters.opacity_threshold(minimum)
+    bits = int(np.array([least], np.float32).view(np.uint32)[0])
+    near = (np.arange(bits - 2000, bits + 2000) % (1 << 32)).astype(np.uint32).view(np.float32)
+    values = np.concatenate([near, np.random.default_rng(0).normal(0, 30, 20_000).astype(np.float32),
+                             np.array([np.nan, np.inf, -np.inf, 0.0, -0.0, 3e38, -3e38], np.float32)])
+    cols = {"opacity": values, "x": values}
+    with np.errstate(invalid="ignore"):
+        expected = viewer.opacity(cols) >= minimum
+    assert np.array_equal(filters.opacity_mask(cols, minimum), expected)
+
+
 # --------------------------------------------------------------------------
 # crop
 
@@ -129,6 +145,26 @@ def test_crop_uses_the_centre_at_the_time_of_peak_opacity():
     assert report.removed == 2
     assert report.notes == ["crop: removed 2 of 6 splats whose centre at peak opacity lies outside "
                             "(-0.5, -1, -1) .. (0.45, 1, 1)"]
+
+
+@pytest.mark.parametrize("lo, hi", [((-0.1, -1e-8, -1e39), (0.1, 2.000000001, 1e39)), ((1e39, 0, 0), (1e40, 1, 1)),
+                                    ((-1e40, -1, -1), (-1e39, 1, 1))])
+def test_crop_bounds_decide_as_in_float64(lo, hi):
+    # The positions are compared with float32 bounds: at and around each bound (and at the
+    # infinities) they must decide as the float64 bounds do.
+    edges = []
+    for v in lo + hi:
+        with np.errstate(over="ignore"):
+            f = np.float32(v)
+        edges += [f, np.nextafter(f, np.float32(np.inf)), np.nextafter(f, np.float32(-np.inf))]
+    edges = np.array(edges + [np.inf, -np.inf, np.nan, 0.0], np.float32)
+    grid = np.stack(np.meshgrid(edges, edges, edges, indexing="ij"), axis=-1).reshape(-1, 3)
+    cols = plain(len(grid))
+    for i, name in enumerate("xyz"):
+        cols[name][:] = grid[:, i]
+    wide = grid.astype(np.float64)
+    expected = ((wide >= np.array(lo)) & (wide <= np.array(hi))).all(axis=1)
+    assert np.array_equal(filters.crop_mask(cols, lo, hi), expected)
 
 
 @pytest.mark.parametrize("lo, hi, message", [((1, 0, 0), (0, 1, 1), "empty along x"),

@@ -124,6 +124,43 @@ def compact(columns: dict, index: np.ndarray, each=None) -> tuple:
     return {name: columns[name][:m] for name in COLUMNS}, total
 
 
+def _field_runs(columns: list):
+    """``(start, end, fields)`` for runs of ``columns`` that are consecutive float32 fields of one row
+    table: ``fields`` a ``(k, end - start)`` view of them; a column in no such run comes alone, with None."""
+    start = 0
+    while start < len(columns):
+        first = columns[start]
+        address = first.__array_interface__["data"][0]
+        end = start + 1
+        while (end < len(columns) and first.dtype == np.float32 and columns[end].dtype == np.float32
+               and columns[end].base is first.base and columns[end].strides == first.strides
+               and columns[end].__array_interface__["data"][0] == address + 4 * (end - start)):
+            end += 1
+        fields = None
+        if end - start > 1 and first.strides[0] >= 4 * (end - start):
+            fields = np.lib.stride_tricks.as_strided(first, shape=(len(first), end - start),
+                                                     strides=(first.strides[0], 4), writeable=first.flags.writeable)
+        else:
+            end = start + 1
+        yield start, end, fields
+        start = end
+
+
+def store_fields(block: dict, names, planes: np.ndarray) -> None:
+    """Write ``planes[i]`` into column ``names[i]`` of ``block``, for each i.
+
+    Where columns that follow each other in ``names`` are consecutive float32
+    fields of one row table (as in the tables made here), each such run goes in
+    by one transposed copy, about three times as fast as a strided pass per column.
+    """
+    columns = [block[name] for name in names]
+    for start, end, fields in _field_runs(columns):
+        if fields is None:
+            columns[start][...] = planes[start]
+        else:
+            fields[...] = planes[start:end].T
+
+
 def derive(scene: Scene, columns: dict, notes=(), cameras=...) -> Scene:
     """A new scene with ``columns`` (and ``cameras`` when given), ``scene``'s facts,
     and its notes followed by ``notes``."""

@@ -127,9 +127,11 @@ def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
     second = {}
     if plan.crop is not None:
         lo, hi = plan.crop
-        second["crop"] = (lambda part, block: filters.crop_mask(block, lo, hi), bool)
+        inside = filters.crop_tester(lo, hi)
+        second["crop"] = (lambda part, block: inside(block), bool)
     if plan.min_opacity is not None:
-        second["opacity"] = (lambda part, block: filters.opacity_mask(block, plan.min_opacity), bool)
+        opaque = filters.opacity_tester(plan.min_opacity)
+        second["opacity"] = (lambda part, block: opaque(block), bool)
     if plan.max_splats is not None:
         second["importance"] = (lambda part, block: filters.importance_key(block), np.float64)
     if plan.trim is None:

@@ -163,8 +163,43 @@ def opacity_mask(columns: dict, minimum: float) -> np.ndarray:
 
     A NaN opacity is below every minimum (the writer stores it as alpha 0).
     """
+    return blockwise(opacity_tester(minimum), columns, ("opacity",))
+
+
+def opacity_tester(minimum: float):
+    """``test(block)``: :func:`opacity_mask` of one block of columns."""
+    least = opacity_threshold(minimum)
+    return lambda block: block["opacity"] >= least
+
+
+def opacity_threshold(minimum: float) -> np.float32:
+    """The least float32 opacity x with sigmoid(x) >= ``minimum`` (-inf when all do; NaN, which no
+    comparison passes, when none does).
+
+    The viewer's float64 sigmoid (:func:`splatconv.viewer.opacity`) never
+    decreases, so ``opacity >= threshold`` keeps exactly the rows whose peak
+    opacity reaches ``minimum`` (a NaN neither): one float32 comparison a row
+    instead of a sigmoid. Found by bisection over the float32 values, ordered as
+    integers, with the viewer's own function.
+    """
     minimum = float(minimum)
-    return blockwise(lambda block: viewer.opacity(block) >= minimum, columns, ("opacity",))
+
+    def value(key: int) -> np.float32:  # the float32 at position `key` of the ordered values
+        bits = key if key >= 0 else 0x80000000 | -key
+        return np.array([bits], dtype=np.uint32).view(np.float32)[0]
+
+    def reaches(key: int) -> bool:
+        return bool(viewer.opacity({"opacity": np.array([value(key)])})[0] >= minimum)
+
+    lo, hi = -0x7F800000, 0x7F800000  # -inf, +inf
+    if reaches(lo):
+        return value(lo)
+    if not reaches(hi):
+        return np.float32(np.nan)
+    while hi - lo > 1:  # reaches(hi) and not reaches(lo)
+        mid = (lo + hi) // 2
+        lo, hi = (lo, mid) if reaches(mid) else (mid, hi)
+    return value(hi)
 
 
 def _check_minimum(minimum: float) -> float:
@@ -230,26 +265,50 @@ def crop_mask(columns: dict, lo, hi, window=viewer.TIME_RANGE) -> np.ndarray:
     xyz: the motion terms are m dt^k = 0 there (a NaN motion value is not looked
     at; ``drop_nonfinite`` is for those).
     """
-    lo = [np.float64(v) for v in lo]  # compared in float64 with the float32 values
+    return blockwise(crop_tester(lo, hi, window), columns, POSITION + MOTION + ("trbf_center",))
+
+
+def crop_tester(lo, hi, window=viewer.TIME_RANGE):
+    """``test(block)``: :func:`crop_mask` of one block of columns."""
+    lo = [np.float64(v) for v in lo]  # compared in float64 with the float64 centres
     hi = [np.float64(v) for v in hi]
+    # The float32 values are compared with float32 bounds that decide alike (no widening).
+    lo32, hi32 = zip(*(_float32_bounds(a, b) for a, b in zip(lo, hi)))
+    start, end = _float32_bounds(*window)
 
     def inside(block):
-        ok = (block["x"] >= lo[0]) & (block["x"] <= hi[0])
+        ok = (block["x"] >= lo32[0]) & (block["x"] <= hi32[0])
         for i, name in enumerate(POSITION[1:], 1):
-            ok &= block[name] >= lo[i]
-            ok &= block[name] <= hi[i]
+            ok &= block[name] >= lo32[i]
+            ok &= block[name] <= hi32[i]
         # Motion terms vanish where the peak is the trbf centre itself (dt = 0, the usual
         # case): the motion is evaluated only for the splats whose centre lies outside
         # the window (or is NaN).
-        t = peak_time(block, window)
-        moving = np.flatnonzero(~(t == block["trbf_center"]))
+        centre = block["trbf_center"]
+        moving = np.flatnonzero(~((centre >= start) & (centre <= end)))
         if len(moving):
             part = {name: block[name][moving] for name in POSITION + MOTION + ("trbf_center",)}
-            centre = viewer.position_at(part, t[moving])
-            ok[moving] = ((centre >= lo) & (centre <= hi)).all(axis=1)
+            at = viewer.position_at(part, peak_time(part, window))
+            ok[moving] = ((at >= lo) & (at <= hi)).all(axis=1)
         return ok
 
-    return blockwise(inside, columns, POSITION + MOTION + ("trbf_center",))
+    return inside
+
+
+def _float32_bounds(lo: float, hi: float) -> tuple:
+    """float32 bounds that decide as ``lo``, ``hi`` do: for every float32 v (and NaN),
+    ``lo <= v`` exactly when ``lo32 <= v``, and ``v <= hi`` exactly when ``v <= hi32``.
+
+    ``lo32`` is the least float32 >= ``lo``, ``hi32`` the greatest <= ``hi`` (an
+    infinity where there is none).
+    """
+    with np.errstate(over="ignore"):
+        lo32, hi32 = np.float32(lo), np.float32(hi)
+    if float(lo32) < lo:
+        lo32 = np.nextafter(lo32, np.float32(np.inf))
+    if float(hi32) > hi:
+        hi32 = np.nextafter(hi32, np.float32(-np.inf))
+    return lo32, hi32
 
 
 def check_box(lo, hi) -> tuple:

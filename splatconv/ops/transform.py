@@ -36,11 +36,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .. import viewer
 from ..errors import UsageError
 from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
 from ..wording import plural
-from ._table import copy_rows, derive, run_blocks
+from ._table import copy_rows, derive, run_blocks, store_fields
 from .report import OpReport
 
 _AXES = {"x": 0, "y": 1, "z": 2}
@@ -260,44 +259,55 @@ def make_transform(translate=None, rotate: str | None = None, scale: float | Non
 
 
 def _combine(terms, add: float, acc: np.ndarray, tmp: np.ndarray) -> np.ndarray:
-    """sum of value * coefficient over ``terms`` (+ ``add``) into ``acc``, float64."""
+    """sum of value * coefficient over ``terms`` (+ ``add`` to the first row of ``acc``), float64."""
     np.multiply(terms[0][0], terms[0][1], out=acc)
     for value, c in terms[1:]:
         np.multiply(value, c, out=tmp)
         acc += tmp
-    if add:
-        acc += add
+    if add:  # (not + 0.0: that would turn -0.0 into 0.0)
+        acc[0] += add
     return acc
 
 
-def _affine_block(block: dict, names, matrix: np.ndarray, offset=None) -> int:
-    """Replace the vectors in columns ``names`` by ``matrix @ v + offset``, computed in float64.
+def _affine_group(block: dict, vectors, matrix: np.ndarray, offset=None) -> int:
+    """Replace each vector of ``vectors`` by ``matrix @ v`` (the first one by ``matrix @ v + offset``), in float64.
 
-    Written out term by term: numpy's matmul on (k, 3) @ (3, 3) goes through BLAS,
-    whose thread start-up costs more than the arithmetic at this size. Zero
-    coefficients are left out (x:90 keeps x exactly, whatever y and z hold).
-    Runs under ``np.errstate(over="raise")`` (see :func:`_block_transformer`): a
-    value that outgrows float32 (or float64) raises, and only then is the column
-    redone and the values that became infinite counted.
+    ``vectors`` are tuples of column names, all as long as ``matrix`` is wide
+    (positions and the three motion vectors share one matrix, as do rotations
+    and omega). Component i of every vector is computed at once, term by term
+    on ``(vectors, k)`` float64 planes: numpy's matmul on (k, 3) @ (3, 3) goes
+    through BLAS, whose thread start-up costs more than the arithmetic at this
+    size. Zero coefficients are left out (x:90 keeps x exactly, whatever y and z
+    hold), and every value gets the same float64 operations, in the same order,
+    as it would alone. Runs under ``np.errstate(over="raise")`` (see
+    :func:`_block_transformer`): a value that outgrows float32 (or float64)
+    raises, and only then is the component redone and the values that became
+    infinite counted.
 
     Returns
     -------
     int
         Finite values that became infinite.
     """
-    v = [viewer.wide(block[name]) for name in names]
-    acc, tmp = np.empty_like(v[0]), np.empty_like(v[0])
+    width, count, k = len(matrix), len(vectors), len(block[vectors[0][0]])
+    planes = np.empty((width, count, k))  # planes[j, v]: component j of vector v
+    for v, names in enumerate(vectors):
+        for j, name in enumerate(names):
+            planes[j, v] = block[name]
+    out = np.empty((count, width, k), dtype=np.float32)  # out[v, i]: new component i of vector v
+    acc, tmp = np.empty((count, k)), np.empty((count, k))
     grown = 0
-    for i, name in enumerate(names):
-        terms = [(v[j], c) for j, c in enumerate(matrix[i]) if c != 0.0]
+    for i in range(width):
+        terms = [(planes[j], c) for j, c in enumerate(matrix[i]) if c != 0.0]
         add = 0.0 if offset is None else float(offset[i])
         try:
-            block[name][...] = _combine(terms, add, acc, tmp)
+            out[:, i] = _combine(terms, add, acc, tmp)
         except FloatingPointError:
             with np.errstate(over="ignore"):
-                block[name][...] = _combine(terms, add, acc, tmp)
+                out[:, i] = _combine(terms, add, acc, tmp)
             finite = np.logical_and.reduce([np.isfinite(value) for value, _c in terms])
-            grown += int((np.isinf(block[name]) & finite).sum())
+            grown += int((np.isinf(out[:, i]) & finite).sum())
+    store_fields(block, [name for names in vectors for name in names], out.reshape(count * width, k))
     return grown
 
 
@@ -335,16 +345,13 @@ def _block_transformer(transform: Transform):
         # NaN and inf go through as they are; an overflow raises and is counted where it happens.
         with np.errstate(over="raise", invalid="ignore"):
             if rotates or scales:
-                grown += _affine_block(block, POSITION, linear, offset)
-                for k in range(3):
-                    grown += _affine_block(block, MOTION[3 * k:3 * k + 3], linear)
+                grown += _affine_group(block, (POSITION, MOTION[0:3], MOTION[3:6], MOTION[6:9]), linear, offset)
             elif offset.any():
-                grown += _affine_block(block, POSITION, identity, offset)
+                grown += _affine_group(block, (POSITION,), identity, offset)
             if rotates:
-                grown += _affine_block(block, ROTATION, left)
-                grown += _affine_block(block, OMEGA, left)
+                grown += _affine_group(block, (ROTATION, OMEGA), left)
             if scales:
-                grown += _affine_block(block, SCALE, identity, np.full(len(SCALE), log_scale))
+                grown += _affine_group(block, (SCALE,), identity, np.full(len(SCALE), log_scale))
         return grown
 
     return apply
