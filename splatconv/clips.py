@@ -13,11 +13,14 @@ import glob
 import os
 import re
 
+import numpy as np
+
 from .cameras import load_cameras
 from .errors import UsageError
 from .formats import REGISTRY, format_for
 from .fsutil import check_output
 from .io import check_write_options, read, refuse_empty, splat_count, write
+from .model import COLUMNS, Scene
 from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, check_durations, merge_segments
 from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity
 from .ops.sequence import fit_sequence
@@ -117,8 +120,12 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
         return scene
 
     # Counted from headers, not by reading: only the fit's own passes read the frames.
+    # Frame times must stay apart as the output stores them (halves in the viewer's texture).
+    empty = Scene(columns={name: np.empty(0, np.float32) for name in COLUMNS})
+    time_type = np.float16 if module.storage(empty).get("trbf") == "half" else np.float32
     scene, fit = fit_sequence(read_frame, len(paths), times=frame_times, same_splats=same_splats,
-                              max_error=max_error, counts=[splat_count(p) for p in paths], progress=progress)
+                              max_error=max_error, counts=[splat_count(p) for p in paths], time_type=time_type,
+                              progress=progress)
     refuse_empty(module, scene.count, paths[0], "the frames hold no splats")
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,

@@ -12,6 +12,7 @@ from click.testing import CliRunner
 
 from splatconv import io, viewer
 from splatconv.cli import main
+from splatconv.errors import UsageError
 from splatconv.model import MOTION, OMEGA, STATIC_TRBF_CENTER, STATIC_TRBF_SCALE, Scene
 from splatconv.ops import sequence
 from splatconv.render.diff import compare
@@ -184,11 +185,11 @@ def test_motion_one_cubic_cannot_follow_is_split_into_pieces_that_composite_to_t
     # The viewer plays [0, 1]; far outside it the fit overflowed into NaN with numpy warnings.
     (["--frame-times", "0,1e300,2e300"], "Error: --frame-times: 1e+300 is not in the viewer's time range [0, 1]\n"),
     (["--frame-times", "-0.5,0,1"], "Error: --frame-times: -0.5 is not in the viewer's time range [0, 1]\n"),
-    # Temporal centres are float32: two frames there would share one time.
-    (["--frame-times", "0,1e-300,1"], "Error: --frame-times: 0.0 and 1e-300 are one time in float32 (the output's "
-                                      "precision)\n"),
-    (["--frame-times", "0,0.5,0.5000000001"], "Error: --frame-times: 0.5 and 0.5000000001 are one time in float32 "
-                                              "(the output's precision)\n"),
+    # A .splatv stores temporal centres as halves: two frames there would share one time.
+    (["--frame-times", "0,1e-300,1"], "Error: --frame-times: 0.0 and 1e-300 are one time once stored as float16, "
+                                      "the output's precision for times\n"),
+    (["--frame-times", "0,0.5,0.5001"], "Error: --frame-times: 0.5 and 0.5001 are one time once stored as float16, "
+                                        "the output's precision for times\n"),
 ])
 def test_sequence_usage_errors(tmp_path, args, message):
     cols = io.read(SAMPLE).columns
@@ -197,6 +198,21 @@ def test_sequence_usage_errors(tmp_path, args, message):
     r = run("convert", tmp_path / "f", out, *args)
     assert (r.exit_code, r.stderr) == (2, message)
     assert not out.exists()
+
+
+def test_frame_times_stay_apart_as_the_output_stores_them(tmp_path):
+    """Times apart in float32 but one half float: a PLY (float32 centres) keeps them apart, a .splatv refuses."""
+    cols = io.read(SAMPLE).columns
+    write_frames(tmp_path / "f", [snapshot({k: np.asarray(v)[:n] for k, v in cols.items()}, 0.5) for n in (10, 12, 11)])
+    r = run("convert", tmp_path / "f", tmp_path / "o.ply", "--frame-times", "0,0.5,0.5001")
+    assert r.exit_code == 0, r.output
+    centres = sorted(set(np.asarray(io.read(tmp_path / "o.ply").columns["trbf_center"]).tolist()))
+    assert centres == pytest.approx([0.0, 0.5, 0.5001], abs=1e-7)
+    # The default times k / (N - 1) too: beyond 2,049 frames neighbours near t = 1 are one half float.
+    with pytest.raises(UsageError, match=r"2,100 frames at k / \(N - 1\): .* are one time once stored as float16"):
+        sequence.check_times(None, 2100, np.float16)
+    assert len(sequence.check_times(None, 2100, np.float32)) == 2100
+    assert len(sequence.check_times(None, 2049, np.float16)) == 2049
 
 
 def test_sequence_options_need_a_sequence_and_missing_frames_are_clear(tmp_path, lite_ply):

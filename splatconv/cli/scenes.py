@@ -39,7 +39,8 @@ def sequence_options():
     return (
         click.option("--frame-times", type=_Times(), default=None,
                      help="Frame sequences: the time of each frame in the viewer's [0, 1], comma-separated, "
-                          "increasing (default: frame k of N at k/(N-1))."),
+                          "increasing and distinct as the output stores times (halves in a .splatv) "
+                          "(default: frame k of N at k/(N-1))."),
         click.option("--same-splats", type=click.Choice(SAME_SPLATS_MODES), default="auto", show_default=True,
                      help="Frame sequences: whether row i of every frame is the same splat (its motion is "
                           "fitted); auto: when every frame has the same count."),

@@ -103,39 +103,43 @@ def default_times(count: int) -> np.ndarray:
     return np.arange(count, dtype=np.float64) / (count - 1)
 
 
-def check_times(times, count: int) -> np.ndarray:
+def check_times(times, count: int, stored=np.float32) -> np.ndarray:
     """Frame times as ``(N,) float64``, refusing a wrong count, values outside [0, 1] or non-increasing ones.
 
     The viewer plays [0, 1], so a frame outside it would never be shown; and the
-    output stores temporal centres as float32, so times must still increase
-    strictly once rounded to float32 (else two frames would share one time).
+    output stores temporal centres as ``stored`` (a numpy float type: float32 in
+    a PLY, float16 in the viewer's texture), so times, given or the default
+    k / (N - 1), must still increase strictly once rounded to it (else two
+    frames would share one time).
 
     Raises
     ------
     UsageError
     """
     if times is None:
-        return default_times(count)
-    t = np.asarray(times, dtype=np.float64) + 0.0  # -0 is 0
-    if t.ndim != 1 or len(t) != count:
-        raise UsageError(f"--frame-times gives {plural(t.size, 'time')} for {plural(count, 'frame')}")
-    if not np.isfinite(t).all():
-        raise UsageError("--frame-times must be finite numbers")
-    outside = t[(t < 0) | (t > 1)]
-    if len(outside):
-        raise UsageError(f"--frame-times: {outside[0]:g} is not in the viewer's time range [0, 1]")
-    if count > 1 and not (np.diff(t) > 0).all():
-        raise UsageError("--frame-times must increase strictly")
-    same = np.flatnonzero(np.diff(t.astype(np.float32)) <= 0)
+        t = default_times(count)
+    else:
+        t = np.asarray(times, dtype=np.float64) + 0.0  # -0 is 0
+        if t.ndim != 1 or len(t) != count:
+            raise UsageError(f"--frame-times gives {plural(t.size, 'time')} for {plural(count, 'frame')}")
+        if not np.isfinite(t).all():
+            raise UsageError("--frame-times must be finite numbers")
+        outside = t[(t < 0) | (t > 1)]
+        if len(outside):
+            raise UsageError(f"--frame-times: {outside[0]:g} is not in the viewer's time range [0, 1]")
+        if count > 1 and not (np.diff(t) > 0).all():
+            raise UsageError("--frame-times must increase strictly")
+    same = np.flatnonzero(np.diff(t.astype(stored)) <= 0)
     if len(same):
         k = int(same[0])
-        raise UsageError(f"--frame-times: {float(t[k])!r} and {float(t[k + 1])!r} are one time in float32 (the output's "
-                         "precision)")
+        where = "--frame-times: " if times is not None else f"{plural(count, 'frame')} at k / (N - 1): "
+        raise UsageError(f"{where}{float(t[k])!r} and {float(t[k + 1])!r} are one time once stored as "
+                         f"{np.dtype(stored).name}, the output's precision for times")
     return t
 
 
 def fit_sequence(read_frame, count: int, *, times=None, same_splats: str = "auto", max_error: float | None = None,
-                 counts=None, progress=SILENT):
+                 counts=None, time_type=np.float32, progress=SILENT):
     """Make one 4D scene from ``count`` frames.
 
     Parameters
@@ -155,6 +159,8 @@ def fit_sequence(read_frame, count: int, *, times=None, same_splats: str = "auto
     counts : list of (int or None), optional
         Splats per frame, where the caller knows them without reading; a frame
         whose count is missing (None, or no list) is read once more to count it.
+    time_type : numpy float type
+        How the output stores temporal centres (:func:`check_times`).
 
     Returns
     -------
@@ -169,7 +175,7 @@ def fit_sequence(read_frame, count: int, *, times=None, same_splats: str = "auto
         raise UsageError(f"unknown --same-splats {same_splats!r} (expected one of {', '.join(SAME_SPLATS_MODES)})")
     if count < 1:
         raise UsageError("no frames")
-    t = check_times(times, count)
+    t = check_times(times, count, time_type)
     if max_error is not None and not (math.isfinite(max_error) and max_error > 0):
         raise UsageError("--max-error must be a positive number")
     counts = [None] * count if counts is None else list(counts)
