@@ -21,13 +21,15 @@ from .formats import REGISTRY, format_for
 from .fsutil import check_output
 from .io import check_write_options, read, refuse_empty, splat_count, write
 from .model import COLUMNS, Scene
-from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, check_durations, merge_segments
-from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity
+from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, check_durations, check_segment_count, merge_segments
+from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity, fidelity_summary
 from .ops.sequence import fit_sequence
 from .progress import SILENT
 from .transport import inner_name
 
 _GLOB_CHARS = re.compile(r"[*?[]")
+#: The first key of ``merge --segments --json`` (specs/json.md).
+SEGMENTS_SCHEMA = "splatconv.merge-segments/2"
 
 
 def natural_key(path: str):
@@ -150,8 +152,11 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
         The merged scene, what merging did, what the writer did, the per-frame fidelity ([] unless ``check``).
     """
     inputs = [os.fspath(p) for p in inputs]
+    # Before any reading.
     if durations is not None:
-        check_durations(durations)  # before any reading
+        check_durations(durations)
+    else:
+        check_segment_count(len(inputs))
     for p in inputs:
         format_for(p, purpose="read")
     check_write_options(output, sort=sort, layout=layout)
@@ -162,3 +167,21 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
     written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level, layout=layout,
                     progress=progress)
     return merged, report, written, rows
+
+
+def segments_data(report, written, output, rows: list) -> dict:
+    """``merge --segments``'s report as data, the keys of specs/json.md in order.
+
+    Parameters
+    ----------
+    report : splatconv.ops.segments.SegmentReport
+    written : splatconv.formats.base.WriteReport
+    output : path
+    rows : list of dict
+        Per-frame fidelity (:func:`splatconv.render.fidelity.fidelity`; [] when not measured).
+    """
+    data = {"schema": SEGMENTS_SCHEMA, **report.as_dict()}
+    data["output"] = {"path": str(output), "splats": written.count}
+    data["frames"] = list(rows)
+    data["fidelity"] = fidelity_summary(rows)
+    return data

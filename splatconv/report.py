@@ -5,11 +5,7 @@ from __future__ import annotations
 import json
 import textwrap
 
-from .render.fidelity import fidelity_summary
 from .wording import plural
-
-#: The first key of ``merge --segments --json`` (specs/json.md).
-SEGMENTS_SCHEMA = "splatconv.merge-segments/2"
 
 
 def to_json(data) -> str:
@@ -352,26 +348,8 @@ def _db(v) -> str:
     return "identical" if v is None else f"{v:.2f} dB"
 
 
-def segments_data(report, written, output, rows: list) -> dict:
-    """``merge --segments``'s report as data, the keys of specs/json.md in order.
-
-    Parameters
-    ----------
-    report : splatconv.ops.segments.SegmentReport
-    written : splatconv.formats.base.WriteReport
-    output : path
-    rows : list of dict
-        Per-frame fidelity (:func:`splatconv.render.fidelity.fidelity`; [] when not measured).
-    """
-    data = {"schema": SEGMENTS_SCHEMA, **report.as_dict()}
-    data["output"] = {"path": str(output), "splats": written.count}
-    data["frames"] = list(rows)
-    data["fidelity"] = fidelity_summary(rows)
-    return data
-
-
 def segments_text(data: dict) -> str:
-    """``merge --segments``'s report (:func:`segments_data`) as text."""
+    """``merge --segments``'s report (:func:`splatconv.clips.segments_data`) as text."""
     lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
              f"{data['splats_out']:,} ("
              + (f"{data['ratio']:.2f}x; " if data["ratio"] is not None else "")

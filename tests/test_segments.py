@@ -12,7 +12,8 @@ from click.testing import CliRunner
 
 from splatconv.render.fidelity import DEFAULT_EVERY, fidelity, fidelity_summary
 from splatconv import clips, io, viewer
-from splatconv.report import SEGMENTS_SCHEMA, segments_data, to_json
+from splatconv.clips import SEGMENTS_SCHEMA, segments_data
+from splatconv.report import to_json
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import segments as sg
@@ -175,7 +176,7 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
         assert sum(seg["pieces_per_long_lived"].values()) == seg["long_lived"]
         assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
     assert io.read(out).count == data["splats_out"]
-    # The CLI prints what the library assembles (report.segments_data), schema included.
+    # The CLI prints what the library assembles (clips.segments_data), schema included.
     merged, report, written, frames = clips.merge_segment_files([tmp_path / "a.ply", tmp_path / "b.ply"], out,
                                                                 durations=[per, per], check_every=3, force=True)
     assert json.loads(to_json(segments_data(report, written, out, frames))) == data
@@ -199,6 +200,12 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert (r.exit_code, r.stderr) == (2, f"Error: --durations: 100,000,005 frames in all; a merge lays out at most "
                                           f"{sg.MAX_FRAMES:,}\n")
     assert f"at most {sg.MAX_FRAMES:,} frames in all" in " ".join(run("merge", "--help").stdout.split())
+    # So are the default 50 frames a segment: 201 inputs are refused before one is read (they do not exist).
+    many = [tmp_path / f"missing{i}.ply" for i in range(sg.MAX_FRAMES // sg.DEFAULT_FRAMES + 1)]
+    r = run("merge", *many, tmp_path / "x.splatv", "--segments", "--no-check")
+    assert (r.exit_code, r.stderr) == (2, f"Error: {len(many)} segments of {sg.DEFAULT_FRAMES} frames are "
+                                          f"{len(many) * sg.DEFAULT_FRAMES:,} frames in all; a merge lays out at most "
+                                          f"{sg.MAX_FRAMES:,}\n")
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")
     assert r.exit_code == 2 and "apply to --segments only" in r.stderr
     assert not (tmp_path / "x.splatv").exists()

@@ -7,7 +7,7 @@ import click
 from .. import clips
 from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
 from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY
-from ..report import segments_data, segments_text, to_json
+from ..report import segments_text, to_json
 from ..wording import plural
 from ._base import Failure, notes, progress
 
@@ -71,5 +71,5 @@ def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, le
     notes(merged.notes)
     notes(report.notes)
     notes(written.notes)
-    data = segments_data(report, written, output_path, rows)
+    data = clips.segments_data(report, written, output_path, rows)
     click.echo(to_json(data) if as_json else segments_text(data))

@@ -137,6 +137,18 @@ def check_durations(durations) -> list:
     return n
 
 
+def check_segment_count(count: int) -> None:
+    """Refuse ``count`` segments of :data:`DEFAULT_FRAMES` frames (no ``--durations``) past :data:`MAX_FRAMES`.
+
+    Raises
+    ------
+    UsageError
+    """
+    if count * DEFAULT_FRAMES > MAX_FRAMES:
+        raise UsageError(f"{count:,} segments of {DEFAULT_FRAMES} frames are {count * DEFAULT_FRAMES:,} frames in "
+                         f"all; a merge lays out at most {MAX_FRAMES:,}")
+
+
 def placements(durations, leak: int = DEFAULT_LEAK) -> list:
     """Each segment's interval and cuts on the output's [0, 1].
 
@@ -416,7 +428,7 @@ def layout_options(n: int, leak: int, sides) -> list:
 
     ``m`` is the windows asked of :func:`windows`, ``pieces`` the windows its
     layout keeps (the search may keep fewer than ``m``: for a 50-frame middle
-    segment, 5 to 7 asked keep 3), ``cost`` its composited error. Pieces rise
+    segment, 3 to 6 asked keep 3 and 7 keep 4), ``cost`` its composited error. Pieces rise
     and cost falls strictly, and the cost is convex in the pieces (the lower
     hull), so that allotting in order of gain per piece never skips a step.
     """
