@@ -67,6 +67,8 @@ def snan_files(tmp_path_factory):
     ["convert", "s.ply", "s.splat", "--drop-nonfinite"], ["merge", "s.ply", "s.ply", "m.splatv", "--segments"],
     ["convert", "rest.ply", "r.splat"], ["convert", "rest.splat", "r3.ply"], ["stats", "rest.ply", "rest.splat"],
     ["convert", "h.splatv", "hr.splatv", "--drop-nonfinite", "--trim", "0.1,0.9", "--scale", "2"],
+    # Frame sequences: the same splats (motion fitted) and different ones (counts differ).
+    ["convert", "s.ply", "s.ply", "s.ply", "q.splatv"], ["convert", "s.ply", "rest.ply", "hb.ply", "q2.splatv"],
 ])
 def test_no_command_warns_on_signalling_nans(snan_files, monkeypatch, args):
     monkeypatch.chdir(snan_files)

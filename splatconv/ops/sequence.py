@@ -262,8 +262,8 @@ def _has_motion(cols) -> bool:
 
 def _frame_state(cols: dict):
     """What a frame says of each splat: position, unit quaternion, opacity, log scales, colour, seen."""
-    pos = np.stack([np.asarray(cols[n], np.float64) for n in POSITION], axis=1)
-    rot = np.stack([np.asarray(cols[n], np.float64) for n in ROTATION], axis=1)
+    pos = np.stack([viewer.wide(cols[n]) for n in POSITION], axis=1)
+    rot = np.stack([viewer.wide(cols[n]) for n in ROTATION], axis=1)
     alpha = viewer.opacity(cols)
     with np.errstate(invalid="ignore", over="ignore"):
         norm = np.sqrt((rot * rot).sum(axis=1))
@@ -271,8 +271,8 @@ def _frame_state(cols: dict):
         q = np.where(seen[:, None], rot / np.where(seen, norm, 1.0)[:, None], 0.0)
     pos = np.where(seen[:, None], pos, 0.0)
     alpha = np.where(seen, alpha, 0.0)
-    logscale = np.stack([np.asarray(cols[n], np.float64) for n in SCALE], axis=1)
-    color = np.stack([np.asarray(cols[n], np.float64) for n in COLOR], axis=1)
+    logscale = np.stack([viewer.wide(cols[n]) for n in SCALE], axis=1)
+    color = np.stack([viewer.wide(cols[n]) for n in COLOR], axis=1)
     return pos, q, alpha, logscale, color, seen
 
 
@@ -553,7 +553,7 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     report.position_error = _distribution(pos_err[sums.seen > 0])
     report.rotation_error_deg = _distribution(errors[1][sums.seen > 0])
     report.opacity_error = _distribution(errors[2][sums.seen > 0])
-    out = {name: np.asarray(cols[name], np.float64)[keep] for name in COLUMNS}
+    out = {name: viewer.wide(cols[name])[keep] for name in COLUMNS}
     if pieces is not None:
         out = {name: np.concatenate([out[name], pieces[name]]) for name in COLUMNS}
     out = {name: v.astype(np.float32) for name, v in out.items()}
@@ -707,7 +707,7 @@ def _fit_pieces(read_frame, t, rows, cols, level, progress):
     src = np.repeat(np.arange(m), J)
     alpha = _opacity_at(sub, src, cj)
     out = {name: viewer.wide(sub[name][src]) for name in SCALE + COLOR}
-    dt = cj - np.asarray(sub["trbf_center"], np.float64)[src]
+    dt = cj - viewer.wide(sub["trbf_center"])[src]
     for i in range(4):
         out[ROTATION[i]] = sub[ROTATION[i]][src] + sub[OMEGA[i]][src] * dt
         out[OMEGA[i]] = viewer.wide(sub[OMEGA[i]][src])
@@ -725,7 +725,7 @@ def _fit_pieces(read_frame, t, rows, cols, level, progress):
 
 def _opacity_at(sub, src, times) -> np.ndarray:
     """The whole-clip fit's viewer opacity of splat ``src`` at ``times`` (no cut): ``(M,) float64``."""
-    centre = np.asarray(sub["trbf_center"], np.float64)[src]
+    centre = viewer.wide(sub["trbf_center"])[src]
     with np.errstate(over="ignore", invalid="ignore"):
         s = viewer.trbf_scale(sub)[src]
         g = viewer.temporal_basis(times - centre, s)
