@@ -154,3 +154,17 @@ def test_the_viewers_sigmoid_and_logit_are_written_once():
              if module not in _OWN_ARITHMETIC
              for text in [path.read_text(encoding="utf-8")] for m in _SIGMOID_OR_LOGIT.finditer(text)]
     assert not found, found
+
+
+def test_every_format_module_declares_what_it_supports():
+    """formats/base.py's list: callers ask these of any module, so every module states each one."""
+    from splatconv.formats import _MODULES
+
+    declared = ("NAME", "SUFFIXES", "CAN_READ", "CAN_WRITE", "COMPAT_MODES", "DEFAULT_SORT", "HOLDS_EMPTY", "DYNAMIC",
+                "STORES_TEXTURE", "PLAYS_SEGMENTS")
+    for module in _MODULES:
+        missing = [name for name in declared if not hasattr(module, name)]
+        missing += [name for name in ("read", "write", "info_fields", "storage") if not callable(getattr(module, name, None))]
+        if module.CAN_READ and not callable(getattr(module, "splat_count", None)):
+            missing.append("splat_count")
+        assert not missing, (module.__name__, missing)

@@ -2,8 +2,8 @@
 
 Every format module declares what it supports (see :mod:`splatconv.formats.base`):
 ``NAME``, ``SUFFIXES``, ``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``,
-``DEFAULT_SORT``, ``HOLDS_EMPTY``, ``DYNAMIC``, ``STORES_TEXTURE`` (and, for a player
-page, ``PLAYS_SEGMENTS``), and provides ``read``, ``write``, ``info_fields``,
+``DEFAULT_SORT``, ``HOLDS_EMPTY``, ``DYNAMIC``, ``STORES_TEXTURE``, ``PLAYS_SEGMENTS``
+(a player page), and provides ``read``, ``write``, ``info_fields``,
 ``storage`` (how it stores each attribute group, which ``verify`` and ``stats``
 judge errors by) and, when it can be read, ``splat_count`` (the splats ``read``
 would give, from the header or the file size without reading them, or None when
@@ -63,7 +63,8 @@ def format_for(path: str | os.PathLike, *, purpose: str | None = None):
 def plays_segments(path: str | os.PathLike) -> bool:
     """Whether ``path``'s format plays several scenes as the segments of one clip (``PLAYS_SEGMENTS``);
     False for a suffix no format claims."""
-    return bool(getattr(_lookup(os.fspath(path)), "PLAYS_SEGMENTS", False))
+    module = _lookup(os.fspath(path))
+    return module is not None and module.PLAYS_SEGMENTS
 
 
 def compat_modes() -> tuple:

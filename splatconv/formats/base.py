@@ -2,7 +2,7 @@
 
 A format module (see :mod:`splatconv.formats`) declares ``NAME``, ``SUFFIXES``,
 ``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``, ``DEFAULT_SORT``, ``HOLDS_EMPTY``,
-``DYNAMIC`` and ``STORES_TEXTURE`` (a player page also ``PLAYS_SEGMENTS``) and
+``DYNAMIC``, ``STORES_TEXTURE`` and ``PLAYS_SEGMENTS`` and
 provides ``read(path, **options) -> Scene``,
 ``write(scene, stream, *, compat=None, sort=None, **options) -> WriteReport``,
 ``info_fields(scene) -> dict`` and, when ``CAN_READ``, ``splat_count(path) -> int or None``

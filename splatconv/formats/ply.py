@@ -42,6 +42,8 @@ HOLDS_EMPTY = True
 DYNAMIC = True
 #: A PLY holds attributes, not the viewer's texture.
 STORES_TEXTURE = False
+#: One scene a file: several inputs for one output are a frame sequence, not a page's segments.
+PLAYS_SEGMENTS = False
 
 #: Property order of the lite layout as SpacetimeGaussians writes it.
 LITE_LAYOUT = model.LITE_ROW

@@ -50,6 +50,8 @@ DEFAULT_SORT = "importance"
 HOLDS_EMPTY = False
 DYNAMIC = False
 STORES_TEXTURE = False
+#: One scene a file: several inputs for one output are a frame sequence, not a page's segments.
+PLAYS_SEGMENTS = False
 #: How each attribute group is stored (see :data:`splatconv.compare.STORAGE_KINDS`):
 #: no time or motion at all, the rest as the record table above says.
 STORAGE = {"position": "exact", "scale": "float32", "color": "byte", "opacity": "byte",

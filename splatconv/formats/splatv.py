@@ -43,6 +43,8 @@ HOLDS_EMPTY = False
 DYNAMIC = True
 #: The file holds the viewer's texture itself: draw it as stored (:func:`read_texture`).
 STORES_TEXTURE = True
+#: One scene a file: several inputs for one output are a frame sequence, not a page's segments.
+PLAYS_SEGMENTS = False
 
 __all__ = ["NAME", "SUFFIXES", "read", "write", "encode", "info_fields", "read_records", "decode_records",
            "read_texture", "header_bytes", "texture_height", "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW",
