@@ -28,6 +28,7 @@ import math
 
 import numpy as np
 
+from . import packing
 from .model import COLOR, GROUPS, MOTION, OMEGA, POSITION, ROTATION, SCALE
 
 #: Temporal opacity below which the viewer skips a splat.
@@ -234,6 +235,109 @@ def float_record(cols: dict) -> dict:
         out[f"f_dc_{i}"] = c[:, i]
     out["opacity"] = opacity(cols)
     return out
+
+
+# --------------------------------------------------------------------------
+# Undrawable splats: what the viewer can never draw at any time in [0, 1].
+
+#: Kinds of undrawable splat, in the order a splat is classed (a splat of several
+#: kinds counts under the first), so the counts of the kinds add up to the total.
+#:
+#: ``zero_rotation``: rotation (0, 0, 0, 0) and omega (0, 0, 0, 0): the shader's
+#: ``rot /= sqrt(dot(rot, rot))`` is 0/0 at every time (a rotation that passes
+#: through zero at one instant only is drawn at every other).
+#: ``nan_position``: a NaN position or motion term: the centre is NaN at every time.
+#: ``alpha_zero``: the alpha byte is 0 (sigmoid(opacity) * 255 rounds to 0, or the
+#: opacity is NaN, which writers store as 0): the splat adds nothing to any pixel.
+#: ``hidden_in_time``: the temporal opacity is below the 0.02 cut at every t in
+#: [0, 1], whether the time values are kept as float32 or stored as the viewer's
+#: half floats (either rounding), with a margin for the GPU's float32 exp and pow.
+UNDRAWABLE_KINDS = ("zero_rotation", "nan_position", "alpha_zero", "hidden_in_time")
+#: Code of a drawable splat in :func:`undrawable_kinds`.
+DRAWABLE = -1
+#: Relative margin below the cut a splat's best temporal opacity must keep to be
+#: undrawable in time: the shader's float32 ``exp`` and ``pow`` are not exact.
+_CUT_MARGIN = 1e-3
+
+
+def _all_zero(cols: dict, names) -> np.ndarray:
+    """Rows whose columns ``names`` are all exactly zero (either sign)."""
+    out = np.ones(len(cols[names[0]]), dtype=bool)
+    for n in names:
+        out &= np.asarray(cols[n]) == 0
+    return out
+
+
+def _any_nan(cols: dict, names) -> np.ndarray:
+    out = np.zeros(len(cols[names[0]]), dtype=bool)
+    for n in names:
+        out |= np.isnan(np.asarray(cols[n]))
+    return out
+
+
+def alpha_zero(cols: dict) -> np.ndarray:
+    """Rows whose alpha byte is 0 however a writer rounds: ``(N,) bool``.
+
+    sigmoid(opacity) * 255 rounds to 0 (it then also truncates to 0), or the
+    opacity is NaN (stored as byte 0).
+    """
+    a = opacity(cols) * 255.0
+    return np.isnan(a) | (np.rint(a) == 0)
+
+
+def _best_temporal(centre: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Largest temporal basis over t in [0, 1] (reached at the centre clamped to it), float64."""
+    dt = np.clip(centre, *TIME_RANGE) - centre
+    return temporal_basis(dt, scale)
+
+
+def hidden_in_time(cols: dict) -> np.ndarray:
+    """Rows below the temporal cut at every t in [0, 1]: ``(N,) bool``.
+
+    Checked on the float32 values and on both half-float roundings of the centre
+    and the log scale (the viewer's texture stores halves), each below
+    ``TEMPORAL_CUTOFF * (1 - 1e-3)``. A NaN centre or scale is never hidden:
+    NaN passes the shader's ``topacity < 0.02`` test.
+    """
+    below = TEMPORAL_CUTOFF * (1.0 - _CUT_MARGIN)
+    centre = np.asarray(cols["trbf_center"], dtype=np.float32)
+    log_scale = np.asarray(cols["trbf_scale"], dtype=np.float32)
+    hidden = _best_temporal(wide(centre), exp(log_scale)) < below
+    if not hidden.any():
+        return hidden
+    rows = np.flatnonzero(hidden)
+    for splatvjs in (False, True):
+        c = packing.half_to_float(packing.float_to_half_exact(centre[rows], splatvjs=splatvjs)[0])
+        s = packing.half_to_float(packing.float_to_half_exact(log_scale[rows], splatvjs=splatvjs)[0])
+        hidden[rows[~(_best_temporal(wide(c), exp(s)) < below)]] = False
+    return hidden
+
+
+def undrawable_kinds(cols: dict) -> np.ndarray:
+    """Why the viewer can never draw each splat: ``(N,) int8``.
+
+    The index in :data:`UNDRAWABLE_KINDS` of the first kind that applies, or
+    :data:`DRAWABLE` (-1). Removing every splat that is not drawable leaves each
+    frame the viewer draws, at every time in [0, 1], unchanged.
+    """
+    n = len(cols["x"])
+    code = np.full(n, DRAWABLE, dtype=np.int8)
+    tests = (lambda: _all_zero(cols, ROTATION + OMEGA), lambda: _any_nan(cols, POSITION + MOTION),
+             lambda: alpha_zero(cols), lambda: hidden_in_time(cols))
+    for kind, test in enumerate(tests):
+        code[(code == DRAWABLE) & test()] = kind
+    return code
+
+
+def undrawable(cols: dict) -> np.ndarray:
+    """Rows the viewer can never draw at any time in [0, 1]: ``(N,) bool`` (see :data:`UNDRAWABLE_KINDS`)."""
+    return undrawable_kinds(cols) != DRAWABLE
+
+
+def undrawable_counts(cols: dict) -> dict:
+    """Undrawable splats by kind: ``{kind: int}`` in :data:`UNDRAWABLE_KINDS` order, each splat under one kind."""
+    counts = np.bincount(undrawable_kinds(cols).astype(np.intp) + 1, minlength=len(UNDRAWABLE_KINDS) + 1)
+    return {kind: int(counts[i + 1]) for i, kind in enumerate(UNDRAWABLE_KINDS)}
 
 
 # --------------------------------------------------------------------------
