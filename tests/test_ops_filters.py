@@ -36,8 +36,11 @@ def ids(scene: Scene) -> list:
 
 # (column, value, removed?)
 NONFINITE_CASES = [(name, value, True) for name in
-                   ("x", "y", "z", "rot_0", "rot_3", "scale_1", "motion_0", "motion_8", "omega_2", "trbf_center")
+                   ("x", "y", "z", "rot_0", "rot_3", "motion_0", "motion_8", "omega_2", "trbf_center")
                    for value in (math.nan, math.inf, -math.inf)] + [
+    # A log scale of -inf is a linear scale of 0: a flat splat, which the viewer draws.
+    ("scale_0", math.nan, True), ("scale_1", math.inf, True), ("scale_1", -math.inf, False),
+    ("scale_2", -math.inf, False),
     ("trbf_scale", math.nan, True), ("trbf_scale", -math.inf, True), ("trbf_scale", math.inf, False),
     ("opacity", math.nan, True), ("opacity", math.inf, False), ("opacity", -math.inf, False),
     ("f_dc_1", math.nan, True), ("f_dc_1", math.inf, False), ("f_dc_2", -math.inf, False),
@@ -90,6 +93,8 @@ def test_drop_nonfinite_on_a_large_scene_matches_a_plain_isfinite_reference():
         v = cols[k]
         if k == "trbf_scale":
             bad |= np.isnan(v) | (v == -np.inf)
+        elif k in ("scale_0", "scale_1", "scale_2"):
+            bad |= np.isnan(v) | (v == np.inf)
         elif k in ("opacity", "f_dc_0", "f_dc_1", "f_dc_2"):
             bad |= np.isnan(v)
         else:
@@ -400,9 +405,10 @@ def test_signalling_nans_raise_no_warning():
 
 def test_convert_help_states_the_edit_order_and_an_example():
     text = CliRunner().invoke(main, ["convert", "--help"], terminal_width=200).output
-    assert ("Edits apply in this order, whatever the order of the options: --drop-nonfinite, --trim, --crop, "
+    assert ("Edits apply in this order, whatever the order of the options: --drop-undrawable, --drop-nonfinite, "
+            "--trim, --crop, "
             "--min-opacity, --max-splats, then --translate/--rotate/--scale, as p' = R(S p) + T") in text
     assert "  splatconv convert scene.ply clean.splatv --drop-nonfinite --trim 0.25,0.75 --rotate x:180" in text
-    for option in ("--drop-nonfinite", "--trim T0,T1", "--crop X0,Y0,Z0,X1,Y1,Z1", "--min-opacity A",
+    for option in ("--drop-undrawable", "--drop-nonfinite", "--trim T0,T1", "--crop X0,Y0,Z0,X1,Y1,Z1", "--min-opacity A",
                    "--max-splats N", "--translate X,Y,Z", "--rotate STEPS", "--scale S"):
         assert f"  {option} " in text, option

@@ -68,7 +68,7 @@ class Fraction(click.ParamType):
 _POSITIVE_SCALE = click.FloatRange(min=0, min_open=True)
 
 #: Option names of the edits, in :data:`splatconv.ops.ORDER`.
-EDIT_KEYS = ("drop_nonfinite", "trim", "crop", "min_opacity", "max_splats", "translate", "rotate", "scale")
+EDIT_KEYS = ("drop_undrawable", "drop_nonfinite", "trim", "crop", "min_opacity", "max_splats", "translate", "rotate", "scale")
 
 
 #: The edit example added to the command's Example block.
@@ -78,10 +78,15 @@ EXAMPLE = "splatconv convert scene.ply clean.splatv --drop-nonfinite --trim 0.25
 def edit_options():
     """The edit options as one stack; also adds the order they apply in to the command's help."""
     stack = options(
+        click.option("--drop-undrawable", is_flag=True,
+                     help="Remove splats the viewer can never draw at any time in [0, 1] (zero rotation and "
+                          "omega, NaN position or motion, alpha byte 0, below the temporal cut throughout); "
+                          "says how many of each kind."),
         click.option("--drop-nonfinite", is_flag=True,
-                     help="Remove splats with a NaN or infinite position, rotation, scale, motion, omega or trbf "
-                          "centre, a NaN or -inf trbf scale, or a NaN opacity or colour (+inf trbf scale, "
-                          "'visible at every time', is kept)."),
+                     help="Remove splats with a NaN or infinite position, rotation, motion, omega or trbf "
+                          "centre, a NaN or +inf scale, a NaN or -inf trbf scale, or a NaN opacity or colour "
+                          "(a zero scale, -inf: a flat splat, and +inf trbf scale, 'visible at every time', "
+                          "are kept)."),
         click.option("--trim", type=FloatList(2, "T0,T1"),
                      help="Keep what is visible somewhere in [T0, T1] (0 <= T0 < T1 <= 1) and stretch that "
                           "interval onto the clip's [0, 1]."),
@@ -130,8 +135,8 @@ def plan_of(values: dict) -> EditPlan | None:
     if v["translate"] is not None or v["rotate"] is not None or v["scale"] is not None:
         transform = make_transform(v["translate"], v["rotate"], v["scale"])
     crop = None if v["crop"] is None else (v["crop"][:3], v["crop"][3:])
-    plan = EditPlan(drop_nonfinite=bool(v["drop_nonfinite"]), trim=v["trim"], crop=crop,
-                    min_opacity=v["min_opacity"], max_splats=v["max_splats"], transform=transform)
+    plan = EditPlan(drop_undrawable=bool(v["drop_undrawable"]), drop_nonfinite=bool(v["drop_nonfinite"]),
+                    trim=v["trim"], crop=crop, min_opacity=v["min_opacity"], max_splats=v["max_splats"], transform=transform)
     return None if plan.empty else plan
 
 

@@ -89,8 +89,8 @@ def _read(path, color: str, drop_nonfinite: bool, quiet: bool):
 
 def _drop_option(what: str):
     return click.option("--drop-nonfinite", is_flag=True,
-                        help=f"Remove splats with a NaN or infinite position, rotation, scale, motion, omega or trbf "
-                             f"centre (as convert does) from {what} first.")
+                        help=f"Remove splats with a NaN or infinite position, rotation, motion, omega or trbf "
+                             f"centre, or a NaN or +inf scale (as convert does) from {what} first.")
 
 
 def _layout_option(default: str):

@@ -1,10 +1,15 @@
 """The edits ``convert`` applies, in one fixed order, in as few passes over the splats as possible.
 
-Order (:data:`ORDER`): drop-nonfinite, trim, crop, min-opacity, max-splats,
-transform. Filters come first so that each later step sees only what survives;
-trim comes before crop so the crop's "time of peak opacity" is taken within the
-trimmed clip; max-splats comes last of the filters because it ranks what the
-others leave; the transform comes last so that the crop box is in the input's
+Order (:data:`ORDER`): drop-undrawable, drop-nonfinite, trim, crop, min-opacity,
+max-splats, transform. drop-undrawable comes first because what the viewer can
+never draw is a fact about the source scene over its whole [0, 1], before any
+edit changes it: each undrawable splat is counted under its own kind before
+drop-nonfinite sees it (a NaN position is both), and max-splats then ranks only
+splats that can be drawn (an undrawable splat may well be among the largest).
+Filters come first so that each later step sees only what survives; trim comes
+before crop so the crop's "time of peak opacity" is taken within the trimmed
+clip; max-splats comes last of the filters because it ranks what the others
+leave; the transform comes last so that the crop box is in the input's
 coordinates (those ``info`` prints).
 
 The filters' masks are computed in one pass over blocks of rows (a block stays
@@ -19,6 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import viewer
 from ..model import Scene
 from . import filters
 from . import time as time_ops
@@ -27,7 +33,7 @@ from .report import OpReport
 from .transform import Transform, _block_transformer, transform_cameras, transform_columns, transform_report
 
 #: The order the edits apply in, named as their options.
-ORDER = ("drop-nonfinite", "trim", "crop", "min-opacity", "max-splats", "transform")
+ORDER = ("drop-undrawable", "drop-nonfinite", "trim", "crop", "min-opacity", "max-splats", "transform")
 
 
 @dataclass(frozen=True)
@@ -36,6 +42,7 @@ class EditPlan:
 
     Attributes
     ----------
+    drop_undrawable : bool
     drop_nonfinite : bool
     trim : (float, float) or None
         (T0, T1), 0 <= T0 < T1 <= 1.
@@ -46,6 +53,7 @@ class EditPlan:
     transform : Transform or None
     """
 
+    drop_undrawable: bool = False
     drop_nonfinite: bool = False
     trim: tuple | None = None
     crop: tuple | None = None
@@ -67,8 +75,8 @@ class EditPlan:
     @property
     def empty(self) -> bool:
         """Whether the plan changes nothing."""
-        return (not self.drop_nonfinite and self.trim is None and self.crop is None and self.min_opacity is None
-                and self.max_splats is None and (self.transform is None or self.transform.is_identity))
+        return (not self.drop_undrawable and not self.drop_nonfinite and self.trim is None and self.crop is None
+                and self.min_opacity is None and self.max_splats is None and (self.transform is None or self.transform.is_identity))
 
 
 def _masks(columns: dict, wanted: dict) -> dict:
@@ -93,7 +101,8 @@ def _masks(columns: dict, wanted: dict) -> dict:
 def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
     """Apply ``plan`` to ``scene`` in the order of :data:`ORDER`.
 
-    The result equals applying :func:`~splatconv.ops.filters.drop_nonfinite`,
+    The result equals applying :func:`~splatconv.ops.filters.drop_undrawable`,
+    :func:`~splatconv.ops.filters.drop_nonfinite`,
     :func:`~splatconv.ops.time.trim`, :func:`~splatconv.ops.filters.crop`,
     :func:`~splatconv.ops.filters.min_opacity`,
     :func:`~splatconv.ops.filters.max_splats` and
@@ -116,9 +125,11 @@ def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
         reports.append(report)
         alive = mask if alive is None else alive & mask
 
-    # Pass 1 (before the time map): drop-nonfinite and the trim's visibility; without a
-    # trim, the masks of pass 2 too.
+    # Pass 1 (before the time map): drop-undrawable, drop-nonfinite and the trim's
+    # visibility; without a trim, the masks of pass 2 too.
     first = {}
+    if plan.drop_undrawable:
+        first["undrawable"] = (lambda part, block: viewer.undrawable_kinds(block), np.int8)
     if plan.drop_nonfinite:
         first["nonfinite"] = (filters.nonfinite_tester(columns), bool)
     if plan.trim is not None:
@@ -137,6 +148,9 @@ def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
     if plan.trim is None:
         first.update(second)
     masks = _masks(columns, first) if first else {}
+    if plan.drop_undrawable:
+        kinds = masks["undrawable"]
+        keep(kinds == viewer.DRAWABLE, filters.undrawable_report(kinds, alive))
     if plan.drop_nonfinite:
         keep(masks["nonfinite"], filters.nonfinite_report(columns, masks["nonfinite"], alive))
     if plan.trim is not None:

@@ -1,4 +1,5 @@
-"""Clean-up filters: drop broken splats, faint splats, splats outside a box, all but the N most important.
+"""Clean-up filters: drop splats the viewer never draws, broken splats, faint splats, splats outside a
+box, all but the N most important.
 
 Each filter has a ``*_mask`` function (which rows it keeps, computed without
 copying anything) and a scene function returning ``(Scene, OpReport)``. The
@@ -13,30 +14,97 @@ import numpy as np
 from .. import viewer
 from ..errors import UsageError
 from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
-from ..wording import plural
+from ..wording import kinds_text, plural
 from ._table import blockwise, derive, gather, keep_rows, run_blocks
 from .report import OpReport
 
-#: Groups whose every value must be finite for a splat to be kept by
-#: :func:`drop_nonfinite`: a non-finite value in any of them puts the splat
-#: nowhere or everywhere, or gives it no shape.
-FINITE_GROUPS = {"position": POSITION, "rotation": ROTATION, "scale": SCALE, "motion": MOTION,
-                 "omega": OMEGA, "trbf centre": ("trbf_center",)}
-#: Groups where only NaN removes a splat: their infinities mean something to the
-#: viewer. A temporal scale of +inf is "visible at every time"; an opacity of
-#: -inf/+inf is sigmoid 0/1; a colour of -inf/+inf is clamped to 0/1.
-NAN_GROUPS = {"trbf scale": ("trbf_scale",), "opacity": ("opacity",), "color": COLOR}
+#: What removes a splat in :func:`drop_nonfinite`, per group: its columns, and the
+#: infinities the viewer gives a meaning (kept); NaN always removes, and so does
+#: an infinity not listed. Position, rotation, motion, omega or trbf centre: any
+#: infinity puts the splat nowhere or everywhere, or gives it no orientation. A
+#: log scale of -inf is a linear scale of exactly 0: a flat splat, which the viewer
+#: draws (+inf: an infinitely large one). A temporal scale of +inf is "visible at
+#: every time". An opacity of -inf/+inf is sigmoid 0/1; a colour of -inf/+inf is
+#: clamped to 0/1.
+NONFINITE_RULES = {
+    "position": (POSITION, ()),
+    "rotation": (ROTATION, ()),
+    "scale": (SCALE, (-np.inf,)),
+    "motion": (MOTION, ()),
+    "omega": (OMEGA, ()),
+    "trbf centre": (("trbf_center",), ()),
+    "trbf scale": (("trbf_scale",), (np.inf,)),
+    "opacity": (("opacity",), (-np.inf, np.inf)),
+    "color": (COLOR, (-np.inf, np.inf)),
+}
+#: Groups whose every value must be finite for a splat to be kept.
+FINITE_GROUPS = {g: names for g, (names, kept) in NONFINITE_RULES.items() if not kept}
+#: Groups where only NaN removes a splat: both infinities mean something to the viewer.
+NAN_GROUPS = {g: names for g, (names, kept) in NONFINITE_RULES.items() if len(kept) == 2}
+
+# --------------------------------------------------------------------------
+# drop-undrawable
+
+#: Columns :func:`splatconv.viewer.undrawable_kinds` reads.
+_UNDRAWABLE_COLUMNS = ROTATION + OMEGA + POSITION + MOTION + ("opacity", "trbf_center", "trbf_scale")
+
+
+def undrawable_kinds(columns: dict) -> np.ndarray:
+    """:func:`splatconv.viewer.undrawable_kinds` of every row, a block at a time: ``(N,) int8``."""
+    return blockwise(viewer.undrawable_kinds, columns, _UNDRAWABLE_COLUMNS, dtype=np.int8)
+
+
+def undrawable_report(kinds: np.ndarray, alive: np.ndarray | None = None) -> OpReport:
+    """The report of :func:`drop_undrawable` for ``kinds`` (``(N,) int8``, :func:`undrawable_kinds`) over the
+    rows ``alive`` (all when None); ``counts``: splats removed of each kind."""
+    live = kinds if alive is None else kinds[alive]
+    count_in = len(live)
+    by_kind = np.bincount(live.astype(np.intp) + 1, minlength=len(viewer.UNDRAWABLE_KINDS) + 1)[1:]
+    report = OpReport("drop-undrawable", count_in, count_in - int(by_kind.sum()))
+    report.counts = {kind: int(c) for kind, c in zip(viewer.UNDRAWABLE_KINDS, by_kind)}
+    if report.removed:
+        report.notes.append(f"drop-undrawable: removed {report.removed:,} of {plural(count_in, 'splat')} the viewer "
+                            f"can never draw ({kinds_text(report.counts)})")
+    else:
+        report.notes.append(f"drop-undrawable: removed 0 of {plural(count_in, 'splat')}: the viewer can draw "
+                            f"every one")
+    return report
+
+
+def drop_undrawable(scene: Scene) -> tuple[Scene, OpReport]:
+    """Remove the splats the viewer can never draw at any time in [0, 1].
+
+    What is undrawable is :func:`splatconv.viewer.undrawable_kinds`: a zero
+    rotation with zero omega, a NaN position or motion term, an alpha byte of 0,
+    or a temporal opacity below the cut over all of [0, 1]. None of them adds
+    anything to any pixel at any time, so every splat that is drawn is drawn the
+    same without them (the viewer's depth sort spreads its 65,536 depth buckets
+    over every record, drawn or not, so the order it gives splats of nearly equal
+    depth, and which farthest splat it leaves out, can change, as removing any
+    splat can change them).
+
+    Returns
+    -------
+    (Scene, OpReport)
+        The scene without those splats (the same columns when none is removed),
+        and ``counts``: splats removed of each kind (:data:`splatconv.viewer.UNDRAWABLE_KINDS`).
+    """
+    kinds = undrawable_kinds(scene.columns)
+    report = undrawable_report(kinds)
+    return derive(scene, keep_rows(scene, kinds == viewer.DRAWABLE), report.notes), report
+
 
 # --------------------------------------------------------------------------
 # drop-nonfinite
 
 
 def nonfinite_mask(columns: dict) -> np.ndarray:
-    """Rows :func:`drop_nonfinite` keeps: ``(N,) bool``.
+    """Rows :func:`drop_nonfinite` keeps: ``(N,) bool`` (see :data:`NONFINITE_RULES`).
 
-    A row is dropped when any position, rotation, scale, motion, omega or trbf
-    centre value is NaN or infinite, when its trbf scale is NaN or -inf, or when
-    its opacity or a colour value is NaN.
+    A row is dropped when any position, rotation, motion, omega or trbf centre
+    value is NaN or infinite, when a scale is NaN or +inf (-inf, a flat splat, is
+    kept), when its trbf scale is NaN or -inf, or when its opacity or a colour
+    value is NaN.
     """
     out = np.empty(len(columns["x"]), dtype=bool)
     test = nonfinite_tester(columns)
@@ -48,8 +116,12 @@ def nonfinite_mask(columns: dict) -> np.ndarray:
     return out
 
 
-_FINITE = [c for names in FINITE_GROUPS.values() for c in names]
-_NAN_ONLY = [c for names in NAN_GROUPS.values() for c in names]
+_RULES = [(name, kept) for names, kept in NONFINITE_RULES.values() for name in names]
+#: Columns where any infinity removes a splat; where only NaN does; and, for the
+#: columns that keep one infinity, the other one, which removes it.
+_FINITE = [name for name, kept in _RULES if not kept]
+_NAN_ONLY = [name for name, kept in _RULES if kept]
+_BAD_INFINITY = {name: -kept[0] for name, kept in _RULES if len(kept) == 1}
 _CHECKED = tuple(_FINITE + _NAN_ONLY)
 
 
@@ -66,7 +138,8 @@ def nonfinite_tester(columns: dict):
         rows = matrix[part]
         bad = ~np.isfinite(rows)[:, finite].all(axis=1)
         bad |= np.isnan(rows[:, nan_only]).any(axis=1)
-        bad |= block["trbf_scale"] == -np.inf
+        for name, infinity in _BAD_INFINITY.items():
+            bad |= block[name] == infinity
         return ~bad
 
     return test
@@ -87,23 +160,22 @@ def _nonfinite_block(block: dict) -> np.ndarray:
             # +-inf * 0 is NaN too: count only the NaN inputs.
             np.copyto(part, 0, where=~np.isnan(block[name]))
             acc += part
-    # trbf_scale = -inf: a zero-width temporal basis, never drawn (0/0 at its centre).
-    acc[block["trbf_scale"] == -np.inf] = np.nan
+    # The infinity a column does not keep (a scale of +inf; a trbf scale of -inf, a
+    # zero-width temporal basis, never visible: 0/0 at its centre).
+    for name, infinity in _BAD_INFINITY.items():
+        acc[block[name] == infinity] = np.nan
     return acc == acc
 
 
 def _nonfinite_counts(columns: dict, rows: np.ndarray) -> dict:
     """Of rows ``rows``, how many have a disqualifying value in each group (a row may count in several)."""
     counts = {}
-    groups = [(g, names, False) for g, names in FINITE_GROUPS.items()] + [
-        (g, names, True) for g, names in NAN_GROUPS.items()]
     with np.errstate(invalid="ignore"):  # signalling NaNs compared
-        for group, names, nan_only in groups:
+        for group, (names, kept) in NONFINITE_RULES.items():
             bad = np.zeros(len(rows), dtype=bool)
             for name in names:
                 v = np.asarray(columns[name])[rows]
-                bad |= (np.isnan(v) | (v == -np.inf if name == "trbf_scale" else False)) if nan_only \
-                    else ~np.isfinite(v)
+                bad |= np.isnan(v) | (np.isinf(v) & ~np.isin(v, kept))
             if bad.any():
                 counts[group] = int(bad.sum())
     return counts
@@ -129,15 +201,17 @@ def nonfinite_report(columns: dict, keep: np.ndarray, alive: np.ndarray | None =
 def drop_nonfinite(scene: Scene) -> tuple[Scene, OpReport]:
     """Remove splats the viewer cannot draw sensibly because of a NaN or infinity.
 
-    Removed: a NaN or infinite position, rotation, scale, motion, omega or trbf
-    centre value (the splat is nowhere, everywhere or shapeless); a NaN or -inf
+    Removed: a NaN or infinite position, rotation, motion, omega or trbf centre
+    value (the splat is nowhere, everywhere or shapeless); a NaN or +inf scale
+    (a log scale of +inf is an infinitely large splat); a NaN or -inf
     trbf scale (NaN: the temporal opacity is NaN, which the viewer's 0.02 cut
     does not hide and which blends as garbage; -inf: zero temporal width, never
     visible); a NaN opacity (written as alpha 0: never visible, dead weight); a
     NaN colour (written as byte 0: the splat draws as a dark blot, an artefact of
-    a diverged training step, not a colour). Kept: a trbf scale of +inf
-    ("visible at every time"), an opacity or colour of +-inf (the viewer's
-    sigmoid and clamp give them 0 or 1).
+    a diverged training step, not a colour). Kept: a log scale of -inf (a linear
+    scale of exactly 0: a flat splat, which the viewer draws), a trbf scale of
+    +inf ("visible at every time"), an opacity or colour of +-inf (the viewer's
+    sigmoid and clamp give them 0 or 1). See :data:`NONFINITE_RULES`.
 
     Parameters
     ----------
@@ -422,6 +496,7 @@ def max_splats(scene: Scene, count: int) -> tuple[Scene, OpReport]:
     return derive(scene, columns, report.notes), report
 
 
-__all__ = ["FINITE_GROUPS", "NAN_GROUPS", "nonfinite_mask", "drop_nonfinite", "opacity_mask", "min_opacity",
+__all__ = ["NONFINITE_RULES", "FINITE_GROUPS", "NAN_GROUPS", "undrawable_kinds", "drop_undrawable",
+           "nonfinite_mask", "drop_nonfinite", "opacity_mask", "min_opacity",
            "peak_time", "crop_mask", "check_box", "crop", "importance_key", "most_important",
            "max_splats"]
