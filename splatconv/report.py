@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import textwrap
 
-from .wording import plural
+from .wording import kinds_text, plural
 
 
 def to_json(data) -> str:
@@ -37,6 +37,15 @@ def _detail_text(value) -> str:
     return str(value)
 
 
+def undrawable_text(counts: dict, total: int) -> str:
+    """Undrawable splats by kind (``{kind: count}``) out of ``total``, in words; "none" when there are none."""
+    n = sum(counts.values())
+    if not n:
+        return "none"
+    return (f"{n:,} of {plural(total, 'splat')} ({100 * n / total:.3g}%) the viewer can never draw: "
+            f"{kinds_text(counts)}")
+
+
 def info_text(info: dict) -> str:
     """Human-readable ``info`` output, one fact per line."""
     details = dict(info["details"])
@@ -66,6 +75,9 @@ def info_text(info: dict) -> str:
         lines.append(f"bounds:    min ({lo})  max ({hi})")
     bad = {k: v for k, v in info["nonfinite"].items() if v}
     lines.append("nonfinite: " + (", ".join(f"{k} {v:,}" for k, v in bad.items()) if bad else "none"))
+    if info["flat"]:
+        lines.append(f"flat:      {plural(info['flat'], 'splat')} with a zero scale (log scale -inf), drawn flat")
+    lines.append("undrawable: " + undrawable_text(info["undrawable"], info["count"]))
     ignored, extra = details.pop("ignored_properties", None), details.pop("extra_elements", None)
     if ignored:
         lines.append("ignored:   " + ", ".join(ignored))
@@ -211,7 +223,8 @@ def _stats_tables(data: dict) -> list:
 
 
 def _summary_lines(data: dict) -> list:
-    lines = [f"count: {plural(data['count'], 'splat')}"]
+    lines = [f"count: {plural(data['count'], 'splat')}",
+             "undrawable: " + undrawable_text(data["undrawable"], data["count"])]
     if data["attributes"] is None:
         source = data["files"][0]
         why = ("SOURCE holds no splats" if data["count"] == 0

@@ -15,7 +15,7 @@ from .compare import GroupError, align, value_errors
 from .formats import format_for, splatv
 from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
 from .io import reading
-from .model import COLOR, COLUMNS, GROUPS, Scene
+from .model import COLOR, COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
 from .transport import DEFAULT_LEVEL, compressed_bytes
@@ -30,7 +30,8 @@ def _finite_range(values: np.ndarray):
 
 
 #: Version of the ``info`` JSON (``specs/json.md``); raised when a key changes meaning or goes.
-INFO_SCHEMA = "splatconv.info/1"
+#: 2: ``nonfinite`` no longer counts a log scale of -inf (a flat splat, counted in ``flat``).
+INFO_SCHEMA = "splatconv.info/2"
 
 
 def describe(scene: Scene, path: str, module) -> dict:
@@ -51,8 +52,8 @@ def describe(scene: Scene, path: str, module) -> dict:
     dict
         Keys: schema, path, format, variant, count, file_bytes (uncompressed),
         compressed_bytes (on disk, for .zst files, else None), cameras, texture,
-        time_range, visible_time_range, visible_always, bounds, nonfinite,
-        details, notes.
+        time_range, visible_time_range, visible_always, bounds, nonfinite, flat,
+        undrawable, details, notes.
     """
     cols = scene.columns
     meta = scene.meta
@@ -81,10 +82,30 @@ def describe(scene: Scene, path: str, module) -> dict:
         "visible_time_range": _visible_range(lo[timed], hi[timed]),
         "visible_always": int(np.count_nonzero(timed & np.isinf(hi))),
         "bounds": bounds,
-        "nonfinite": {name: int(np.count_nonzero(~np.isfinite(cols[name]))) for name in COLUMNS},
+        "nonfinite": {name: _nonfinite(cols[name], name) for name in COLUMNS},
+        "flat": int(np.count_nonzero(_flat(cols))),
+        "undrawable": viewer.undrawable_counts(cols),
         "details": module.info_fields(scene),
         "notes": list(scene.notes),
     }
+
+
+def _nonfinite(values: np.ndarray, name: str) -> int:
+    """NaN and infinite values of column ``name``, but a log scale of -inf: that is a linear scale of
+    exactly 0, a flat splat, which the viewer draws (counted by :func:`_flat`)."""
+    values = np.asarray(values)
+    bad = ~np.isfinite(values)
+    if name in SCALE:
+        bad &= values != -np.inf
+    return int(np.count_nonzero(bad))
+
+
+def _flat(cols: dict) -> np.ndarray:
+    """Splats with a linear scale of exactly 0 on some axis (a log scale of -inf): ``(N,) bool``."""
+    out = np.zeros(len(cols["x"]), dtype=bool)
+    for name in SCALE:
+        out |= np.asarray(cols[name]) == -np.inf
+    return out
 
 
 def _visible_range(lo: np.ndarray, hi: np.ndarray):
@@ -109,7 +130,8 @@ def _texture(scene: Scene) -> dict:
 # ``stats``: sizes, transport size and what a conversion loses.
 
 #: Version of the ``stats`` JSON (``specs/json.md``); raised when a key changes meaning or goes.
-STATS_SCHEMA = "splatconv.stats/1"
+#: 2: ``time.visible`` leaves out the splats the viewer can never draw (``undrawable``).
+STATS_SCHEMA = "splatconv.stats/2"
 #: Time steps at which the number of drawn splats is counted.
 TIME_STEPS = 20
 #: GPU texture size limits the report checks the texture height against.
@@ -150,14 +172,15 @@ def _times(steps: int = TIME_STEPS) -> np.ndarray:
     return np.linspace(viewer.TIME_RANGE[0], viewer.TIME_RANGE[1], steps)
 
 
-def _visible_counts(cols: dict, times: np.ndarray) -> np.ndarray:
+def _visible_counts(cols: dict, times: np.ndarray, drawable: np.ndarray) -> np.ndarray:
     """Splats the viewer draws at each time: ``(steps,) int64``.
 
-    A splat is drawn unless its temporal opacity is below the viewer's cut
+    Of the ``drawable`` rows (``(N,) bool``: not :func:`splatconv.viewer.undrawable`),
+    those whose temporal opacity is not below the viewer's cut
     (:func:`splatconv.viewer.visible`: a NaN temporal opacity is drawn, as the
     viewer's test does not reject it).
     """
-    return np.array([np.count_nonzero(viewer.visible(cols, t)) for t in times], dtype=np.int64)
+    return np.array([np.count_nonzero(viewer.visible(cols, t) & drawable) for t in times], dtype=np.int64)
 
 
 def _magnitudes(cols: dict, names) -> np.ndarray:
@@ -361,6 +384,7 @@ class _Tally:
     def __init__(self, n: int, compare: bool, damage: bool, storage: dict):
         self.times = _times()
         self.visible = np.zeros(len(self.times), dtype=np.int64)
+        self.undrawable = np.zeros(len(viewer.UNDRAWABLE_KINDS) + 1, dtype=np.int64)  # [drawable, kinds...]
         self.magnitudes = {term: np.empty(n, dtype=np.float64) for term in MOTION_TERMS}
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
@@ -371,7 +395,9 @@ class _Tally:
 
     def add(self, rows: slice, src: dict, conv: dict) -> None:
         """Rows ``rows`` of the converted scene (``conv``) and the source rows matching them (``src``)."""
-        self.visible += _visible_counts(conv, self.times)
+        kinds = viewer.undrawable_kinds(conv)
+        self.undrawable += np.bincount(kinds.astype(np.intp) + 1, minlength=len(self.undrawable))
+        self.visible += _visible_counts(conv, self.times, kinds == viewer.DRAWABLE)
         for term, names in MOTION_TERMS.items():
             self.magnitudes[term][rows] = _magnitudes(conv, names)
         pos = viewer.positions(conv)
@@ -390,6 +416,9 @@ class _Tally:
             for group, d in splatvjs_damage(src).items():
                 for key, count in d.items():
                     self.damage[group][key] += count
+
+    def undrawable_counts(self) -> dict:
+        return {kind: int(self.undrawable[i + 1]) for i, kind in enumerate(viewer.UNDRAWABLE_KINDS)}
 
     def bounds(self):
         if not np.isfinite(self.lo).all():
@@ -467,6 +496,7 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
         "schema": STATS_SCHEMA,
         "files": files,
         "count": source.count,
+        "undrawable": tally.undrawable_counts(),
         "bounds": tally.bounds(),
         "time": {"times": [round(float(t), 6) for t in tally.times], "visible": tally.visible.tolist()},
         "motion": {term: _percentiles(v) for term, v in tally.magnitudes.items()},

@@ -433,7 +433,7 @@ def test_info_keys_are_documented_for_every_format(tmp_path, lite_ply, gs_ply):
         info = json.loads(run("info", path, "--json").stdout)
         assert [k for k in info if k != "details"] == list(spec), name
         assert list(info).index("details") == list(info).index("notes") - 1  # where the spec lists it
-        assert info["schema"] == "splatconv.info/1"
+        assert info["schema"] == "splatconv.info/2"
         assert list(info["details"]) == list(details[name]), name
         assert list(info["texture"]) == list(spec["texture"])
         assert list(info["bounds"]) == ["min", "max"]
@@ -449,7 +449,7 @@ def test_stats_keys_are_documented(tmp_path, lite_ply):
     assert run("convert", lite_ply, conv).exit_code == 0
     data = json.loads(run("stats", lite_ply, conv, "--json", "--zstd-level", "1").stdout)
     assert list(data) == list(spec)
-    assert data["schema"] == "splatconv.stats/1"
+    assert data["schema"] == "splatconv.stats/2"
     for entry in data["files"]:
         assert list(entry) == list(spec["files"])
     assert list(data["time"]) == list(spec["time"])
@@ -494,6 +494,8 @@ def test_plurals(tmp_path):
     rec = np.zeros((1, 16), "<u4")
     rec[0, 0] = np.float32(1.0).view(np.uint32)
     rec[0, 15] = 0x3C00 << 16  # trbf_scale 1: visible at every time step
+    rec[0, 3] = 0x3C00  # rotation (1, 0, 0, 0) and alpha byte 255: drawable
+    rec[0, 7] = 0xFF000000
     p = tmp_path / "one.splatv"
     p.write_bytes(splatv_bytes(rec))
     info = run("info", p).stdout
@@ -534,7 +536,7 @@ def test_info_of_several_files_is_a_list_each_with_its_schema(tmp_path, lite_ply
     conv = tmp_path / "s.splatv"
     assert run("convert", lite_ply, conv).exit_code == 0
     both = json.loads(run("info", lite_ply, conv, "--json").stdout)
-    assert [i["schema"] for i in both] == ["splatconv.info/1"] * 2
+    assert [i["schema"] for i in both] == ["splatconv.info/2"] * 2
     assert [i["format"] for i in both] == ["ply", "splatv"]
     assert [list(i) for i in both][0] == [list(i) for i in both][1]
 
