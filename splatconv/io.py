@@ -8,8 +8,10 @@ what it supports (see :mod:`splatconv.formats`).
 from __future__ import annotations
 
 import contextlib
+import contextvars
 import os
 
+from . import viewer
 from .cameras import load_cameras
 from .errors import OutputError, SplatconvError, UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
@@ -17,6 +19,7 @@ from .fsutil import atomic_group, atomic_writer, check_output
 from .model import Scene
 from .progress import SILENT
 from .transport import DEFAULT_LEVEL, is_compressed, output_stream, plain_input
+from .wording import kinds_text, plural
 
 #: Record orders a writer takes.
 SORT_MODES = ("importance", "none")
@@ -26,6 +29,46 @@ COLOR_MODES = ("auto", "rgb", "sh")
 COMPAT_MODES = compat_modes()
 #: Record layouts some writer offers (``.ply``: lite, 3dgs).
 LAYOUTS = tuple(dict.fromkeys(name for module in REGISTRY.values() for name in getattr(module, "LAYOUTS", ())))
+
+
+#: Share of a scene's splats, undrawable (:func:`splatconv.viewer.undrawable`), from which
+#: reading it gives a note suggesting ``--drop-undrawable``. Real trained scenes hold a
+#: few dozen undrawable splats from NaN positions and faded opacities (well under 1%),
+#: which cost nothing worth a note; zero rotations make 17-95% of most of them. From a
+#: tenth of the splats on, removing them saves a tenth of the file, of the texture and
+#: of the viewer's depth sort on every frame: worth saying.
+UNDRAWABLE_NOTE_SHARE = 0.10
+
+#: Who is told of scenes read with many undrawable splats (:func:`noting_undrawable`).
+_undrawable_listener = contextvars.ContextVar("splatconv_undrawable_listener", default=None)
+
+
+@contextlib.contextmanager
+def noting_undrawable(receive):
+    """While the block runs, each scene read whose undrawable splats reach :data:`UNDRAWABLE_NOTE_SHARE`
+    is described to ``receive(note)``, a sentence (``receive`` None: to no one).
+
+    Every scene a command reads comes through :func:`reading` or :func:`read_texture`,
+    so this one check covers them all; nothing is computed without a listener.
+    """
+    token = _undrawable_listener.set(receive)
+    try:
+        yield
+    finally:
+        _undrawable_listener.reset(token)
+
+
+def _check_undrawable(scene: Scene, path) -> None:
+    """Tell the listener (if any) about ``scene`` when its undrawable splats are a large share of it."""
+    receive = _undrawable_listener.get()
+    if receive is None or not scene.count:
+        return
+    counts = viewer.undrawable_counts(scene.columns)
+    n = sum(counts.values())
+    if n >= UNDRAWABLE_NOTE_SHARE * scene.count:
+        receive(f"{os.fspath(path)}: {n:,} of {plural(scene.count, 'splat')} ({100 * n / scene.count:.3g}%) "
+                f"can never be drawn ({kinds_text(counts)}); `splatconv convert --drop-undrawable` removes "
+                f"them")
 
 
 def _choice(value, allowed, what: str):
@@ -63,6 +106,7 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
         scene = module.read(plain, color=color)
         if is_compressed(path):
             scene.meta["compressed_bytes"] = os.path.getsize(path)
+        _check_undrawable(scene, path)
         yield scene, plain
 
 
@@ -95,6 +139,7 @@ def read_texture(path: str | os.PathLike, *, progress=SILENT):
         padded, scene = module.read_texture(plain)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)
+    _check_undrawable(scene, path)
     return padded, scene
 
 

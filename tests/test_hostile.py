@@ -618,7 +618,8 @@ def test_fuzz_finds_element_without_properties_and_signalling_nan_colour(tmp_pat
 
 def test_info_on_signalling_nan_positions_does_not_warn(tmp_path):
     # Found by bench/bench_fuzz.py: widening a signalling NaN to float64 warned in info.
-    cols = lite_columns_with_normals(random_columns(8))
+    # 1 NaN position in 20: below the share of undrawable splats that gets a note.
+    cols = lite_columns_with_normals(random_columns(20))
     cols["x"][1] = np.uint32(0x7FA00000).view(np.float32)
     path = write_ply(tmp_path / "snan.ply", cols)
     with warnings.catch_warnings():

@@ -10,7 +10,7 @@ import click
 from .. import __version__
 from ..errors import SplatconvError, UsageError
 from ..fsutil import exit_on_signals
-from ..io import COLOR_MODES
+from ..io import COLOR_MODES, noting_undrawable
 from ..transport import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
 from ._progress import progress_for
 
@@ -123,6 +123,21 @@ def _one_line(error: click.UsageError) -> Failure:
     return Failure(message, error.exit_code)
 
 
+class _UndrawableNote:
+    """Echoes the library's note on a scene read with many undrawable splats: once a command (the
+    first such scene), and not when the command was asked to ``--drop-undrawable`` them."""
+
+    def __init__(self):
+        self.shown = False
+
+    def __call__(self, line: str) -> None:
+        ctx = click.get_current_context(silent=True)
+        if self.shown or (ctx is not None and ctx.params.get("drop_undrawable")):
+            return
+        self.shown = True
+        notes([line])
+
+
 #: ``splatconv`` alone shows the help (click 8.2 and later raise this for it).
 _HELP_WITHOUT_ARGUMENTS = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
@@ -142,7 +157,8 @@ class _Commands(click.Group):
 
     def invoke(self, ctx):
         try:
-            return super().invoke(ctx)
+            with noting_undrawable(_UndrawableNote()):
+                return super().invoke(ctx)
         except _HELP_WITHOUT_ARGUMENTS:
             raise
         except click.UsageError as e:
