@@ -13,8 +13,8 @@ from splatconv.cli import main
 from splatconv.errors import UsageError
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import filters
-from splatconv.ops import (EditPlan, apply_edits, apply_transform, crop, drop_nonfinite, make_transform, max_splats,
-                           min_opacity, trim)
+from splatconv.ops import (EditPlan, apply_edits, apply_transform, crop, drop_nonfinite, drop_undrawable,
+                           make_transform, max_splats, min_opacity, trim)
 from tests.ops_helpers import moving_scene
 
 
@@ -240,6 +240,8 @@ PLANS = [
     EditPlan(drop_nonfinite=True, trim=(0.2, 0.7), crop=((-2, -1.5, -1), (2, 1.5, 1.5)), min_opacity=0.3,
              max_splats=150, transform=make_transform((1, 0, -2), "y:30", 1.5)),
     EditPlan(drop_nonfinite=True, min_opacity=0.5),
+    EditPlan(drop_undrawable=True, drop_nonfinite=True, trim=(0.1, 0.9), max_splats=150),
+    EditPlan(drop_undrawable=True),
     EditPlan(crop=((-1, -1, -1), (1, 1, 1)), max_splats=50),
     EditPlan(max_splats=10_000),
     EditPlan(transform=make_transform(None, "x:180", None)),
@@ -250,8 +252,13 @@ PLANS = [
 @pytest.mark.parametrize("plan", PLANS)
 def test_pipeline_equals_ops_in_order(plan):
     scene = laden(seed=2)
+    for name in ("rot_0", "rot_1", "rot_2", "rot_3", "omega_0", "omega_1", "omega_2", "omega_3"):
+        scene.columns[name][100:400] = 0.0  # zero rotations, as trained scenes hold: undrawable
     out, reports = apply_edits(scene, plan)
     step, expected = scene, []
+    if plan.drop_undrawable:
+        step, r = drop_undrawable(step)
+        expected.append(r)
     if plan.drop_nonfinite:
         step, r = drop_nonfinite(step)
         expected.append(r)
