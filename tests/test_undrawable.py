@@ -373,3 +373,51 @@ def test_the_splats_kept_are_drawn(renderer):
             b = renderer.draw(view, float(t), order=carried(order, index, int(keep.sum()), 0))
             changed += not np.array_equal(a, b)
         assert changed, planted
+
+
+def with_anchors(scene: Scene) -> Scene:
+    """``scene`` with two drawable splats that hold the viewer's depth range and its record 0.
+
+    One far ahead (faint, large: the most important splat, so record 0 of the .splatv)
+    and one far behind the camera (never on screen). The nearest and the farthest record
+    from either camera are then drawable splats, in both files.
+    """
+    extra = {name: np.zeros(2, np.float32) for name in COLUMNS}
+    extra["x"][:], extra["y"][:], extra["z"][:] = 0.3, -0.2, [1000.0, -1000.0]
+    extra["rot_0"][:] = 1.0
+    for i in range(3):
+        extra[f"scale_{i}"][:] = np.log(50.0)
+        extra[f"f_dc_{i}"][:] = 0.5
+    extra["opacity"][:] = np.log(3.0 / 252.0)  # alpha byte 3
+    extra["trbf_center"][:], extra["trbf_scale"][:] = 0.5, np.log(1e4)
+    cols = {name: np.concatenate([scene.columns[name], extra[name]]) for name in COLUMNS}
+    return Scene(cols, cameras=scene.cameras)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_with_drawable_depth_extremes_the_viewer_draws_the_same_frames(renderer, tmp_path, seed):
+    """The viewer's own draw order on both files: identical frames once the records that set its depth
+    range and record 0 are drawable splats (what the order-holding test above leaves to chance)."""
+    scene, rows = real_scene(600, seed)
+    scene = with_anchors(scene)
+    scene.cameras = [dict(CAMERA), dict(SIDE)]
+    full_path, kept_path = tmp_path / "full.splatv", tmp_path / "kept.splatv"
+    unpadded_splatv(scene, full_path)
+    assert run("convert", full_path, kept_path, "--drop-undrawable").exit_code == 0
+    full, full_scene = io.read_texture(full_path)
+    kept, kept_scene = io.read_texture(kept_path)
+    assert kept_scene.count == 602 - len(rows.undrawable)
+    assert np.array_equal(full[0], kept[0])  # record 0: the far anchor in both
+    for camera in scene.cameras:
+        view = view_of(camera)
+        for t in TIMES:
+            frames = []
+            for records, decoded in ((full, full_scene), (kept, kept_scene)):
+                renderer.load_records(records)
+                texture = renderer.draw(view, float(t))
+                renderer.load_float(float_attributes(decoded, None, len(records)))
+                frames.append((texture, renderer.draw(view, float(t))))
+            where = f"camera {camera['id']} t={t:g}"
+            assert coverage(frames[0][0]) > 0.2, where
+            assert np.array_equal(frames[0][0], frames[1][0]), "texture " + where
+            assert np.array_equal(frames[0][1], frames[1][1]), "float " + where
