@@ -68,7 +68,8 @@ class Fraction(click.ParamType):
 _POSITIVE_SCALE = click.FloatRange(min=0, min_open=True)
 
 #: Option names of the edits, in :data:`splatconv.ops.ORDER`.
-EDIT_KEYS = ("drop_undrawable", "drop_nonfinite", "trim", "crop", "min_opacity", "max_splats", "translate", "rotate", "scale")
+EDIT_KEYS = ("drop_undrawable", "drop_nonfinite", "trim", "crop", "min_opacity", "max_splats", "translate", "rotate",
+             "scale")
 
 
 #: The edit example added to the command's Example block.
@@ -136,7 +137,8 @@ def plan_of(values: dict) -> EditPlan | None:
         transform = make_transform(v["translate"], v["rotate"], v["scale"])
     crop = None if v["crop"] is None else (v["crop"][:3], v["crop"][3:])
     plan = EditPlan(drop_undrawable=bool(v["drop_undrawable"]), drop_nonfinite=bool(v["drop_nonfinite"]),
-                    trim=v["trim"], crop=crop, min_opacity=v["min_opacity"], max_splats=v["max_splats"], transform=transform)
+                    trim=v["trim"], crop=crop, min_opacity=v["min_opacity"], max_splats=v["max_splats"],
+                    transform=transform)
     return None if plan.empty else plan
 
 

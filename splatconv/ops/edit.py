@@ -76,7 +76,8 @@ class EditPlan:
     def empty(self) -> bool:
         """Whether the plan changes nothing."""
         return (not self.drop_undrawable and not self.drop_nonfinite and self.trim is None and self.crop is None
-                and self.min_opacity is None and self.max_splats is None and (self.transform is None or self.transform.is_identity))
+                and self.min_opacity is None and self.max_splats is None
+                and (self.transform is None or self.transform.is_identity))
 
 
 def _masks(columns: dict, wanted: dict) -> dict:

@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import viewer
 from ..errors import UsageError
-from ..model import COLOR, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
+from ..model import COLOR, COLUMNS, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
 from ..wording import kinds_text, plural
 from ._table import blockwise, derive, gather, keep_rows, run_blocks
 from .report import OpReport
@@ -45,13 +45,9 @@ NAN_GROUPS = {g: names for g, (names, kept) in NONFINITE_RULES.items() if len(ke
 # --------------------------------------------------------------------------
 # drop-undrawable
 
-#: Columns :func:`splatconv.viewer.undrawable_kinds` reads.
-_UNDRAWABLE_COLUMNS = ROTATION + OMEGA + POSITION + MOTION + ("opacity", "trbf_center", "trbf_scale")
-
-
 def undrawable_kinds(columns: dict) -> np.ndarray:
     """:func:`splatconv.viewer.undrawable_kinds` of every row, a block at a time: ``(N,) int8``."""
-    return blockwise(viewer.undrawable_kinds, columns, _UNDRAWABLE_COLUMNS, dtype=np.int8)
+    return blockwise(viewer.undrawable_kinds, columns, COLUMNS, dtype=np.int8)
 
 
 def undrawable_report(kinds: np.ndarray, alive: np.ndarray | None = None) -> OpReport:
