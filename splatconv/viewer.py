@@ -336,10 +336,11 @@ def undrawable(cols: dict) -> np.ndarray:
 
 def undrawable_counts(cols: dict) -> dict:
     """Undrawable splats by kind: ``{kind: int}`` in :data:`UNDRAWABLE_KINDS` order, each splat under one kind."""
-    return _counts(undrawable_kinds(cols))
+    return kind_counts(undrawable_kinds(cols))
 
 
-def _counts(code: np.ndarray) -> dict:
+def kind_counts(code: np.ndarray) -> dict:
+    """Codes ``(N,) int8`` of :func:`undrawable_kinds` or :func:`not_drawn_kinds_at` as ``{kind: int}``, every kind."""
     counts = np.bincount(code.astype(np.intp) + 1, minlength=len(UNDRAWABLE_KINDS) + 1)
     return {kind: int(counts[i + 1]) for i, kind in enumerate(UNDRAWABLE_KINDS)}
 
@@ -404,7 +405,7 @@ def drawn_at(cols: dict, t: float) -> np.ndarray:
 
 def not_drawn_counts_at(cols: dict, t: float) -> dict:
     """Splats not drawn at ``t`` by kind: ``{kind: int}`` in :data:`UNDRAWABLE_KINDS` order."""
-    return _counts(not_drawn_kinds_at(cols, t))
+    return kind_counts(not_drawn_kinds_at(cols, t))
 
 
 # --------------------------------------------------------------------------

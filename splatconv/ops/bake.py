@@ -155,7 +155,7 @@ def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Sc
         out[name][:] = 0.0
     out["trbf_center"][:] = model.STATIC_TRBF_CENTER
     out["trbf_scale"][:] = model.STATIC_TRBF_SCALE
-    counts = viewer.not_drawn_counts_at(cols, t)
+    counts = viewer.kind_counts(kinds)
     counts["faded"] = int(np.count_nonzero(kept_temporal < 1.0))
     counts.update(finite_stand_ins(out))
     notes = [f"baked at t={t:g}: {m:,} of {plural(n, 'splat')} drawn"]
