@@ -291,3 +291,26 @@ def test_bake_command_on_a_real_file_writes_no_nan_and_no_zero_quaternion(tmp_pa
         assert np.isfinite(records["xyz"]).all() and np.isfinite(records["scale"]).all()
         assert np.count_nonzero((records["scale"] == 0).any(axis=1)) == np.count_nonzero(flat)
         assert (records["rgba"][:, 3] > 0).all()
+
+
+def test_bake_frames_of_a_real_file(tmp_path, real):
+    """A flipbook of .splat frames with --drop-nonfinite: each frame only what is drawn then, all finite, no zero
+    quaternion, and each frame's note says what was left out."""
+    scene, _rows = real
+    src = tmp_path / "real.splatv"
+    unpadded_splatv(scene, src)
+    read = io.read(src)
+    out = tmp_path / "flip"
+    r = CliRunner().invoke(main, ["bake", str(src), str(out), "--frames", "3", "--frame-suffix", ".splat",
+                                  "--drop-nonfinite"])
+    assert r.exit_code == 0, r.output
+    for k, t in enumerate((0.0, 0.5, 1.0)):
+        drawn = viewer.drawn_at(read.columns, t)
+        records = np.frombuffer((out / f"frame_000{k}.splat").read_bytes(), dtype=SPLAT_RECORD)
+        assert len(records) == np.count_nonzero(drawn)  # the huge positions are finite: none dropped
+        assert not (records["rot"] == 128).all(axis=1).any()
+        assert np.isfinite(records["xyz"]).all() and np.isfinite(records["scale"]).all()
+        assert (f"note: frame_000{k}.splat: left out {np.count_nonzero(~drawn):,} splats the viewer does not draw "
+                f"at t={t:g} (") in r.stderr
+        assert (f"note: frame_000{k}.splat: drop-nonfinite: removed 0 of {np.count_nonzero(drawn):,} splats"
+                in r.stderr)
