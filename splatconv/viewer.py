@@ -336,8 +336,76 @@ def undrawable(cols: dict) -> np.ndarray:
 
 def undrawable_counts(cols: dict) -> dict:
     """Undrawable splats by kind: ``{kind: int}`` in :data:`UNDRAWABLE_KINDS` order, each splat under one kind."""
-    counts = np.bincount(undrawable_kinds(cols).astype(np.intp) + 1, minlength=len(UNDRAWABLE_KINDS) + 1)
+    return kind_counts(undrawable_kinds(cols))
+
+
+def kind_counts(code: np.ndarray) -> dict:
+    """Codes ``(N,) int8`` of :func:`undrawable_kinds` or :func:`not_drawn_kinds_at` as ``{kind: int}``, every kind."""
+    counts = np.bincount(code.astype(np.intp) + 1, minlength=len(UNDRAWABLE_KINDS) + 1)
     return {kind: int(counts[i + 1]) for i, kind in enumerate(UNDRAWABLE_KINDS)}
+
+
+# --------------------------------------------------------------------------
+# Drawn at one time: the same kinds, at one t instead of over all of [0, 1].
+
+#: Smallest normal float32: the shader's float32 ``dot(rot, rot)`` below it is 0 or
+#: subnormal (which GPUs may flush to 0), and ``rot / sqrt(dot(rot, rot))`` has no direction.
+_F32_TINY = float(np.finfo(np.float32).tiny)
+
+
+def rotation_has_no_direction(q: np.ndarray) -> np.ndarray:
+    """Rows of quaternions ``(N, 4)`` the shader cannot normalise: ``(N,) bool``.
+
+    Zero, NaN or infinite, or so short that the shader's float32 ``dot(rot, rot)``
+    is 0 or subnormal: ``rot /= sqrt(dot(rot, rot))`` then gives NaN or infinity
+    (or, flushed, 0/0), not a rotation. Every other row normalises to a finite unit
+    quaternion, whose largest component is at least 0.5 in size.
+    """
+    q = wide(q)
+    with np.errstate(over="ignore", invalid="ignore"):
+        length2 = (q * q).sum(axis=1)
+    return ~(length2 >= _F32_TINY) | ~np.isfinite(length2)
+
+
+def not_drawn_kinds_at(cols: dict, t: float) -> np.ndarray:
+    """Why the viewer does not draw each splat at time ``t``: ``(N,) int8``.
+
+    The index in :data:`UNDRAWABLE_KINDS` of the first kind that applies at ``t``,
+    or :data:`DRAWABLE` (-1):
+
+    ``zero_rotation``: the rotation at ``t``, rot + omega dt, has no direction
+    (:func:`rotation_has_no_direction`: zero, NaN or infinite).
+    ``nan_position``: the position at ``t`` (:func:`position_at`) is NaN.
+    ``alpha_zero``: the alpha byte is 0 (:func:`alpha_zero`), or the splat passes
+    the temporal cut at ``t`` but sigmoid(opacity) * temporal opacity * 255 rounds
+    to 0, or the temporal opacity is NaN (a NaN trbf centre or scale): blended
+    into 8-bit pixels, an alpha below half a step changes none of them.
+    ``hidden_in_time``: the temporal opacity at ``t`` is below the 0.02 cut.
+
+    Every undrawable splat (:func:`undrawable_kinds`) is not drawn at any ``t`` in
+    [0, 1]. The maths is float64; at the one instant where a spinning rotation
+    passes through zero, the shader's float32 sum may not be exactly zero.
+    """
+    n = len(cols["x"])
+    code = np.full(n, DRAWABLE, dtype=np.int8)
+    temporal = temporal_opacity(cols, t, cut=False)
+    hidden = temporal < TEMPORAL_CUTOFF
+    faint = ~hidden & ~(np.rint(opacity(cols) * temporal * 255.0) > 0)  # NaN included
+    tests = (lambda: rotation_has_no_direction(rotation_at(cols, t, normalize=False)),
+             lambda: np.isnan(position_at(cols, t)).any(axis=1), lambda: alpha_zero(cols) | faint, lambda: hidden)
+    for kind, test in enumerate(tests):
+        code[(code == DRAWABLE) & test()] = kind
+    return code
+
+
+def drawn_at(cols: dict, t: float) -> np.ndarray:
+    """Rows the viewer draws at time ``t``: ``(N,) bool`` (see :func:`not_drawn_kinds_at`)."""
+    return not_drawn_kinds_at(cols, t) == DRAWABLE
+
+
+def not_drawn_counts_at(cols: dict, t: float) -> dict:
+    """Splats not drawn at ``t`` by kind: ``{kind: int}`` in :data:`UNDRAWABLE_KINDS` order."""
+    return kind_counts(not_drawn_kinds_at(cols, t))
 
 
 # --------------------------------------------------------------------------

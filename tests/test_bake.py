@@ -19,7 +19,7 @@ from splatconv.cameras import load_cameras
 from splatconv.cli import main
 from splatconv.formats import base
 from splatconv.model import Scene
-from splatconv.ops.bake import bake, baked_opacity, frame_times
+from splatconv.ops.bake import KIND_WORDS, bake, baked_opacity, frame_times
 from splatconv.render import camera as cam
 from splatconv.render.diff import compare
 from splatconv.render.frames import render_scene
@@ -104,16 +104,19 @@ def test_baked_ply_is_plain_3dgs(sample, tmp_path):
 
 
 def test_baked_values(sample):
-    """Positions and rotations at t, opacity x temporal opacity, static basis, hidden removed."""
+    """Positions and rotations at t, opacity x temporal opacity, static basis, only what is drawn at t."""
     t = 0.3
     baked, report = bake(sample, t)
-    temporal = viewer.temporal_opacity(sample.columns, t, cut=False)
-    keep = temporal >= viewer.TEMPORAL_CUTOFF
-    assert report.counts["hidden"] == np.count_nonzero(~keep) > 0
+    keep = viewer.drawn_at(sample.columns, t)
+    hidden = viewer.temporal_opacity(sample.columns, t, cut=False) < viewer.TEMPORAL_CUTOFF
+    left_out = {k: report.counts[k] for k in viewer.UNDRAWABLE_KINDS}
+    assert left_out == viewer.not_drawn_counts_at(sample.columns, t)
+    assert sum(left_out.values()) == sample.count - baked.count == np.count_nonzero(~keep)
+    assert 0 < left_out["hidden_in_time"] <= np.count_nonzero(hidden) <= np.count_nonzero(~keep)
     part = sample.take(np.flatnonzero(keep))
     assert np.allclose(viewer.positions(baked.columns), viewer.position_at(part, t), atol=1e-6)
     assert np.allclose(viewer.rotation_at(baked.columns, 0.0), viewer.rotation_at(part, t), atol=1e-6)
-    want = viewer.opacity(part) * temporal[keep]
+    want = viewer.opacity(part) * viewer.temporal_opacity(part, t)
     assert np.allclose(viewer.opacity(baked.columns), want, rtol=1e-6, atol=1e-9)
     for name in model.MOTION + model.OMEGA:
         assert not baked.columns[name].any()
@@ -143,27 +146,35 @@ def test_baked_opacity_is_precise_at_the_extremes():
 
 
 def test_nan_and_infinite_values():
-    """A NaN trbf centre or scale has no opacity at any time: removed and counted; an infinite scale is kept."""
+    """NaN times, NaN positions: left out and counted; infinities the viewer gives a meaning to: finite stand-ins."""
     cols = random_columns(200, seed=3)
-    cols["trbf_center"][:5] = np.nan
-    cols["trbf_scale"][5:8] = np.nan
+    cols["trbf_center"][:] = 0.4
+    cols["opacity"][:] = 3.0
+    cols["trbf_center"][:5] = np.nan  # NaN dt: the rotation at t is NaN first
+    cols["trbf_scale"][5:8] = np.nan  # NaN temporal opacity: NaN alpha, stored as 0
     cols["trbf_scale"][8:10] = np.inf  # visible at every time
-    cols["x"][10:12] = np.nan  # kept as the viewer would draw it (--drop-nonfinite removes it)
+    cols["x"][10:12] = np.nan  # drawn nowhere
     cols["opacity"][12:14] = np.inf
-    cols["trbf_scale"][12] = np.inf  # temporal opacity 1: opacity stays infinite
-    cols["x"][13] = 123.0  # temporal opacity a little under 1: sigmoid(inf) * that, finite
-    cols["trbf_center"][10:14] = 0.4  # visible at the baked time
+    cols["trbf_scale"][12] = np.inf  # temporal opacity 1: opacity stays infinite, written as 40
+    cols["trbf_center"][13] = 0.41  # temporal opacity a little under 1: sigmoid(inf) * that, finite
+    cols["scale_2"][14] = -np.inf  # flat: drawn
+    cols["f_dc_1"][15] = np.inf
+    cols["f_dc_2"][16] = -np.inf
     scene = Scene(columns=cols)
     baked, report = bake(scene, 0.4)
-    assert report.counts["undefined"] == 8
-    assert report.counts["hidden"] == np.count_nonzero(viewer.temporal_opacity(cols, 0.4, cut=False) < 0.02)
-    assert baked.count == 200 - 8 - report.counts["hidden"]
-    assert any("NaN trbf" in n for n in report.notes)
-    assert np.isnan(baked.columns["x"]).sum() == 2
-    assert np.isinf(baked.columns["opacity"]).sum() == 1
-    i = np.flatnonzero(baked.columns["x"] == 123.0)[0]
-    assert viewer.opacity(baked.columns)[i] == pytest.approx(
-        viewer.temporal_opacity(cols, 0.4)[13], rel=1e-6)
+    assert baked.count == 200 - 10
+    assert any(n.startswith("left out 10 splats the viewer does not draw at t=0.4 (rotation with no direction 5, "
+                            "NaN position 2, alpha 0 3)") for n in report.notes)
+    b = baked.columns
+    for name in model.POSITION + model.ROTATION + model.SCALE + model.COLOR + ("opacity",):
+        assert np.isfinite(b[name]).all(), name
+    assert report.counts["opaque"] == 1 and np.count_nonzero(b["opacity"] == 40.0) == 1
+    assert viewer.opacity(b)[b["opacity"] == 40.0][0] == 1.0
+    i = int(np.searchsorted(np.flatnonzero(viewer.drawn_at(cols, 0.4)), 13))  # baking keeps the row order
+    assert viewer.opacity(b)[i] == pytest.approx(viewer.temporal_opacity(cols, 0.4)[13], rel=1e-6)
+    assert report.counts["flat"] == 1 and np.count_nonzero(b["scale_2"] == -120.0) == 1
+    assert np.count_nonzero(viewer.scales(b).astype(np.float32) == 0) == 1  # still flat in float32
+    assert report.counts["color"] == 2 and b["f_dc_1"].max() == 1.0 and b["f_dc_2"].min() == 0.0
 
 
 def test_frame_times():
@@ -186,8 +197,11 @@ def test_bake_command_writes_a_3dgs_ply(tmp_path, sample_splatv, sample):
     assert r.exit_code == 0, r.output
     assert r.stdout.startswith(f"wrote {out}: ")
     src = io.read(sample_splatv)
-    hidden = np.count_nonzero(viewer.temporal_opacity(src.columns, 0.77, cut=False) < 0.02)
-    assert f"note: {hidden:,} splats hidden at t=0.77 (temporal opacity below 0.02) removed\n" in r.stderr
+    counts = viewer.not_drawn_counts_at(src.columns, 0.77)
+    assert counts["hidden_in_time"] > 0
+    kinds = ", ".join(f"{w} {counts[k]:,}" for k, w in KIND_WORDS.items() if counts[k])
+    assert (f"note: left out {sum(counts.values()):,} splats the viewer does not draw at t=0.77 ({kinds}): "
+            "the viewer draws none of them then, so no pixel is lost\n") in r.stderr
     back = io.read(out)
     assert back.variant == model.VARIANT_3DGS and len(back.cameras) == 3
     assert psnr(draw(src, 0.77), draw(back, 0.0)) >= 50
@@ -280,21 +294,34 @@ def test_write_sequence_leaves_nothing_when_a_scene_fails(tmp_path, sample):
 
 
 def test_bake_drop_nonfinite(tmp_path):
-    """NaN positions are drawn nowhere by the viewer but break 3DGS tools: --drop-nonfinite removes them first."""
+    """Infinite positions and scales and NaN colours are drawn (or not) by the viewer but break 3DGS tools:
+    --drop-nonfinite removes them from what is written, and every value written is then finite."""
     cols = random_columns(100, seed=12)
     cols["trbf_center"][:] = 0.5
-    cols["x"][:3] = np.nan
+    cols["opacity"][:] = 3.0
+    cols["x"][:3] = np.inf
+    cols["scale_0"][3] = np.inf
+    cols["f_dc_0"][4] = np.nan
+    cols["motion_0"][5] = np.float32(3e38)
+    cols["x"][5] = np.float32(3e38)  # finite, but the position at t overflows float32
+    cols["trbf_center"][5] = 0.0
+    cols["scale_1"][6] = -np.inf  # flat: finite when written, and kept
     src = tmp_path / "nan.ply"
     io.write(Scene(columns=cols), src)
     kept = tmp_path / "kept.ply"
     assert run("bake", src, kept, "--time", "0.5").exit_code == 0
-    assert np.isnan(io.read(kept).columns["x"]).sum() == 3
+    assert np.isinf(io.read(kept).columns["x"]).sum() == 4
     clean = tmp_path / "clean.ply"
     r = run("bake", src, clean, "--time", "0.5", "--drop-nonfinite")
     assert r.exit_code == 0, r.output
-    assert "note: drop-nonfinite: " in r.stderr
-    back = io.read(clean)
-    assert np.isfinite(back.columns["x"]).all() and back.count == io.read(kept).count - 3
+    assert ("note: drop-nonfinite: removed 6 of 100 splats with a NaN or infinite value (position 4, scale 1, "
+            "color 1; a splat may count in several)\n") in r.stderr
+    import plyfile
+
+    v = plyfile.PlyData.read(str(clean))["vertex"].data
+    assert len(v) == 94
+    assert all(np.isfinite(v[name]).all() for name in v.dtype.names)
+    assert np.count_nonzero(v["scale_1"] == -120.0) == 1
 
 
 def test_bake_frames_notes_stale_frames(tmp_path, sample_splatv):

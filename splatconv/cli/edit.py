@@ -123,7 +123,9 @@ def _wrote(path, report) -> None:
     _layout_option("3dgs"),
     _sort_option(),
     color_option(),
-    _drop_option("INPUT"),
+    click.option("--drop-nonfinite", is_flag=True,
+                 help="Also remove baked splats left with a NaN or infinite position, scale or colour, so that every "
+                      "value written is finite (rotations and opacities always are; flat splats are kept)."),
     force_option("OUTPUT (or existing frame files)"),
     quiet_option(),
 )
@@ -132,8 +134,9 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     """Write the scene as the viewer shows it at one time, as a static scene.
 
     Positions and rotations at that time, opacity times the temporal opacity,
-    no motion; splats the viewer hides then (temporal opacity below 0.02) are
-    removed. The result shows that moment at every time. OUTPUT is a 3DGS PLY
+    no motion; only splats the viewer draws then are written (a note counts the
+    others: no direction of rotation, NaN position, alpha 0, temporal opacity
+    below 0.02). The result shows that moment at every time. OUTPUT is a 3DGS PLY
     (what 3DGS tools and web viewers open) or an antimatter15 .splat (or a
     .splatv); the format comes from its extension.
 
@@ -148,20 +151,21 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     if frames is None:
         io.check_write_options(output_path, sort=sort, layout=layout)
         check_output(output_path, [input_path], force)
-        scene = _read(input_path, color, drop_nonfinite, quiet)
+        scene = _read(input_path, color, False, quiet)
         notes(scene.notes)
-        baked, report = bake_ops.bake(scene, time)
+        baked, report = bake_ops.bake(scene, time, drop_nonfinite=drop_nonfinite)
         notes(report.notes)
         written = io.write(baked, output_path, sort=sort, layout=layout, force=force, inputs=[input_path],
                            progress=progress(quiet))
         notes(written.notes)
         _wrote(output_path, written)
         return
-    scene = _read(input_path, color, drop_nonfinite, quiet)
+    scene = _read(input_path, color, False, quiet)
     notes(scene.notes)
     names = bake_ops.frame_names(frames, frame_suffix)
     moments = list(bake_ops.frame_times(frames))
-    baked = (b for _t, b, _r in _report_each(bake_ops.bake_frames(scene, frames), names))
+    baked = (b for _t, b, _r in _report_each(bake_ops.bake_frames(scene, frames, drop_nonfinite=drop_nonfinite),
+                                             names))
     reports = io.write_sequence(baked, output_path, names, sort=sort, layout=layout, force=force,
                                 inputs=[input_path], progress=progress(quiet))
     for name, report in zip(names, reports):

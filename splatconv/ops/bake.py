@@ -2,8 +2,7 @@
 
 At time ``t`` the viewer draws each splat (see :mod:`splatconv.viewer`) at
 ``position_at(t)``, turned by ``rotation_at(t)``, with opacity
-``sigmoid(opacity) * temporal_opacity(t)``, and skips it when the temporal
-opacity is below the 0.02 cut. The baked splat holds exactly those values:
+``sigmoid(opacity) * temporal_opacity(t)``. The baked splat holds exactly those values:
 
 * position and rotation at ``t`` (the rotation normalised, as the viewer uses it);
 * opacity logit(sigmoid(opacity) * temporal opacity), computed in log space so
@@ -14,10 +13,15 @@ opacity is below the 0.02 cut. The baked splat holds exactly those values:
   temporal opacity above 0.999999 at every time in [0, 1]), so the baked
   scene shows the same picture at every time, at full baked opacity.
 
-Splats under the cut at ``t`` are removed, and so are splats whose temporal
-opacity is NaN (a NaN trbf centre or scale: the viewer's drawing of them is
-undefined). Everything else is kept as the viewer would draw it, NaN
-positions included (``--drop-nonfinite`` removes those).
+Only splats the viewer draws at ``t`` are baked (:func:`splatconv.viewer.not_drawn_kinds_at`:
+a rotation with no direction, a NaN position, an alpha byte of 0, below the
+temporal cut): so no zero or NaN quaternion is ever written, and a scene with or
+without splats the viewer never draws bakes to the same rows. Infinities the
+viewer gives a meaning to are written as finite values every reader decodes to
+the same thing (:data:`FLAT_LOG_SCALE` for a flat splat's log scale, and see
+:func:`finite_stand_ins`), so that readers which drop non-finite rows keep them.
+Everything else is kept as the viewer would draw it, infinite positions included
+(``drop_nonfinite`` removes those).
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from .. import model, viewer
 from ..errors import UsageError
 from ..model import Scene
 from ..wording import plural
+from . import filters
 from .report import OpReport
 
 
@@ -50,13 +55,29 @@ def frame_times(count: int) -> np.ndarray:
     return np.arange(count, dtype=np.float64) / (count - 1)
 
 
+#: The log scale a flat splat (linear scale exactly 0, log scale -inf) is baked
+#: with: exp(-120) = 7.7e-53 is 0 in float32 and in every narrower format (a
+#: ``.splat``'s float32 linear scales, the viewer's half floats), so every reader
+#: draws the splat as flat as the viewer does; -inf would be as exact, but readers
+#: that drop rows with a non-finite value (splat-transform's NaN filter) lose it.
+FLAT_LOG_SCALE = -120.0
+#: The opacity logit an opacity of +inf is baked with: sigmoid(40) is 1 in float64
+#: and float32, as sigmoid(inf) is.
+OPAQUE_LOGIT = 40.0
+#: How a note names each kind of splat not drawn (:data:`splatconv.viewer.UNDRAWABLE_KINDS`).
+KIND_WORDS = {"zero_rotation": "rotation with no direction", "nan_position": "NaN position",
+              "alpha_zero": "alpha 0", "hidden_in_time": f"temporal opacity below {viewer.TEMPORAL_CUTOFF}"}
+
+
 @dataclass
 class BakeReport(OpReport):
     """What baking did: an :class:`~splatconv.ops.report.OpReport` (``op`` ``"bake"``) and the time.
 
-    ``counts``: ``hidden``, splats under the viewer's 0.02 cut at ``time``;
-    ``undefined``, splats with a NaN temporal opacity (both removed);
-    ``faded``, kept splats whose opacity the temporal opacity lowered.
+    ``counts``: splats left out because the viewer does not draw them at ``time``,
+    by kind (the keys of :data:`KIND_WORDS`); ``faded``, kept splats whose opacity
+    the temporal opacity lowered; ``flat``, ``opaque`` and ``color``, splats whose
+    infinities :func:`finite_stand_ins` wrote as finite values; ``nonfinite``,
+    splats ``drop_nonfinite`` removed from the baked scene.
     """
 
     time: float = 0.0
@@ -84,7 +105,7 @@ def baked_opacity(opacity: np.ndarray, temporal: np.ndarray) -> np.ndarray:
     return np.where(temporal == 1.0, x, out)
 
 
-def bake(scene: Scene, time: float) -> tuple[Scene, BakeReport]:
+def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Scene, BakeReport]:
     """The scene as the viewer shows it at ``time``, as a static scene.
 
     Parameters
@@ -92,12 +113,17 @@ def bake(scene: Scene, time: float) -> tuple[Scene, BakeReport]:
     scene : Scene
     time : float
         Scene time; the viewer plays [0, 1] (other finite times are allowed).
+    drop_nonfinite : bool
+        Also remove baked splats with a NaN or infinite value left in what is
+        written (:func:`splatconv.ops.filters.drop_nonfinite` on the baked scene:
+        positions, scales, colours; rotations and opacities are finite by then).
 
     Returns
     -------
     (Scene, BakeReport)
         The baked scene (variant :data:`splatconv.model.VARIANT_3DGS`, the
-        input's cameras) and what was removed. The input is not changed.
+        input's cameras), only of splats the viewer draws at ``time``, and what
+        was left out. The input is not changed.
 
     Raises
     ------
@@ -109,16 +135,14 @@ def bake(scene: Scene, time: float) -> tuple[Scene, BakeReport]:
         raise UsageError(f"--time {time}: not a finite number")
     cols = scene.columns
     n = scene.count
-    temporal = viewer.temporal_opacity(cols, t, cut=False)
-    undefined = np.isnan(temporal)
-    hidden = temporal < viewer.TEMPORAL_CUTOFF
-    keep = np.flatnonzero(~(hidden | undefined))
+    kinds = viewer.not_drawn_kinds_at(cols, t)
+    keep = np.flatnonzero(kinds == viewer.DRAWABLE)
     part = _rows_of(cols, keep if len(keep) < n else None)
     m = len(keep)
     _rows, out = model.lite_rows(m)
     position = viewer.position_at(part, t)
     rotation = viewer.rotation_at(part, t)
-    kept_temporal = temporal[keep]
+    kept_temporal = viewer.temporal_opacity(part, t, cut=False)
     with np.errstate(over="ignore", invalid="ignore"):
         for i, name in enumerate(model.POSITION):
             out[name][:] = position[:, i]
@@ -131,17 +155,65 @@ def bake(scene: Scene, time: float) -> tuple[Scene, BakeReport]:
         out[name][:] = 0.0
     out["trbf_center"][:] = model.STATIC_TRBF_CENTER
     out["trbf_scale"][:] = model.STATIC_TRBF_SCALE
-    counts = {"hidden": int(np.count_nonzero(hidden)), "undefined": int(np.count_nonzero(undefined)),
-              "faded": int(np.count_nonzero(kept_temporal < 1.0))}
-    notes = [f"baked at t={t:g}: {m:,} of {plural(n, 'splat')} visible"]
-    if counts["hidden"]:
-        notes.append(f"{plural(counts['hidden'], 'splat')} hidden at t={t:g} (temporal opacity below "
-                     f"{viewer.TEMPORAL_CUTOFF}) removed")
-    if counts["undefined"]:
-        notes.append(f"{plural(counts['undefined'], 'splat')} with a NaN trbf centre or scale (no defined opacity at "
-                     "any time) removed")
+    counts = viewer.kind_counts(kinds)
+    counts["faded"] = int(np.count_nonzero(kept_temporal < 1.0))
+    counts.update(finite_stand_ins(out))
+    notes = [f"baked at t={t:g}: {m:,} of {plural(n, 'splat')} drawn"]
+    if m < n:
+        kinds_text = ", ".join(f"{KIND_WORDS[k]} {counts[k]:,}" for k in viewer.UNDRAWABLE_KINDS if counts[k])
+        notes.append(f"left out {n - m:,} splats the viewer does not draw at t={t:g} ({kinds_text}): "
+                     "the viewer draws none of them then, so no pixel is lost")
+    notes.extend(_stand_in_notes(counts))
     baked = Scene(columns=out, cameras=scene.cameras, variant=model.VARIANT_3DGS, meta={"baked_time": t})
-    return baked, BakeReport("bake", n, m, notes, counts, time=t)
+    if drop_nonfinite:
+        baked, dropped = filters.drop_nonfinite(baked)
+        counts["nonfinite"] = dropped.removed
+        notes.extend(dropped.notes)
+    return baked, BakeReport("bake", n, baked.count, notes, counts, time=t)
+
+
+def finite_stand_ins(cols: dict) -> dict:
+    """Write the infinities the viewer gives a meaning to as finite values, in place; how many splats each.
+
+    ``flat``: a log scale of -inf (linear scale 0, a flat splat the viewer
+    draws) becomes :data:`FLAT_LOG_SCALE`; ``opaque``: an opacity of +inf
+    (sigmoid 1) becomes :data:`OPAQUE_LOGIT`; ``color``: a colour of -inf or +inf
+    becomes 0 or 1, as the viewer clamps it. Each decodes to the same value in
+    float32, so the splat draws the same; a non-finite row is dropped by some
+    readers. Other infinities (an infinite position or scale) are left as they are.
+
+    Parameters
+    ----------
+    cols : dict of (N,) float32 ndarray
+        Baked columns, changed in place.
+    """
+    counts = {}
+    for key, names, test, value in (("flat", model.SCALE, lambda v: v == -np.inf, FLAT_LOG_SCALE),
+                                    ("opaque", ("opacity",), lambda v: v == np.inf, OPAQUE_LOGIT),
+                                    ("color", model.COLOR, np.isinf, None)):
+        hit = np.zeros(len(cols["x"]), dtype=bool)
+        for name in names:
+            v = cols[name]
+            rows = test(v)
+            hit |= rows
+            v[rows] = value if value is not None else np.clip(v[rows], 0.0, 1.0)
+        counts[key] = int(np.count_nonzero(hit))
+    return counts
+
+
+def _stand_in_notes(counts: dict) -> list:
+    notes = []
+    if counts["flat"]:
+        notes.append(f"{plural(counts['flat'], 'flat splat')} (a linear scale of exactly 0) written with log scale "
+                     f"{FLAT_LOG_SCALE:g}, not -inf: still 0 in float32, so every reader draws them flat, and "
+                     "readers that drop non-finite rows keep them")
+    if counts["opaque"]:
+        notes.append(f"{plural(counts['opaque'], 'splat')} with opacity +inf written with opacity {OPAQUE_LOGIT:g} "
+                     "(sigmoid 1 either way), which readers that drop non-finite rows keep")
+    if counts["color"]:
+        notes.append(f"{plural(counts['color'], 'splat')} with an infinite colour value written as 0 or 1, as the "
+                     "viewer clamps it")
+    return notes
 
 
 def _rows_of(cols: dict, index) -> dict:
@@ -156,8 +228,8 @@ def _rows_of(cols: dict, index) -> dict:
     return {name: rows[:, f] for name, f in zip(model.COLUMNS, fields)}
 
 
-def bake_frames(scene: Scene, count: int):
-    """Bake ``count`` moments, frame k at time k / (count - 1) (:func:`frame_times`).
+def bake_frames(scene: Scene, count: int, *, drop_nonfinite: bool = False):
+    """Bake ``count`` moments, frame k at time k / (count - 1) (:func:`frame_times`), each as :func:`bake` does.
 
     Returns a generator, so that a caller writing the frames holds one at a time.
 
@@ -172,7 +244,7 @@ def bake_frames(scene: Scene, count: int):
         For fewer than two frames (at once, not on the first frame).
     """
     times = frame_times(count)
-    return ((float(t), *bake(scene, float(t))) for t in times)
+    return ((float(t), *bake(scene, float(t), drop_nonfinite=drop_nonfinite)) for t in times)
 
 
 def frame_names(count: int, suffix: str) -> list:
