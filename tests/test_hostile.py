@@ -101,6 +101,13 @@ HOSTILE_CASES = [
     ("varlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
      b"property list uchar float l\nend_header\n" + struct.pack("<fB2f", 1, 2, 0, 0) + struct.pack("<fB", 1, 9),
      "element 'vertex': row 1: unexpected end of file"),
+    # A list length near 2**31 once reached np.dtype (ValueError: dtype size must fit into a C int).
+    ("biglist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
+     b"property list int float l\nend_header\n" + struct.pack("<fi", 1, 2**31 - 1) + b"\0" * 64,
+     "element 'vertex': row 0: unexpected end of file"),
+    ("biguintlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
+     b"property list uint float l\nend_header\n" + struct.pack("<fI", 1, 2**32 - 1) + b"\0" * 64,
+     "element 'vertex': row 0: unexpected end of file"),
     ("noend.ply", _LITE_HDR.replace(b"end_header\n", b"") + b"\xbf" * 64,
      f"bad header: no end_header line in the first {len(_LITE_HDR) - 11 + 64:,} bytes"),
     ("twovertex.ply", _LITE_HDR.replace(b"end_header\n", b"element vertex 1\nproperty float q\nend_header\n")
