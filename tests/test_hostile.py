@@ -16,6 +16,7 @@ import sys
 import tempfile
 import time
 import warnings
+import zlib
 
 import numpy as np
 import plyfile
@@ -201,6 +202,29 @@ def test_tall_camera_is_drawn_within_the_largest_framebuffer(tmp_path, lite_ply)
     r = run("render", scene, tmp_path / "tall.png")
     assert r.exit_code == 0, r.output
     assert r.stdout == f"wrote {tmp_path / 'tall.png'}: 26x16384, t=0.5\n"
+
+
+def _png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose header claims ``width`` x ``height`` RGB pixels, with no pixel data."""
+    def chunk_(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    return (b"\x89PNG\r\n\x1a\n" + chunk_(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk_(b"IDAT", zlib.compress(b"")) + chunk_(b"IEND", b""))
+
+
+@pytest.mark.parametrize("width, height, message", [
+    # Past Pillow's DecompressionBombError (179M pixels): once a traceback.
+    (20000, 10000, "image has more than the 67,108,864 pixels an image may have"),
+    # Past Pillow's DecompressionBombWarning (89M pixels): once a warning on stderr.
+    (10000, 10000, "image is 10000x10000 (100,000,000 pixels), more than the 67,108,864 pixels an image may have"),
+    (8193, 8192, "image is 8193x8192 (67,117,056 pixels), more than the 67,108,864 pixels an image may have"),
+])
+def test_diff_refuses_images_claiming_too_many_pixels_before_decoding(tmp_path, width, height, message):
+    big = tmp_path / "big.png"
+    big.write_bytes(_png_header_only(width, height))
+    r = subprocess.run([sys.executable, "-m", "splatconv", "diff", big, big], capture_output=True, text=True,
+                       env=dict(os.environ, PYTHONWARNINGS="default"))
+    assert (r.returncode, r.stderr) == (1, f"Error: {big}: {message}\n")
 
 
 # --------------------------------------------------------------------------
