@@ -227,6 +227,24 @@ def test_diff_refuses_images_claiming_too_many_pixels_before_decoding(tmp_path, 
     assert (r.returncode, r.stderr) == (1, f"Error: {big}: {message}\n")
 
 
+def test_segment_budget_past_any_layout_is_capped_and_an_infinite_one_refused(tmp_path):
+    from splatconv.ops.segments import merge_segments
+
+    from .ops_helpers import moving_scene
+    a, b = moving_scene(300, 1), moving_scene(300, 2)
+    # 1e308 x the splats is infinite in floats (once an OverflowError): it buys what any large budget buys.
+    huge, report = merge_segments([a, b], [50, 50], budget=1e308)
+    large, _ = merge_segments([a, b], [50, 50], budget=1e9)
+    assert sum(report.long_lived) > 0 and sum(report.counts_out) > 2 * 600
+    for name in huge.columns:
+        np.testing.assert_array_equal(huge.columns[name], large.columns[name])
+    # An infinite budget is no bound: refused before any input is read (these do not exist).
+    for budget in ("inf", "nan"):
+        r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "o.ply", "--segments", "--budget", budget)
+        assert (r.exit_code, r.stderr) == (2, f"Error: --budget must be a finite number of at least 1, got {budget}\n")
+    assert os.listdir(tmp_path) == []
+
+
 # --------------------------------------------------------------------------
 # Silent data loss
 
