@@ -287,6 +287,14 @@ def splat_count(path: str | os.PathLike) -> int | None:
     return next((count for name, count, *_rest in layout.elements if name == "vertex"), None)
 
 
+def most_splats(path: str | os.PathLike) -> int:
+    """At most the splats :func:`read` gives for ``path``: its header's vertex count (0: one it refuses).
+
+    The count is checked against the file's size (a byte a value at least).
+    """
+    return splat_count(path) or 0
+
+
 def _check_list_types(header, path: str) -> None:
     """A list's length must be an integer type (plyfile takes ``property list float int x``)."""
     for element in header.elements:
