@@ -245,6 +245,31 @@ def test_segment_budget_past_any_layout_is_capped_and_an_infinite_one_refused(tm
     assert os.listdir(tmp_path) == []
 
 
+def test_frame_sequence_past_float32_is_noted_not_warned(tmp_path):
+    from splatconv.model import Scene
+
+    from .ops_helpers import moving_scene
+    base = moving_scene(50, 0).columns
+    for k in range(4):
+        cols = {name: np.array(v) for name, v in base.items()}
+        for name in cols:
+            if name.startswith(("motion", "omega")):
+                cols[name][:] = 0
+        cols["x"] += np.float32(0.01 * k)
+        cols["x"][3] = np.float32(3e38 if k % 2 == 0 else -3e38)  # a splat swinging across float32's range
+        splatconv.write(Scene(cols), tmp_path / f"f{k}.ply")
+    out = tmp_path / "clip.ply"
+    # Once numpy's "overflow encountered in cast" on stderr (an error here), and infinite terms without a word.
+    r = run("convert", str(tmp_path / "f*.ply"), out)
+    assert r.exit_code == 0, r.output
+    written = splatconv.read(out).columns
+    past = {name: int(np.isinf(written[name]).sum()) for name in written if np.isinf(written[name]).any()}
+    assert past and set(np.flatnonzero(np.isinf(written["motion_0"]))) == {3}
+    said = ", ".join(f"{name} {n:,}" for name, n in past.items())
+    assert (f"note: {sum(past.values())} fitted values past float32's range (3.4e38) stored as infinite ({said}): "
+            "frames with coordinates that large\n") in r.stderr
+
+
 # --------------------------------------------------------------------------
 # Silent data loss
 
