@@ -270,6 +270,19 @@ def test_frame_sequence_past_float32_is_noted_not_warned(tmp_path):
             "frames with coordinates that large\n") in r.stderr
 
 
+@pytest.mark.parametrize("scale, shown", [("1e-320", "1e-320"), ("1e-39", "1e-39")])
+def test_scale_below_float32s_smallest_normal_is_refused(tmp_path, lite_ply, scale, shown):
+    # 1e-320 once collapsed every position to 0 without a note.
+    out = tmp_path / "o.ply"
+    for args in (["convert", lite_ply, out, "--scale", scale], ["merge", lite_ply, lite_ply, out, "--scale",
+                                                                 f"1:{scale}"]):
+        r = run(*args)
+        assert (r.exit_code, r.stderr) == (2, f"Error: --scale: {shown} is below float32's smallest normal number "
+                                              "(1.18e-38): positions would collapse to 0\n")
+    assert not out.exists()
+    assert run("convert", lite_ply, out, "--scale", "1.2e-38").exit_code == 0
+
+
 # --------------------------------------------------------------------------
 # Silent data loss
 
