@@ -278,6 +278,10 @@ def test_convert_html_refusals(sample, tmp_path):
     ("1,x", "--durations: expected comma-separated numbers, got '1,x'"),
     ("1,0", "--durations: every duration must be a positive finite number"),
     ("1,nan", "--durations: every duration must be a positive finite number"),
+    # Once accepted: the page's total was infinite, every segment's share 0.
+    ("1e308,1e308", "--durations: they add up to more than the largest double (1.8e+308), the page's arithmetic: "
+                    "give smaller numbers"),
+    ("1e-300,1e300", "--durations: segment 0's share of the timeline (1e-300 of 1e+300) rounds to nothing"),
 ])
 def test_bad_durations_are_usage_errors(sample, tmp_path, durations, message):
     for args in (("view", sample, sample, "--no-open"), ("convert", sample, sample, tmp_path / "c.html")):
