@@ -78,7 +78,8 @@ def check_memory(module, plain, path) -> None:
     :data:`SPLAT_MEMORY_BYTES` a splat in memory, 2 to 4 times what a file
     stores it in: a scene read from a ``.zst`` file may take at most
     :func:`splatconv.transport.max_decompressed` bytes (``--max-decompressed``),
-    so that a command holding it takes about twice that at its peak.
+    so that ``info`` or ``convert`` takes about 1.3 times that at its peak
+    (``bench/bench_memory.py``).
 
     Parameters
     ----------
