@@ -27,7 +27,7 @@ COLOR_MODES = ("auto", "rgb", "sh")
 COMPAT_MODES = compat_modes()
 #: Record layouts some writer offers (``.ply``: lite, 3dgs).
 LAYOUTS = tuple(dict.fromkeys(name for module in REGISTRY.values() for name in getattr(module, "LAYOUTS", ())))
-#: Bytes a splat takes in memory once read: a float32 for each column of the model.
+#: Most bytes a splat takes in memory once read: a float32 for each column of the model.
 SPLAT_MEMORY_BYTES = 4 * len(COLUMNS)
 
 
@@ -74,9 +74,9 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
 def check_memory(module, plain, path) -> None:
     """Refuse a decompressed file whose scene would take more memory than the decompression ceiling.
 
-    A few hundred kilobytes of zstd expand to gigabytes, and a scene takes
-    :data:`SPLAT_MEMORY_BYTES` a splat in memory, 2 to 4 times what a file
-    stores it in: a scene read from a ``.zst`` file may take at most
+    A few hundred kilobytes of zstd expand to gigabytes, and a scene takes up
+    to :data:`SPLAT_MEMORY_BYTES` a splat in memory (columns a format does not
+    store are held once), 2 to 4 times what a file stores it in: a scene read from a ``.zst`` file may take at most
     :func:`splatconv.transport.max_decompressed` bytes (``--max-decompressed``),
     so that ``info`` or ``convert`` takes about 1.3 times that at its peak
     (``bench/bench_memory.py``).
@@ -99,7 +99,8 @@ def check_memory(module, plain, path) -> None:
     if most * SPLAT_MEMORY_BYTES <= ceiling:
         return
     holds = f"holds {most:,} splats" if module.splat_count(plain) == most else f"may hold up to {most:,} splats"
-    raise FormatError(f"{holds}, {most * SPLAT_MEMORY_BYTES:,} bytes in memory, more than the "
+    raise FormatError(f"{holds}: up to {most * SPLAT_MEMORY_BYTES:,} bytes in memory ({SPLAT_MEMORY_BYTES} a "
+                      f"splat), more than the "
                       f"{describe_bytes(ceiling)} a decompressed scene may take (raise it with --max-decompressed "
                       f"or {MAX_DECOMPRESSED_ENV})", path)
 

@@ -426,15 +426,15 @@ def test_scene_taking_more_memory_than_the_ceiling_is_refused_before_reading(tmp
     path.write_bytes(zstandard.ZstdCompressor().compress(record * 20000))
     assert os.path.getsize(path) < 1000
     r = run("--max-decompressed", "1M", "info", path)
-    assert (r.exit_code, r.stderr) == (1, f"Error: {path}: holds 20,000 splats, 2,320,000 bytes in memory, more than "
-                                          "the 1 MiB a decompressed scene may take (raise it with --max-decompressed "
+    assert (r.exit_code, r.stderr) == (1, f"Error: {path}: holds 20,000 splats: up to 2,320,000 bytes in memory "
+                                          "(116 a splat), more than the 1 MiB a decompressed scene may take (raise it with --max-decompressed "
                                           "or SPLATCONV_MAX_DECOMPRESSED)\n")
     # A .splatv without a count: its texture's records bound it (trailing zero records are padding).
     head = sv([chunk(size=4096 * 16 * 12, texheight=12)])
     bomb = _bomb(tmp_path, head, 4096 * 16 * 12)
     r = run("--max-decompressed", "1M", "convert", bomb, tmp_path / "o.ply")
-    assert (r.exit_code, r.stderr) == (1, f"Error: {bomb}: may hold up to 12,288 splats, 1,425,408 bytes in memory, "
-                                          "more than the 1 MiB a decompressed scene may take (raise it with "
+    assert (r.exit_code, r.stderr) == (1, f"Error: {bomb}: may hold up to 12,288 splats: up to 1,425,408 bytes in "
+                                          "memory (116 a splat), more than the 1 MiB a decompressed scene may take (raise it with "
                                           "--max-decompressed or SPLATCONV_MAX_DECOMPRESSED)\n")
     assert leftovers(private_tmp) == [] and not (tmp_path / "o.ply").exists()
     r = run("--max-decompressed", "3M", "info", path)
