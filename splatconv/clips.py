@@ -21,7 +21,8 @@ from .formats import REGISTRY, format_for
 from .fsutil import check_output
 from .io import check_write_options, read, refuse_empty, splat_count, write
 from .model import COLUMNS, Scene
-from .ops.segments import DEFAULT_BUDGET, DEFAULT_LEAK, check_durations, check_segment_count, merge_segments
+from .ops.segments import (DEFAULT_BUDGET, DEFAULT_LEAK, check_budget, check_durations, check_segment_count,
+                           merge_segments)
 from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity, fidelity_summary
 from .ops.sequence import fit_sequence
 from .progress import SILENT
@@ -153,6 +154,7 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
     """
     inputs = [os.fspath(p) for p in inputs]
     # Before any reading.
+    check_budget(budget)
     if durations is not None:
         check_durations(durations)
     else:

@@ -13,12 +13,13 @@ import os
 
 from . import viewer
 from .cameras import load_cameras
-from .errors import OutputError, SplatconvError, UnsupportedError, UsageError
+from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
 from .fsutil import atomic_group, atomic_writer, check_output
-from .model import Scene
+from .model import COLUMNS, Scene
 from .progress import SILENT
-from .transport import DEFAULT_LEVEL, is_compressed, output_stream, plain_input
+from .transport import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, is_compressed, max_decompressed,
+                        output_stream, plain_input)
 from .wording import kinds_text, plural
 
 #: Record orders a writer takes.
@@ -29,6 +30,8 @@ COLOR_MODES = ("auto", "rgb", "sh")
 COMPAT_MODES = compat_modes()
 #: Record layouts some writer offers (``.ply``: lite, 3dgs).
 LAYOUTS = tuple(dict.fromkeys(name for module in REGISTRY.values() for name in getattr(module, "LAYOUTS", ())))
+#: Most bytes a splat takes in memory once read: a float32 for each column of the model.
+SPLAT_MEMORY_BYTES = 4 * len(COLUMNS)
 
 
 #: Share of a scene's splats, undrawable (:func:`splatconv.viewer.undrawable`), from which
@@ -103,11 +106,47 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
     _choice(color, COLOR_MODES, "colour mode")
     module = format_for(path, purpose="read")
     with plain_input(path, declared_size=getattr(module, "declared_size", None), progress=progress) as plain:
+        if is_compressed(path):
+            check_memory(module, plain, path)
         scene = module.read(plain, color=color)
         if is_compressed(path):
             scene.meta["compressed_bytes"] = os.path.getsize(path)
         _check_undrawable(scene, path)
         yield scene, plain
+
+
+def check_memory(module, plain, path) -> None:
+    """Refuse a decompressed file whose scene would take more memory than the decompression ceiling.
+
+    A few hundred kilobytes of zstd expand to gigabytes, and a scene takes up
+    to :data:`SPLAT_MEMORY_BYTES` a splat in memory (columns a format does not
+    store are held once), 2 to 4 times what a file stores it in: a scene read from a ``.zst`` file may take at most
+    :func:`splatconv.transport.max_decompressed` bytes (``--max-decompressed``),
+    so that ``info`` or ``convert`` takes about 1.3 times that at its peak
+    (``bench/bench_memory.py``).
+
+    Parameters
+    ----------
+    module : format module
+        The format of ``plain``.
+    plain : path
+        The decompressed file.
+    path : path
+        The ``.zst`` file it came from (named in the error).
+
+    Raises
+    ------
+    FormatError
+    """
+    ceiling = max_decompressed()
+    most = module.most_splats(plain)
+    if most * SPLAT_MEMORY_BYTES <= ceiling:
+        return
+    holds = f"holds {most:,} splats" if module.splat_count(plain) == most else f"may hold up to {most:,} splats"
+    raise FormatError(f"{holds}: up to {most * SPLAT_MEMORY_BYTES:,} bytes in memory ({SPLAT_MEMORY_BYTES} a "
+                      f"splat), more than the "
+                      f"{describe_bytes(ceiling)} a decompressed scene may take (raise it with --max-decompressed "
+                      f"or {MAX_DECOMPRESSED_ENV})", path)
 
 
 def splat_count(path: str | os.PathLike) -> int | None:
@@ -136,6 +175,8 @@ def read_texture(path: str | os.PathLike, *, progress=SILENT):
     if not getattr(module, "STORES_TEXTURE", False):
         return None
     with plain_input(path, declared_size=getattr(module, "declared_size", None), progress=progress) as plain:
+        if is_compressed(path):
+            check_memory(module, plain, path)
         padded, scene = module.read_texture(plain)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)

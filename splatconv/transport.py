@@ -105,8 +105,9 @@ def inner_name(path) -> str:
     return path[: -len(SUFFIX)] if is_compressed(path) else path
 
 
-#: Default ceiling on the bytes a ``.zst`` input may decompress to (2 GiB: a
-#: 33-million-splat ``.splatv``, a 16-million-splat lite PLY). A few hundred
+#: Default ceiling on the bytes a ``.zst`` input may decompress to, and on the
+#: memory the scene read from it may take (2 GiB: 18.5 million splats at 116
+#: bytes a splat, see :func:`splatconv.io.check_memory`). A few hundred
 #: kilobytes of zstd can expand to gigabytes; this bounds the temporary file and
 #: what reading it costs. Raised with ``--max-decompressed`` or the environment
 #: variable :data:`MAX_DECOMPRESSED_ENV`.
@@ -168,7 +169,8 @@ def max_decompressed() -> int:
         raise UsageError(f"{MAX_DECOMPRESSED_ENV}: {e}") from None
 
 
-def _gib(n: int) -> str:
+def describe_bytes(n: int) -> str:
+    """``n`` bytes in words: "2 GiB", "512 MiB", or "1,000,000 bytes" when not whole mebibytes."""
     return f"{n:,} bytes" if n < 1 << 20 or n % (1 << 20) else (
         f"{n >> 30} GiB" if n % (1 << 30) == 0 else f"{n >> 20} MiB")
 
@@ -211,7 +213,7 @@ def plain_input(path, declared_size=None, progress=SILENT):
             content = zstandard.frame_content_size(frame)
             if content > ceiling:
                 raise FormatError(f"its zstd frame declares {content:,} decompressed bytes, more than the "
-                                  f"{_gib(ceiling)} allowed (raise it with --max-decompressed or "
+                                  f"{describe_bytes(ceiling)} allowed (raise it with --max-decompressed or "
                                   f"{MAX_DECOMPRESSED_ENV})", path)
         with locked_temporary(suffix) as (fd, tmp):
             # Progress in compressed bytes read: the file's size is always known, the content's not always.
@@ -245,8 +247,8 @@ def _decompress(f, out, path: str, ceiling: int, declared_size, advance) -> None
             if written + len(chunk) > limit:
                 if declared is not None:
                     raise FormatError(f"decompresses to more than the {declared:,} bytes its header declares "
-                                      f"(and {_gib(TRAILING_SLACK)} of trailing data allowed)", path)
-                raise FormatError(f"decompresses to more than the {_gib(limit)} allowed (raise it with "
+                                      f"(and {describe_bytes(TRAILING_SLACK)} of trailing data allowed)", path)
+                raise FormatError(f"decompresses to more than the {describe_bytes(limit)} allowed (raise it with "
                                   f"--max-decompressed or {MAX_DECOMPRESSED_ENV})", path)
             out.write(chunk)
             written += len(chunk)

@@ -165,6 +165,6 @@ def test_every_format_module_declares_what_it_supports():
     for module in _MODULES:
         missing = [name for name in declared if not hasattr(module, name)]
         missing += [name for name in ("read", "write", "info_fields", "storage") if not callable(getattr(module, name, None))]
-        if module.CAN_READ and not callable(getattr(module, "splat_count", None)):
-            missing.append("splat_count")
+        missing += [name for name in ("splat_count", "most_splats")
+                    if module.CAN_READ and not callable(getattr(module, name, None))]
         assert not missing, (module.__name__, missing)

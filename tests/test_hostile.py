@@ -16,6 +16,7 @@ import sys
 import tempfile
 import time
 import warnings
+import zlib
 
 import numpy as np
 import plyfile
@@ -101,6 +102,13 @@ HOSTILE_CASES = [
     ("varlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
      b"property list uchar float l\nend_header\n" + struct.pack("<fB2f", 1, 2, 0, 0) + struct.pack("<fB", 1, 9),
      "element 'vertex': row 1: unexpected end of file"),
+    # A list length near 2**31 once reached np.dtype (ValueError: dtype size must fit into a C int).
+    ("biglist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
+     b"property list int float l\nend_header\n" + struct.pack("<fi", 1, 2**31 - 1) + b"\0" * 64,
+     "element 'vertex': row 0: unexpected end of file"),
+    ("biguintlist.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex 2\nproperty float x\n"
+     b"property list uint float l\nend_header\n" + struct.pack("<fI", 1, 2**32 - 1) + b"\0" * 64,
+     "element 'vertex': row 0: unexpected end of file"),
     ("noend.ply", _LITE_HDR.replace(b"end_header\n", b"") + b"\xbf" * 64,
      f"bad header: no end_header line in the first {len(_LITE_HDR) - 11 + 64:,} bytes"),
     ("twovertex.ply", _LITE_HDR.replace(b"end_header\n", b"element vertex 1\nproperty float q\nend_header\n")
@@ -194,6 +202,85 @@ def test_tall_camera_is_drawn_within_the_largest_framebuffer(tmp_path, lite_ply)
     r = run("render", scene, tmp_path / "tall.png")
     assert r.exit_code == 0, r.output
     assert r.stdout == f"wrote {tmp_path / 'tall.png'}: 26x16384, t=0.5\n"
+
+
+def _png_header_only(width: int, height: int) -> bytes:
+    """A PNG whose header claims ``width`` x ``height`` RGB pixels, with no pixel data."""
+    def chunk_(kind, data):
+        return struct.pack(">I", len(data)) + kind + data + struct.pack(">I", zlib.crc32(kind + data))
+    return (b"\x89PNG\r\n\x1a\n" + chunk_(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2, 0, 0, 0))
+            + chunk_(b"IDAT", zlib.compress(b"")) + chunk_(b"IEND", b""))
+
+
+@pytest.mark.parametrize("width, height, message", [
+    # Past Pillow's DecompressionBombError (179M pixels): once a traceback.
+    (20000, 10000, "image has more than the 67,108,864 pixels an image may have"),
+    # Past Pillow's DecompressionBombWarning (89M pixels): once a warning on stderr.
+    (10000, 10000, "image is 10000x10000 (100,000,000 pixels), more than the 67,108,864 pixels an image may have"),
+    (8193, 8192, "image is 8193x8192 (67,117,056 pixels), more than the 67,108,864 pixels an image may have"),
+])
+def test_diff_refuses_images_claiming_too_many_pixels_before_decoding(tmp_path, width, height, message):
+    big = tmp_path / "big.png"
+    big.write_bytes(_png_header_only(width, height))
+    r = subprocess.run([sys.executable, "-m", "splatconv", "diff", big, big], capture_output=True, text=True,
+                       env=dict(os.environ, PYTHONWARNINGS="default"))
+    assert (r.returncode, r.stderr) == (1, f"Error: {big}: {message}\n")
+
+
+def test_segment_budget_past_any_layout_is_capped_and_an_infinite_one_refused(tmp_path):
+    from splatconv.ops.segments import merge_segments
+
+    from .ops_helpers import moving_scene
+    a, b = moving_scene(300, 1), moving_scene(300, 2)
+    # 1e308 x the splats is infinite in floats (once an OverflowError): it buys what any large budget buys.
+    huge, report = merge_segments([a, b], [50, 50], budget=1e308)
+    large, _ = merge_segments([a, b], [50, 50], budget=1e9)
+    assert sum(report.long_lived) > 0 and sum(report.counts_out) > 2 * 600
+    for name in huge.columns:
+        np.testing.assert_array_equal(huge.columns[name], large.columns[name])
+    # An infinite budget is no bound: refused before any input is read (these do not exist).
+    for budget in ("inf", "nan"):
+        r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "o.ply", "--segments", "--budget", budget)
+        assert (r.exit_code, r.stderr) == (2, f"Error: --budget must be a finite number of at least 1, got {budget}\n")
+    assert os.listdir(tmp_path) == []
+
+
+def test_frame_sequence_past_float32_is_noted_not_warned(tmp_path):
+    from splatconv.model import Scene
+
+    from .ops_helpers import moving_scene
+    base = moving_scene(50, 0).columns
+    for k in range(4):
+        cols = {name: np.array(v) for name, v in base.items()}
+        for name in cols:
+            if name.startswith(("motion", "omega")):
+                cols[name][:] = 0
+        cols["x"] += np.float32(0.01 * k)
+        cols["x"][3] = np.float32(3e38 if k % 2 == 0 else -3e38)  # a splat swinging across float32's range
+        splatconv.write(Scene(cols), tmp_path / f"f{k}.ply")
+    out = tmp_path / "clip.ply"
+    # Once numpy's "overflow encountered in cast" on stderr (an error here), and infinite terms without a word.
+    r = run("convert", str(tmp_path / "f*.ply"), out)
+    assert r.exit_code == 0, r.output
+    written = splatconv.read(out).columns
+    past = {name: int(np.isinf(written[name]).sum()) for name in written if np.isinf(written[name]).any()}
+    assert past and set(np.flatnonzero(np.isinf(written["motion_0"]))) == {3}
+    said = ", ".join(f"{name} {n:,}" for name, n in past.items())
+    assert (f"note: {sum(past.values())} fitted values past float32's range (3.4e38) stored as infinite ({said}): "
+            "frames with coordinates that large\n") in r.stderr
+
+
+@pytest.mark.parametrize("scale, shown", [("1e-320", "1e-320"), ("1e-39", "1e-39")])
+def test_scale_below_float32s_smallest_normal_is_refused(tmp_path, lite_ply, scale, shown):
+    # 1e-320 once collapsed every position to 0 without a note.
+    out = tmp_path / "o.ply"
+    for args in (["convert", lite_ply, out, "--scale", scale], ["merge", lite_ply, lite_ply, out, "--scale",
+                                                                 f"1:{scale}"]):
+        r = run(*args)
+        assert (r.exit_code, r.stderr) == (2, f"Error: --scale: {shown} is below float32's smallest normal number "
+                                              "(1.18e-38): positions would collapse to 0\n")
+    assert not out.exists()
+    assert run("convert", lite_ply, out, "--scale", "1.2e-38").exit_code == 0
 
 
 # --------------------------------------------------------------------------
@@ -330,6 +417,28 @@ def test_zstd_stream_is_cut_at_what_the_header_declares(tmp_path, private_tmp):
     r = run("info", path)
     assert r.stderr == (f"Error: {path}: decompresses to more than the {len(ply_head):,} bytes its header "
                         "declares (and 1 MiB of trailing data allowed)\n")
+
+
+def test_scene_taking_more_memory_than_the_ceiling_is_refused_before_reading(tmp_path, private_tmp):
+    # 20,000 .splat records (640,000 bytes: within a 1 MiB ceiling) are 2,320,000 bytes in memory.
+    record = struct.pack("<3f3f4B4B", 0, 0, 0, 0.1, 0.1, 0.1, 200, 100, 50, 255, 255, 128, 128, 128)
+    path = tmp_path / "many.splat.zst"
+    path.write_bytes(zstandard.ZstdCompressor().compress(record * 20000))
+    assert os.path.getsize(path) < 1000
+    r = run("--max-decompressed", "1M", "info", path)
+    assert (r.exit_code, r.stderr) == (1, f"Error: {path}: holds 20,000 splats: up to 2,320,000 bytes in memory "
+                                          "(116 a splat), more than the 1 MiB a decompressed scene may take (raise it with --max-decompressed "
+                                          "or SPLATCONV_MAX_DECOMPRESSED)\n")
+    # A .splatv without a count: its texture's records bound it (trailing zero records are padding).
+    head = sv([chunk(size=4096 * 16 * 12, texheight=12)])
+    bomb = _bomb(tmp_path, head, 4096 * 16 * 12)
+    r = run("--max-decompressed", "1M", "convert", bomb, tmp_path / "o.ply")
+    assert (r.exit_code, r.stderr) == (1, f"Error: {bomb}: may hold up to 12,288 splats: up to 1,425,408 bytes in "
+                                          "memory (116 a splat), more than the 1 MiB a decompressed scene may take (raise it with "
+                                          "--max-decompressed or SPLATCONV_MAX_DECOMPRESSED)\n")
+    assert leftovers(private_tmp) == [] and not (tmp_path / "o.ply").exists()
+    r = run("--max-decompressed", "3M", "info", path)
+    assert r.exit_code == 0 and "20,000 splats" in r.stdout, r.output
 
 
 def test_parse_byte_size():

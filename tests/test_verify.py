@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 import re
 import struct
 from pathlib import Path
@@ -181,7 +182,33 @@ def test_report_dir_writes_atomically(tmp_path, faithful, monkeypatch):
     assert r.exit_code == 1
     assert r.stderr == f"Error: {d / 'cam0_t0.250_source.png'}: No space left on device\n"
     assert len(calls) == 1 and calls[0] != str(d / "cam0_t0.250_source.png")  # a temporary beside it
-    assert list(d.iterdir()) == []  # no partial file, no temporary left
+    assert not d.exists()  # no partial file, no temporary left, nor the folder this run made
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_report_dir_on_a_full_disk_leaves_nothing_this_run_wrote(tmp_path, faithful, monkeypatch, existing):
+    import errno
+
+    from splatconv.render import diff as imgdiff
+
+    save_png, calls = imgdiff.save_png, []
+
+    def full_disk_at_sixth(img, stream):  # the second frame's second image: the first frame's four are saved
+        calls.append(stream.name)
+        if len(calls) == 6:
+            raise OSError(errno.ENOSPC, "No space left on device")
+        save_png(img, stream)
+
+    monkeypatch.setattr(imgdiff, "save_png", full_disk_at_sixth)
+    d = tmp_path / "report"
+    if existing:
+        d.mkdir()
+        (d / "notes.txt").write_text("mine")
+    r = run("verify", SAMPLE, faithful, *QUICK, "--report-dir", d)
+    assert (r.exit_code, r.stdout, r.stderr) == (
+        1, "", f"Error: {d / 'cam0_t0.600_converted.png'}: No space left on device\n")
+    assert len(calls) == 6
+    assert sorted(os.listdir(d)) == ["notes.txt"] if existing else not d.exists()
 
 
 def test_report_dir_frames_with_the_same_names_are_refused(tmp_path, faithful):

@@ -22,7 +22,7 @@ from splatconv.cli import main
 from splatconv.formats.splatv_layout import COUNT_KEY
 from splatconv.transport import plain_input
 from splatconv.web.page import SHADERS, SceneRef, build_page
-from splatconv.web.server import HOST, ViewServer
+from splatconv.web.server import HOST, IDLE_TIMEOUT, ViewServer
 
 from .web_support import serving
 
@@ -68,6 +68,27 @@ def test_serves_the_page_and_the_scene_only_on_loopback(sample):
         assert get(server.port, "/", host=f"localhost:{server.port}")[0] == 200
     # Not listening on any other address of this machine.
     assert sorted(server.routes) == ["/", "/index.html", "/scene/0.splatv"]
+
+
+def test_idle_connections_are_closed(sample):
+    # Ten partial requests once held ten threads for as long as their clients liked.
+    assert ViewServer([sample]).httpd.RequestHandlerClass.timeout == IDLE_TIMEOUT
+    with serving([sample], idle_timeout=0.5) as server:
+        held = []
+        for _ in range(10):
+            s = socket.create_connection((HOST, server.port), timeout=60)
+            s.sendall(b"GET / HT")  # a request line that never ends
+            held.append(s)
+        assert get(server.port, "/")[0] == 200  # the server still answers meanwhile
+        deadline = time.monotonic() + 60  # generous: the machine may be loaded
+        for s in held:
+            s.settimeout(max(0.1, deadline - time.monotonic()))
+            try:
+                assert s.recv(1024) == b""  # closed by the server, nothing sent
+            except ConnectionResetError:
+                pass
+            s.close()
+        assert time.monotonic() < deadline
 
 
 @pytest.mark.parametrize("path", [
@@ -257,6 +278,10 @@ def test_convert_html_refusals(sample, tmp_path):
     ("1,x", "--durations: expected comma-separated numbers, got '1,x'"),
     ("1,0", "--durations: every duration must be a positive finite number"),
     ("1,nan", "--durations: every duration must be a positive finite number"),
+    # Once accepted: the page's total was infinite, every segment's share 0.
+    ("1e308,1e308", "--durations: they add up to more than the largest double (1.8e+308), the page's arithmetic: "
+                    "give smaller numbers"),
+    ("1e-300,1e300", "--durations: segment 0's share of the timeline (1e-300 of 1e+300) rounds to nothing"),
 ])
 def test_bad_durations_are_usage_errors(sample, tmp_path, durations, message):
     for args in (("view", sample, sample, "--no-open"), ("convert", sample, sample, tmp_path / "c.html")):

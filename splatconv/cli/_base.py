@@ -168,7 +168,8 @@ class _Commands(click.Group):
 @click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
 @click.version_option(__version__, prog_name="splatconv")
 @click.option("--max-decompressed", metavar="SIZE", callback=_max_decompressed, expose_value=False,
-              help=f"Largest size a .zst input may decompress to, e.g. 8G (or set {MAX_DECOMPRESSED_ENV}) "
+              help=f"Largest size a .zst input may decompress to, and the memory the scene read from it may "
+                   f"take, e.g. 8G (or set {MAX_DECOMPRESSED_ENV}) "
                    f"[default: {DEFAULT_MAX_DECOMPRESSED >> 30}G].")
 def main():
     """Convert, check and preview 4D Gaussian-splatting scenes: Spacetime Gaussians and 3DGS PLY,

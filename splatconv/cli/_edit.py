@@ -102,7 +102,8 @@ def edit_options():
         click.option("--rotate", type=Rotation(),
                      help="Turn the scene: steps AXIS:DEGREES applied left to right (x:90,y:45; right-handed, "
                           "x:90 takes +y to +z) or quat:W,X,Y,Z."),
-        click.option("--scale", type=_POSITIVE_SCALE, metavar="S", help="Scale the scene uniformly by S > 0."),
+        click.option("--scale", type=_POSITIVE_SCALE, metavar="S",
+                     help="Scale the scene uniformly by S > 0 (at least float32's smallest normal, 1.2e-38)."),
     )
 
     def apply(fn):

@@ -7,9 +7,10 @@ Every format module declares what it supports (see :mod:`splatconv.formats.base`
 ``storage`` (how it stores each attribute group, which ``verify`` and ``stats``
 judge errors by) and, when it can be read, ``splat_count`` (the splats ``read``
 would give, from the header or the file size without reading them, or None when
-only reading tells). Callers look a module up with :func:`format_for` and ask it
-those questions; none of them names a format. Adding a format is adding a module
-and one line to ``_MODULES``. A ``.zst`` suffix after a format's suffix means the
+only reading tells) and ``most_splats`` (at most that many, always known).
+Callers look a module up with :func:`format_for` and ask it those questions;
+none of them names a format. Adding a format is adding a module and one line to
+``_MODULES``. A ``.zst`` suffix after a format's suffix means the
 same format, zstd-compressed (see :mod:`splatconv.transport`).
 """
 

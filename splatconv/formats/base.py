@@ -7,7 +7,9 @@ provides ``read(path, **options) -> Scene``,
 ``write(scene, stream, *, compat=None, sort=None, **options) -> WriteReport``,
 ``info_fields(scene) -> dict`` and, when ``CAN_READ``, ``splat_count(path) -> int or None``
 (the splats ``read`` would give, found from the header or the file size without
-reading them; None when only reading tells).
+reading them; None when only reading tells) and ``most_splats(path) -> int`` (at
+most the splats ``read`` would give, found the same way: it bounds the memory a
+read takes before it starts).
 """
 
 from __future__ import annotations

@@ -44,6 +44,8 @@ DYNAMIC = True
 STORES_TEXTURE = False
 #: One scene a file: several inputs for one output are a frame sequence, not a page's segments.
 PLAYS_SEGMENTS = False
+# The largest structured dtype numpy makes: its itemsize must fit a C int.
+_MAX_DTYPE_BYTES = 2**31 - 1
 
 #: Property order of the lite layout as SpacetimeGaussians writes it.
 LITE_LAYOUT = model.LITE_ROW
@@ -285,6 +287,14 @@ def splat_count(path: str | os.PathLike) -> int | None:
     return next((count for name, count, *_rest in layout.elements if name == "vertex"), None)
 
 
+def most_splats(path: str | os.PathLike) -> int:
+    """At most the splats :func:`read` gives for ``path``: its header's vertex count (0: one it refuses).
+
+    The count is checked against the file's size (a byte a value at least).
+    """
+    return splat_count(path) or 0
+
+
 def _check_list_types(header, path: str) -> None:
     """A list's length must be an integer type (plyfile takes ``property list float int x``)."""
     for element in header.elements:
@@ -320,7 +330,9 @@ def _list_lengths_at(buf: np.ndarray, start: int, element, byte_order: str):
             if pos + len_t.itemsize > len(buf):
                 return None, pos
             n = int(buf[pos:pos + len_t.itemsize].view(len_t)[0])
-            if n < 0:
+            # A list that runs past the end of the file ends the row there: its
+            # length may be any 32-bit count, past what a numpy dtype can hold.
+            if n < 0 or pos + len_t.itemsize + n * val_t.itemsize > len(buf):
                 return None, pos
             lengths[i] = n
             pos += len_t.itemsize + n * val_t.itemsize
@@ -343,11 +355,14 @@ def _binary_rows(buf: np.ndarray, offset: int, element, count: int, byte_order: 
     where = (f"element '{element.name}'",)
     if count == 0:
         return np.zeros(0, _element_dtype(element, byte_order, dict.fromkeys(range(len(element.properties)), 0))), 0
-    lengths = None
+    lengths, end = None, offset
     if has_list:
-        lengths, _end = _list_lengths_at(buf, offset, element, byte_order)
+        lengths, end = _list_lengths_at(buf, offset, element, byte_order)
         if lengths is None:
             raise FormatError("row 0: unexpected end of file", path, where)
+    if has_list and end - offset > _MAX_DTYPE_BYTES:
+        # Row 0 is more than one numpy dtype can describe: walk the rows instead.
+        return _walk_rows(buf, offset, element, count, byte_order, path, need_rows) if walk else (None, None)
     dtype = _element_dtype(element, byte_order, lengths)
     if dtype.itemsize == 0:
         return np.zeros(count, dtype), 0  # an element without properties

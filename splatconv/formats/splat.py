@@ -139,6 +139,11 @@ def splat_count(path: str | os.PathLike) -> int | None:
     return size // RECORD_BYTES if size and size % RECORD_BYTES == 0 else None
 
 
+def most_splats(path: str | os.PathLike) -> int:
+    """At most the splats :func:`read` gives for ``path``: its whole records."""
+    return os.path.getsize(path) // RECORD_BYTES
+
+
 def _quiet_nans(values: np.ndarray, notes: list) -> np.ndarray:
     """``values`` (float32), with signalling NaNs made quiet: a copy only when there are any.
 

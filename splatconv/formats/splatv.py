@@ -293,6 +293,18 @@ def splat_count(path: str | os.PathLike) -> int | None:
         return None
 
 
+def most_splats(path: str | os.PathLike) -> int:
+    """At most the splats :func:`read` gives for ``path``: the records its texture holds (0: a header it refuses)."""
+    path = os.fspath(path)
+    try:
+        with open_input(path) as f:
+            file_size = os.fstat(f.fileno()).st_size
+            _chunks, chunk, start, _end, _skipped = _splat_chunk(f, path, file_size)
+    except FormatError:
+        return 0
+    return -(-max(0, min(chunk["size"], file_size - start)) // RECORD_BYTES)
+
+
 def read_records(path: str | os.PathLike):
     """Read the raw texture records of a ``.splatv`` file.
 

@@ -122,6 +122,18 @@ class SegmentReport:
         }
 
 
+def check_budget(budget: float) -> float:
+    """The splat budget, checked: a finite number, at least 1 (an infinite one is no bound).
+
+    Raises
+    ------
+    UsageError
+    """
+    if not (1.0 <= budget < math.inf):
+        raise UsageError(f"--budget must be a finite number of at least 1, got {budget:g}")
+    return budget
+
+
 def check_durations(durations) -> list:
     """Segment frame counts as ints, checked: at least 2 each, at most :data:`MAX_FRAMES` together.
 
@@ -518,8 +530,7 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         durations = [DEFAULT_FRAMES] * len(scenes)
     if len(durations) != len(scenes):
         raise UsageError(f"--durations gives {plural(len(durations), 'value')} for {plural(len(scenes), 'segment')}")
-    if not (budget >= 1.0):
-        raise UsageError("the splat budget must be at least 1")
+    check_budget(budget)
     places = placements(durations, leak)
     parts, report = [], SegmentReport(places, [], [], [], [], [], leak, budget)
     overflow = 0
@@ -542,7 +553,11 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
                     options = layout_options(p.frames, leak, sides)
                     sizes = np.stack([_windowed(cols, rows, p, o[0], leak, sides)[3].sum(axis=1) for o in options],
                                      axis=1)
-                    extra = int(math.floor(budget * scene.count)) - int(keep.sum()) - int(sizes[:, 0].sum())
+                    # Past what every splat's costliest layout takes, more budget buys
+                    # nothing: capped there, an infinite or 1e308 budget is an integer.
+                    base = int(keep.sum()) + int(sizes[:, 0].sum())
+                    most = base + int(np.maximum(np.diff(sizes, axis=1), 0).sum())
+                    extra = int(math.floor(min(budget * scene.count, most))) - base
                     m = np.array([o[0] for o in options], np.int64)[allocate(impact(cols, rows), extra, options,
                                                                              sizes)]
                 made = np.zeros(n_long, np.int64)

@@ -556,8 +556,28 @@ def _fit_same(read_frame, t, n, max_error, report, progress) -> Scene:
     out = {name: viewer.wide(cols[name])[keep] for name in COLUMNS}
     if pieces is not None:
         out = {name: np.concatenate([out[name], pieces[name]]) for name in COLUMNS}
-    out = {name: v.astype(np.float32) for name, v in out.items()}
+    out = _stored(out, report.notes)
     return Scene(columns=out, variant=VARIANT_LITE, meta={"frames": len(t)})
+
+
+def _stored(cols: dict, notes: list) -> dict:
+    """The fitted columns (float64) as float32, noting values past float32's range, which become infinite.
+
+    Frames with coordinates near float32's largest (3.4e38) give fitted terms
+    beyond it: they are written as the infinities they round to, and said.
+    """
+    out, past = {}, {}
+    for name, v in cols.items():
+        with np.errstate(over="ignore"):
+            out[name] = v.astype(np.float32)
+        n = int((np.isinf(out[name]) & np.isfinite(v)).sum())
+        if n:
+            past[name] = n
+    if past:
+        notes.append(f"{plural(sum(past.values()), 'fitted value')} past float32's range (3.4e38) stored as "
+                     f"infinite ({', '.join(f'{name} {n:,}' for name, n in past.items())}): frames with "
+                     "coordinates that large")
+    return out
 
 
 def _snap_roundoff(motion: np.ndarray, r: np.ndarray, w: np.ndarray, t: np.ndarray, centre: np.ndarray,

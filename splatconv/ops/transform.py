@@ -43,6 +43,8 @@ from ._table import copy_rows, derive, run_blocks, store_fields
 from .report import OpReport
 
 _AXES = {"x": 0, "y": 1, "z": 2}
+#: float32's smallest normal number: the least --scale taken.
+_FLOAT32_TINY = float(np.finfo(np.float32).tiny)
 
 
 def quaternion_matrix(q) -> np.ndarray:
@@ -127,6 +129,11 @@ class Transform:
         s = float(self.scale)
         if not (math.isfinite(s) and s > 0):
             raise UsageError(f"--scale: expected a finite number > 0, got {self.scale!r}")
+        if s < _FLOAT32_TINY:
+            # Positions are float32: scaled by a factor this small, every one would be
+            # subnormal or 0 (1e-320 collapsed a scene to a point without a word).
+            raise UsageError(f"--scale: {s:.3g} is below float32's smallest normal number ({_FLOAT32_TINY:.3g}): "
+                             "positions would collapse to 0")
         q = np.asarray(self.rotation, dtype=np.float64)
         norm = float(np.sqrt(q @ q)) if q.shape == (4,) else 0.0
         if not (math.isfinite(norm) and norm > 0):

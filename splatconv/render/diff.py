@@ -4,12 +4,18 @@ from __future__ import annotations
 
 import math
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from PIL import Image, UnidentifiedImageError
 
 from ..errors import FormatError, UnsupportedError
+
+#: Most pixels an image file may have to be read (8,192 x 8,192): checked from its
+#: header before decoding, so a small file claiming a huge image costs nothing.
+#: Below Pillow's own decompression-bomb warning (about 89M pixels).
+MAX_IMAGE_PIXELS = 8192 * 8192
 
 #: Default pixel tolerance (per channel, out of 255) for the "pixels off" share.
 TOLERANCE = 8
@@ -83,9 +89,20 @@ def load_image(path) -> np.ndarray:
     """An image file as ``(H, W, 3) uint8`` RGB (alpha dropped, palette expanded)."""
 
     path = os.fspath(path)
+    too_big = f"more than the {MAX_IMAGE_PIXELS:,} pixels an image may have"
     try:
-        with Image.open(path) as im:
+        with warnings.catch_warnings():
+            # Our own limit, lower than Pillow's, is checked below; its warning would
+            # only reach stderr, and its error (past twice its limit) is ours to word.
+            warnings.simplefilter("ignore", Image.DecompressionBombWarning)
+            im = Image.open(path)
+        with im:
+            width, height = im.size
+            if width * height > MAX_IMAGE_PIXELS:
+                raise FormatError(f"image is {width}x{height} ({width * height:,} pixels), {too_big}", path)
             return np.asarray(im.convert("RGB"))
+    except Image.DecompressionBombError:
+        raise FormatError(f"image has {too_big}", path) from None
     except FileNotFoundError:
         raise FormatError("cannot open: No such file or directory", path) from None
     except (UnidentifiedImageError, OSError) as e:

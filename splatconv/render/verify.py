@@ -12,6 +12,7 @@ compares the frames. Both return an :class:`Outcome` (data; text and JSON are
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 from dataclasses import dataclass, field
@@ -19,7 +20,7 @@ from dataclasses import dataclass, field
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
 from ..formats import format_for
-from ..fsutil import atomic_writer, check_output
+from ..fsutil import atomic_group, check_output
 from ..progress import SILENT, Progress
 from ..wording import plural
 from . import camera as cam
@@ -186,9 +187,10 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     size : (int, int) or str, optional
         Image size; default each camera's, scaled down to :data:`VERIFY_MAX_WIDTH`.
     report_dir : path, optional
-        Save each frame's images there as it is drawn (:func:`report_files`).
-        Checked before anything is drawn: an existing report file is an error
-        unless ``force``.
+        Save each frame's images there as it is drawn (:func:`report_files`),
+        all or nothing: on any error no report file is left, nor the folder if
+        this run made it. Checked before anything is drawn: an existing report
+        file is an error unless ``force``.
     progress : Progress
         Receives the stages "reading", "checking attributes" and "drawing".
 
@@ -215,13 +217,8 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         outcome.notes.append(f"drew the first {len(indices)} of {plural(len(available), 'camera')} "
                              f"(--cameras all draws every one)")
     views = frame_views(available, indices, size, VERIFY_MAX_WIDTH)
-    on_frame = None
     if report_dir is not None:
         check_report_dir(report_dir, [(i, t) for i, _ in views for t in times], paths, force)
-
-        def on_frame(frame, a, b):
-            save_report_frame(report_dir, frame, a, b, paths, force)
-
     records = converted.records
 
     # Each callable drops its scene once the rows are built: nothing but the GL
@@ -238,9 +235,37 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         converted = None
         return data
 
-    outcome.frames = compare_frames(source_data, converted_data, views, times, tolerance=tolerance,
-                                    progress=progress, on_frame=on_frame)
+    with _report(report_dir, force) as group:
+        def on_frame(frame, a, b):
+            save_report_frame(report_dir, frame, a, b, paths, force, group=group)
+
+        outcome.frames = compare_frames(source_data, converted_data, views, times, tolerance=tolerance,
+                                        progress=progress, on_frame=on_frame if group is not None else None)
     return outcome
+
+
+@contextlib.contextmanager
+def _report(directory, force: bool):
+    """The group a report's files are written through (None: no report), all or nothing.
+
+    A full disk part way once left the frames already saved: now every file waits
+    beside its name until the last frame is drawn, and on any error all go, with
+    the folder if this run made it.
+    """
+    if directory is None:
+        yield None
+        return
+    directory = os.fspath(directory)
+    made = not os.path.exists(directory)
+    os.makedirs(directory, exist_ok=True)
+    try:
+        with atomic_group(replace=force) as group:
+            yield group
+    except BaseException:
+        if made:
+            with contextlib.suppress(OSError):
+                os.rmdir(directory)  # only when empty: nothing but this run's files was there
+        raise
 
 
 def diff_scenes(path_a, path_b, *, times=None, cameras: str | None = None, size=None,
@@ -311,18 +336,18 @@ def check_report_dir(directory, frames, inputs=(), force: bool = False) -> None:
                 check_output(path, inputs, force)
 
 
-def save_report_frame(directory, frame: Frame, a, b, inputs=(), force: bool = False) -> list:
-    """Save one frame's two images, heatmap and side-by-side picture; returns the paths.
+def save_report_frame(directory, frame: Frame, a, b, inputs=(), force: bool = False, *, group) -> list:
+    """Save one frame's two images, heatmap and side-by-side picture through ``group``; returns the paths.
 
-    Each file is written atomically; an existing one is replaced only with ``force``.
+    ``group`` (:func:`splatconv.fsutil.atomic_group`) puts them in place when it
+    ends; an existing file is replaced only with ``force``.
     """
-    os.makedirs(os.fspath(directory), exist_ok=True)
     heat = imgdiff.heatmap(a, b)
     written = []
     for path, img in zip(report_files(directory, frame.camera, frame.time),
                          (a, b, heat, imgdiff.side_by_side(a, b, heat))):
         check_output(path, inputs, force)
-        with atomic_writer(path) as stream:
+        with group.open(path) as stream:
             imgdiff.save_png(img, stream)
         written.append(path)
     return written

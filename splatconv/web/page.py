@@ -13,6 +13,7 @@ import html
 import json
 import math
 import re
+import sys
 from dataclasses import dataclass
 from importlib import resources
 
@@ -57,6 +58,20 @@ def parse_durations(text: str | None, count: int) -> list:
         raise UsageError(f"--durations gives {plural(len(values), 'value')} for {plural(count, 'segment')}")
     if not all(math.isfinite(v) and v > 0 for v in values):
         raise UsageError("--durations: every duration must be a positive finite number")
+    # The player adds them left to right in doubles and divides each running sum
+    # by the total: an infinite total, or a share that rounds to nothing, breaks it.
+    total, bounds = 0.0, []
+    for v in values:
+        total += v
+        bounds.append(total)
+    if not math.isfinite(total):
+        raise UsageError(f"--durations: they add up to more than the largest double ({sys.float_info.max:.3g}), "
+                         "the page's arithmetic: give smaller numbers")
+    shares = [b / total for b in bounds]
+    for i, (before, after) in enumerate(zip([0.0] + shares, shares)):
+        if not after > before:
+            raise UsageError(f"--durations: segment {i}'s share of the timeline ({values[i]:g} of {total:g}) "
+                             "rounds to nothing")
     return values
 
 

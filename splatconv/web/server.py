@@ -23,6 +23,11 @@ from .page import SceneRef, build_page, parse_durations
 from .scenes import check_splatv, is_plain_splatv, splatv_bytes
 
 HOST = "127.0.0.1"
+#: Seconds a connection may sit idle (no byte of a request received, or none of
+#: a reply taken) before the server closes it: a partial request once held a
+#: thread for as long as its client liked. A browser reading a scene takes each
+#: chunk at once; only a stalled client waits this long.
+IDLE_TIMEOUT = 30.0
 _COPY_CHUNK = 1 << 20
 
 
@@ -57,10 +62,11 @@ def scene_resources(paths, durations=None) -> tuple[dict, list, list]:
     return resources, refs, notes
 
 
-def _handler(routes: dict, port_holder: list):
+def _handler(routes: dict, port_holder: list, idle_timeout: float):
     class Handler(BaseHTTPRequestHandler):
         server_version = "splatconv"
         sys_version = ""
+        timeout = idle_timeout  # StreamRequestHandler sets it on each connection's socket
 
         def _resource(self):
             host = (self.headers.get("Host") or "").lower()
@@ -151,6 +157,8 @@ class ViewServer:
         0 picks a free port.
     durations : str, optional
         ``"D0,D1,..."``: each segment's share of the timeline (default equal shares).
+    idle_timeout : float
+        Seconds before an idle connection is closed (:data:`IDLE_TIMEOUT`).
 
     Raises
     ------
@@ -158,7 +166,7 @@ class ViewServer:
         When the port is taken or cannot be bound.
     """
 
-    def __init__(self, paths, port: int = 0, durations: str | None = None):
+    def __init__(self, paths, port: int = 0, durations: str | None = None, idle_timeout: float = IDLE_TIMEOUT):
         paths = [os.fspath(p) for p in paths]
         if not paths:
             raise UsageError("give a scene file to view")
@@ -169,7 +177,7 @@ class ViewServer:
         self.routes = {"/": page, "/index.html": page, **scenes}
         port_holder = [port]
         try:
-            self.httpd = ThreadingHTTPServer((HOST, port), _handler(self.routes, port_holder))
+            self.httpd = ThreadingHTTPServer((HOST, port), _handler(self.routes, port_holder, idle_timeout))
         except OSError as e:
             raise UsageError(f"--port {port}: cannot listen on {HOST}:{port} ({e.strerror or e})") from None
         self.httpd.daemon_threads = True

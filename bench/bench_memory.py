@@ -1,0 +1,79 @@
+"""Peak memory of commands on small ``.zst`` files that expand a lot (decompression bombs).
+
+A few hundred kilobytes of zstd can hold gigabytes of zeros, a valid scene.
+Each command runs in a fresh process (``_harness.run_fresh``: peak RSS from
+``os.wait4``) on a ``.splat.zst`` and a ``.splatv.zst`` of ``--bytes``
+decompressed bytes, under the ceiling ``--max-decompressed`` (``--ceiling``):
+the figure to compare is the peak RSS against that ceiling.
+
+    python bench/bench_memory.py                      # 1.8 GB bombs, default ceiling
+    python bench/bench_memory.py --bytes 480M --ceiling 512M
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import struct
+import sys
+
+import zstandard
+
+from _harness import CLI, machine_line, row, run_fresh, work_folder
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
+from splatconv.transport import parse_byte_size  # noqa: E402
+
+TEXEL_ROW = 4096 * 16  # bytes of one .splatv texture row (1,024 splats)
+#: One drawable splat, repeated: a bomb of real splats, not of padding.
+SPLAT_RECORD = struct.pack("<3f3f4B4B", 0, 0, 0, 0.1, 0.1, 0.1, 200, 100, 50, 255, 255, 128, 128, 128)
+SPLATV_RECORD = struct.pack("<3f", 0, 0, 0) + bytes([60] * 52)
+
+
+def bomb(path: str, head: bytes, record: bytes, count: int) -> str:
+    """``head`` then ``count`` copies of ``record``, zstd-compressed as one frame that declares its size."""
+    with open(path, "wb") as f, \
+            zstandard.ZstdCompressor(level=3).stream_writer(f, size=len(head) + count * len(record)) as z:
+        z.write(head)
+        step = (1 << 22) // len(record)
+        block = record * step
+        for start in range(0, count, step):
+            z.write(block[: min(step, count - start) * len(record)])
+    return path
+
+
+def splatv_head(rows: int) -> bytes:
+    text = json.dumps([{"type": "splat", "size": TEXEL_ROW * rows, "texwidth": 4096, "texheight": rows,
+                        "cameras": []}]).encode()
+    return struct.pack("<II", 0x674B, len(text)) + text
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bytes", default="1800000000", help="decompressed bytes of each bomb (default 1.8 GB)")
+    ap.add_argument("--ceiling", default=None, help="--max-decompressed for the commands (default: the default)")
+    ap.add_argument("--keep", default=None, help="work folder to keep")
+    args = ap.parse_args()
+    size = parse_byte_size(args.bytes)
+    ceiling = ["--max-decompressed", args.ceiling] if args.ceiling else []
+    print(machine_line(load=True))
+    print(f"bombs of {size:,} decompressed bytes; ceiling {args.ceiling or 'default (2 GiB)'}")
+    with work_folder(args.keep) as folder:
+        rows = size // TEXEL_ROW
+        files = {
+            "splat": bomb(os.path.join(folder, "bomb.splat.zst"), b"", SPLAT_RECORD, size // len(SPLAT_RECORD)),
+            "splatv": bomb(os.path.join(folder, "bomb.splatv.zst"), splatv_head(rows), SPLATV_RECORD,
+                           rows * TEXEL_ROW // len(SPLATV_RECORD)),
+        }
+        for kind, path in files.items():
+            print(f"{kind}: {os.path.getsize(path):,} bytes compressed")
+            for command in (["info", path], ["convert", path, os.path.join(folder, "out.ply"), "--force"]):
+                r = run_fresh([CLI, *ceiling, *command])
+                outcome = "ok" if r["code"] == 0 else r["stderr"].strip().splitlines()[-1].split(".zst: ", 1)[-1]
+                print(row(f"  {command[0]} {kind}", f"{r['rss_mb'] / 1000:.2f} GB peak RSS",
+                          f"{r['wall']:.1f} s, exit {r['code']}: {outcome}"))
+
+
+if __name__ == "__main__":
+    main()
