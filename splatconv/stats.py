@@ -197,9 +197,11 @@ def _counts(a: np.ndarray, b: np.ndarray, raw: dict, group: str) -> dict:
         # alpha below half a byte step becoming byte 0 is the bytes' ordinary rounding.
         out["underflow"] = int(np.count_nonzero(finite & (a != 0) & (b == 0)))
     if group == "color":
-        # NaN is clamped too: the writers store it as 0.
-        stored = np.stack([np.asarray(raw[n]) for n in GROUPS[group]], axis=1)
-        out["clamped"] = int(np.count_nonzero((stored < 0) | (stored > 1) | np.isnan(stored)))
+        # Clamped where the nearest byte falls outside 0..255 (a value a hair below 0
+        # rounds to byte 0 anyway: nothing changed), as the writers count it. NaN is
+        # clamped too: the writers store it as 0.
+        stored = np.rint(np.stack([viewer.wide(raw[n]) for n in GROUPS[group]], axis=1) * 255.0)
+        out["clamped"] = int(np.count_nonzero((stored < 0) | (stored > 255) | np.isnan(stored)))
     elif group == "opacity":
         out["clamped"] = int(np.count_nonzero(np.isnan(raw["opacity"])))  # sigmoid(NaN): stored as alpha 0
     return out

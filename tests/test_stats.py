@@ -123,7 +123,8 @@ def expected_attributes(cols: dict, compat: bool) -> tuple:
             "overflow": int(np.sum(np.isfinite(a) & (np.abs(a) > HALF_MAX))) if half else 0,
             "underflow": int(np.sum(np.isfinite(a) & (a != 0) & (b == 0))) if half else 0,
             "subnormal": int(np.sum((b != 0) & (np.abs(b) < 2.0**-14))) if half else 0,
-            "clamped": (int(np.sum((raw < 0) | (raw > 1) | np.isnan(raw))) if group == "color"
+            "clamped": (int(np.sum((np.rint(raw * 255.0) < 0) | (np.rint(raw * 255.0) > 255) | np.isnan(raw)))
+                        if group == "color"
                         else int(np.sum(np.isnan(raw))) if group == "opacity" else 0),
         }
         moved = READ_BACK * np.abs(b[both])
