@@ -52,6 +52,8 @@ def info_text(info: dict) -> str:
     actual = tex["actual_bytes"]
     data = f"{tex['declared_bytes']:,} bytes declared" + (
         f", {actual:,} present" if actual is not None else " (when converted)")
+    if actual is not None and actual < tex["declared_bytes"]:
+        data += " (not padded: the rest reads as zeros)"
     lines.append(f"texture:   {tex['width']} x {tex['height']} RGBA32UI, {data}")
     cams = info["cameras"]
     names = ", ".join(str(c["img_name"]) for c in cams[:4]) + (", ..." if len(cams) > 4 else "")

@@ -490,3 +490,27 @@ def test_a_baked_frame_converts_back_without_clamp_notes(tmp_path):
     for suffix in (".splatv", ".splat"):
         r = run("convert", baked, tmp_path / f"back{suffix}")
         assert r.exit_code == 0 and "clamped" not in r.stderr, r.stderr
+
+
+def test_a_file_ending_after_its_last_record_is_said_once_in_info(tmp_path):
+    # Every real .splatv stops after its last record: nothing is lost, so only info says it.
+    from .real_scenes import real_scene, unpadded_splatv
+
+    scene, _ = real_scene(600, 1)
+    p = tmp_path / "real.splatv"
+    unpadded_splatv(scene, p)
+    info = run("info", p)
+    assert info.exit_code == 0
+    assert info.stdout.count("pad") == 1 and "pad" not in info.stderr
+    assert "texture:   4096 x 1 RGBA32UI, 65,536 bytes declared, 38,400 present (not padded: the rest reads " \
+           "as zeros)\n" in info.stdout
+    for args in (("convert", p, tmp_path / "out.ply"), ("stats", p, "--zstd-level", "1"),
+                 ("render", p, tmp_path / "f.png", "--size", "32x18"),
+                 ("verify", p, tmp_path / "out.ply", "--times", "0.5", "--cameras", "0", "--size", "32x18")):
+        r = run(*args)
+        notes = [line for line in r.output.splitlines() if line.startswith("note:")]
+        assert r.exit_code in (0, 1) and not [n for n in notes if "pad" in n or "shorter" in n], (args, r.output)
+    # Padded by its writer: info says nothing of padding.
+    padded = tmp_path / "padded.splatv"
+    assert run("convert", tmp_path / "out.ply", padded).exit_code == 0
+    assert "not padded" not in run("info", padded).stdout
