@@ -135,6 +135,29 @@ def test_external_html_from_a_static_host(browser, sample, tmp_path):
     assert_matches(frame, rendered(sample, 0.5), "--external page from a static host")
 
 
+def test_an_external_page_whose_scene_is_missing_names_the_file_it_fetches(browser, tmp_path):
+    # Converted from a PLY, the page fetches "page.splatv": that is what a message must name.
+    cols = random_columns(50, 2)
+    src = tmp_path / "source.ply"
+    splatconv.write(Scene(columns=cols), src)
+    site = tmp_path / "site"
+    site.mkdir()
+    publish([src], site / "page.html", external=True)
+    (site / "page.splatv").unlink()
+    handler = partial(_QuietHandler, directory=str(site))
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    try:
+        page = open_page(browser, f"http://127.0.0.1:{httpd.server_address[1]}/page.html", W, H)
+        text = page.locator("#message").text_content()
+        page.close()
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    assert text.startswith("Cannot show page.splatv: the server answered 404"), text
+
+
 class _QuietHandler(http.server.SimpleHTTPRequestHandler):
     def log_message(self, *args):
         pass
