@@ -375,5 +375,5 @@ def segments_text(data: dict) -> str:
                      f"min {_db(s['min_psnr'])}; {s['below_40']} below 40 dB, {s['below_30']} below 30 dB")
     out = data.get("output")
     if out:
-        lines.append(f"wrote {out['path']}: {plural(out['splats'], 'splat')}")
+        lines.append(f"wrote {out['path']}: {plural(out['splats'], 'splat')}, {out['bytes']:,} bytes")
     return "\n".join(lines)
