@@ -355,9 +355,10 @@
   // (splatconv's writer stores it) where every record after it is zero, else the records up to the last one
   // that is not all zero (other writers store no count; the rest of their texture is padding).
   function splatCount(seg, present) {
+    const count = seg.header.count;
     let last = seg.words.length;
     while (last > 0 && seg.words[last - 1] === 0) last--;
-    const used = Math.ceil(last / 16), count = seg.header.count;
+    const used = Math.ceil(last / 16);
     if (Number.isInteger(count) && count >= 0 && count <= seg.total && used <= count) return Math.min(count, present);
     return used;
   }
