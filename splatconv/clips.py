@@ -183,7 +183,7 @@ def segments_data(report, written, output, rows: list) -> dict:
         Per-frame fidelity (:func:`splatconv.render.fidelity.fidelity`; [] when not measured).
     """
     data = {"schema": SEGMENTS_SCHEMA, **report.as_dict()}
-    data["output"] = {"path": str(output), "splats": written.count}
+    data["output"] = {"path": str(output), "splats": written.count, "bytes": os.path.getsize(output)}
     data["frames"] = list(rows)
     data["fidelity"] = fidelity_summary(rows)
     return data

@@ -1,7 +1,12 @@
 """Compare two scenes attribute by attribute, in the units the viewer uses.
 
-Used by ``verify`` (is every error explained by quantization?) and by ``stats``
-(how large are the errors?). Pure numpy: no I/O, no printing.
+The one comparison behind ``verify`` (is every error explained by quantization?)
+and ``stats`` (how large are the errors?): both pair rows with :func:`align` and
+measure them with :class:`Comparison`, so they report the same figures. Values
+are compared as each file reads (the model's columns): a ``.splatv``'s halves and
+bytes as the float32 logarithms and logits its reader gives, which write back to
+the same texture, so a pair whose records are identical differs by nothing.
+Pure numpy: no I/O, no printing.
 """
 
 from __future__ import annotations
@@ -30,6 +35,12 @@ FLOAT32_REL = 2.0**-16
 #: A quaternion component stored as a byte in steps of this (a .splat's rotation).
 QUATERNION_STEP = 1.0 / 128.0
 F32_MAX = float(np.finfo(np.float32).max)
+#: Below these magnitudes a storage kind's step no longer shrinks with the value
+#: (half subnormals, byte steps, float32 subnormals), so an error there is
+#: measured against the step: relative error = |error| / max(|source|, floor).
+#: ``exact`` and ``none`` keep no floor (any error there is real; a source 0 is left out).
+RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np.float32).tiny), "byte": BYTE,
+                    "unit_quaternion_byte": QUATERNION_STEP, "none": 0.0}
 
 #: How a format stores an attribute group (each format module's ``STORAGE`` maps every
 #: group to one), and so the error a faithful conversion may bring:
@@ -89,6 +100,11 @@ def _byte_key(cols: dict) -> np.ndarray:
     return np.nan_to_num(np.round(v * 255.0), nan=0.0).astype(np.uint8)
 
 
+def _matching_rows(a: np.ndarray, b: np.ndarray, order: np.ndarray) -> int:
+    """Rows whose position keys agree when ``a`` is taken in ``order``."""
+    return int(np.count_nonzero((a[order] == b).all(axis=1)))
+
+
 def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED"):
     """Row order of ``source`` matching ``converted`` row by row.
 
@@ -97,8 +113,13 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     match is the writer's, unless splats share positions (or all are NaN): then
     several orders match, and the one whose other attributes agree wins (fewest
     values off by more than quantization explains; the first listed on a tie).
-    When none matches, rows are matched by sorting both sides by position, ties
-    broken by opacity and colour bytes.
+    When none matches every row (a damaged file, another writer's order), rows
+    are also matched by sorting both sides by position, ties broken by opacity
+    and colour bytes, and the order whose positions agree on the most rows wins
+    (a writer's order on a tie, then as above). A damaged file keeps the
+    writer's order for its undamaged rows, so the damage is all that differs:
+    sorting by position would shift every row between a changed position's old
+    and new places onto another splat.
 
     Returns
     -------
@@ -116,21 +137,28 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     a, b = _position_key(source.columns), _position_key(converted.columns)
     key = viewer.importance(source.columns)
     with np.errstate(invalid="ignore", over="ignore"):
-        candidates = (np.arange(n), viewer.importance_order(key), viewer.importance_order(key.astype(np.float32)))
-    matching = []
-    for order in candidates:
-        if np.array_equal(a[order], b) and not any(np.array_equal(order, other) for other in matching):
-            matching.append(order)
-    if len(matching) == 1:
-        return matching[0]
-    if matching:
-        return min(matching, key=lambda order: sum(
-            g.unexplained for g in compare_scenes(source, converted, order).values()))
-    sa = np.lexsort(np.concatenate([a, _byte_key(source.columns)], axis=1).T[::-1])
-    sb = np.lexsort(np.concatenate([b, _byte_key(converted.columns)], axis=1).T[::-1])
-    order = np.empty(n, dtype=np.int64)
-    order[sb] = sa
-    return order
+        candidates = [np.arange(n), viewer.importance_order(key), viewer.importance_order(key.astype(np.float32))]
+    scored = _distinct_scored(candidates, a, b)
+    if scored[0][0] < n:
+        sa = np.lexsort(np.concatenate([a, _byte_key(source.columns)], axis=1).T[::-1])
+        sb = np.lexsort(np.concatenate([b, _byte_key(converted.columns)], axis=1).T[::-1])
+        by_position = np.empty(n, dtype=np.int64)
+        by_position[sb] = sa
+        scored = _distinct_scored(candidates + [by_position], a, b)
+    best = [order for count, _, order in scored if count == scored[0][0]]
+    if len(best) == 1:
+        return best[0]
+    return min(best, key=lambda order: sum(g.unexplained for g in compare_scenes(source, converted, order).values()))
+
+
+def _distinct_scored(orders: list, a: np.ndarray, b: np.ndarray) -> list:
+    """``(rows matching, listed place, order)`` of each distinct order, most matching first, listed order on ties."""
+    distinct = []
+    for order in orders:
+        if not any(np.array_equal(order, other) for other in distinct):
+            distinct.append(order)
+    return sorted(((_matching_rows(a, b, order), i, order) for i, order in enumerate(distinct)),
+                  key=lambda t: (-t[0], t[1]))
 
 
 @dataclass
@@ -211,9 +239,13 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str | None = No
     with np.errstate(over="ignore"):  # a difference past 1.8e308 is infinite, which is the truth
         np.subtract(a, b, out=err, where=both)
     np.abs(err, out=err)
+    # Relative to the value, or to the storage's finest step where the value is
+    # smaller (RESOLUTION_FLOOR): a colour of 0.001 stored as byte 0 is off by a
+    # quarter of a step, not by 100%.
+    scale = np.maximum(np.abs(np.where(both, a, 0.0)), RESOLUTION_FLOOR[kind])
     rel = np.zeros(a.shape, dtype=np.float64)
     with np.errstate(over="ignore"):  # an error over a float64-subnormal value may pass 1.8e308: inf is the truth
-        np.divide(err, np.abs(a), out=rel, where=both & (a != 0))
+        np.divide(err, scale, out=rel, where=both & (scale != 0))
     bound = quantization_bound(group, np.where(both, a, 0.0), kind)
     # Finite values past a float range saturate (or become infinite), keeping their
     # sign; NaN stays NaN. Both are lossy but expected, and noted by the writer.
@@ -243,30 +275,61 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str | None = No
 _ROWS = 1 << 17
 
 
+class Comparison:
+    """Errors of converted rows against source rows, added a block at a time.
+
+    The one measure ``verify`` and ``stats`` report: :meth:`add` each block of
+    paired rows, then :meth:`errors`. Memory stays that of one block.
+
+    Parameters
+    ----------
+    storage : dict of str to str, optional
+        How the converted file stores each group (a format module's ``storage``;
+        default :data:`TEXTURE_STORAGE`).
+    """
+
+    def __init__(self, storage: dict | None = None):
+        self.storage = storage or TEXTURE_STORAGE
+        self._errors = {}
+
+    def add(self, source_cols: dict, converted_cols: dict, each=None) -> None:
+        """Compare one block: row i of ``source_cols`` against row i of ``converted_cols``.
+
+        Parameters
+        ----------
+        source_cols, converted_cols : dict of str to (M,) ndarray
+            Model columns of the paired rows.
+        each : callable, optional
+            ``each(group, a, b)`` with the ``(M, k) float64`` values compared, for a
+            caller that counts more of them (``stats``).
+        """
+        for g in GROUPS:
+            a, b = viewer.group_values(source_cols, g), viewer.group_values(converted_cols, g)
+            e = value_errors(a, b, g, self.storage[g])
+            self._errors[g] = self._errors[g].merge(e) if g in self._errors else e
+            if each is not None:
+                each(g, a, b)
+
+    def errors(self) -> dict:
+        """Per-group :class:`GroupError` of every row added (zeros for a group with none)."""
+        return {g: self._errors.get(g) or GroupError(g, 0.0, 0.0, 0.0, 0, 0.0, 0, storage=self.storage[g])
+                for g in GROUPS}
+
+
 def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None,
                    storage: dict | None = None) -> dict:
     """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``.
 
     ``storage`` maps each group to how the converted file stores it (a format
     module's ``STORAGE``; default :data:`TEXTURE_STORAGE`). Computed :data:`_ROWS`
-    rows at a time and merged, so that memory stays bounded whatever the scene's size.
+    rows at a time (:class:`Comparison`), so that memory stays bounded whatever
+    the scene's size.
     """
-    storage = storage or TEXTURE_STORAGE
+    comparison = Comparison(storage)
     n = converted.count
-    parts = {g: [] for g in GROUPS}
-    for start in range(0, max(n, 1), _ROWS):
+    for start in range(0, n, _ROWS):
         rows = slice(start, min(start + _ROWS, n))
         pick = rows if order is None else order[rows]
-        src = {k: v[pick] for k, v in source.columns.items()}
-        conv = {k: v[rows] for k, v in converted.columns.items()}
-        for g in GROUPS:
-            parts[g].append(group_errors(src, conv, g, storage[g]))
-    return {g: _merge(parts[g]) for g in GROUPS}
-
-
-def _merge(parts: list) -> GroupError:
-    """One GroupError from those of consecutive row ranges."""
-    merged = parts[0]
-    for part in parts[1:]:
-        merged = merged.merge(part)
-    return merged
+        comparison.add({k: v[pick] for k, v in source.columns.items()},
+                       {k: v[rows] for k, v in converted.columns.items()})
+    return comparison.errors()

@@ -61,6 +61,8 @@ def info_text(info: dict) -> str:
     actual = tex["actual_bytes"]
     data = f"{tex['declared_bytes']:,} bytes declared" + (
         f", {actual:,} present" if actual is not None else " (when converted)")
+    if actual is not None and actual < tex["declared_bytes"]:
+        data += " (not padded: the rest reads as zeros)"
     lines.append(f"texture:   {tex['width']} x {tex['height']} RGBA32UI, {data}")
     cams = info["cameras"]
     names = ", ".join(str(c["img_name"]) for c in cams[:4]) + (", ..." if len(cams) > 4 else "")
@@ -386,5 +388,5 @@ def segments_text(data: dict) -> str:
                      f"min {_db(s['min_psnr'])}; {s['below_40']} below 40 dB, {s['below_30']} below 30 dB")
     out = data.get("output")
     if out:
-        lines.append(f"wrote {out['path']}: {plural(out['splats'], 'splat')}")
+        lines.append(f"wrote {out['path']}: {plural(out['splats'], 'splat')}, {out['bytes']:,} bytes")
     return "\n".join(lines)

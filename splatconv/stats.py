@@ -11,7 +11,7 @@ import numpy as np
 
 from . import viewer
 from .cameras import framing_camera
-from .compare import GroupError, align, value_errors
+from .compare import Comparison, align
 from .formats import format_for, splatv
 from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
 from .io import reading
@@ -220,9 +220,11 @@ def _counts(a: np.ndarray, b: np.ndarray, raw: dict, group: str) -> dict:
         # alpha below half a byte step becoming byte 0 is the bytes' ordinary rounding.
         out["underflow"] = int(np.count_nonzero(finite & (a != 0) & (b == 0)))
     if group == "color":
-        # NaN is clamped too: the writers store it as 0.
-        stored = np.stack([np.asarray(raw[n]) for n in GROUPS[group]], axis=1)
-        out["clamped"] = int(np.count_nonzero((stored < 0) | (stored > 1) | np.isnan(stored)))
+        # Clamped where the nearest byte falls outside 0..255 (a value a hair below 0
+        # rounds to byte 0 anyway: nothing changed), as the writers count it. NaN is
+        # clamped too: the writers store it as 0.
+        stored = np.rint(np.stack([viewer.wide(raw[n]) for n in GROUPS[group]], axis=1) * 255.0)
+        out["clamped"] = int(np.count_nonzero((stored < 0) | (stored > 255) | np.isnan(stored)))
     elif group == "opacity":
         out["clamped"] = int(np.count_nonzero(np.isnan(raw["opacity"])))  # sigmoid(NaN): stored as alpha 0
     return out
@@ -256,37 +258,6 @@ def splatvjs_damage(cols: dict) -> dict:
         garbled = ((float_to_half_splatvjs(v) & 0x7FFF) != 0) & ((float_to_half(v) & 0x7FFF) == 0)
         out[group] = {"infinity": int(np.count_nonzero(np.isfinite(exact) & (np.abs(v) >= 32768))),
                       "garbled": int(np.count_nonzero(garbled))}
-    return out
-
-
-def _texture_columns(cols: dict) -> dict:
-    """Columns of a scene read from a ``.splatv``, giving back the texture's own values.
-
-    The model keeps float32 logarithms and logits chosen so that writing them
-    gives the same halves and bytes again; through exp() and the sigmoid they
-    come within about 2e-6 (relative) of what the viewer reads, not onto it.
-    These float64 columns give the halves and bytes / 255 to double precision,
-    so the reported errors are the texture's own.
-
-    Parameters
-    ----------
-    cols : dict of str to (N,) float32 ndarray
-
-    Returns
-    -------
-    dict of str to (N,) ndarray
-        ``cols`` with the scale, temporal scale, colour and opacity columns
-        replaced by float64 ones.
-    """
-    out = dict(cols)
-    with np.errstate(all="ignore"):  # 0 -> log 0, a half past 65504 -> inf
-        for name in splatv.EXP_ATTRIBUTES:
-            stored = viewer.exp(cols[name]).astype(np.float16)  # the nearest half
-            out[name] = np.log(stored.astype(np.float64))
-        for name in COLOR:
-            out[name] = np.rint(viewer.wide(cols[name]) * 255) / 255
-    # The alpha byte as the writer rounds it (sigmoid, then x255); bytes 0 and 255 give infinite logits.
-    out["opacity"] = viewer.logit(np.rint(viewer.sigmoid(cols["opacity"]) * 255) / 255)
     return out
 
 
@@ -362,8 +333,8 @@ def _viewer_limits(scene: Scene) -> dict:
 _GATHER = 1 << 12
 
 
-def _rows(cols: dict, index, as_texture: bool) -> dict:
-    """Rows ``index`` (a slice, or row numbers in any order) of every column; a texture's as it stores them."""
+def _rows(cols: dict, index) -> dict:
+    """Rows ``index`` (a slice, or row numbers in any order) of every column."""
     if isinstance(index, slice):
         block = {name: np.asarray(cols[name])[index] for name in COLUMNS}
     else:
@@ -375,7 +346,7 @@ def _rows(cols: dict, index, as_texture: bool) -> dict:
             for name in COLUMNS:
                 # Indexing, not np.take: take copies a strided (memory-mapped PLY) column whole first.
                 block[name][start:start + _GATHER] = np.asarray(cols[name])[part]
-    return _texture_columns(block) if as_texture else block
+    return block
 
 
 class _Tally:
@@ -388,8 +359,7 @@ class _Tally:
         self.magnitudes = {term: np.empty(n, dtype=np.float64) for term in MOTION_TERMS}
         self.lo = np.full(3, np.inf)
         self.hi = np.full(3, -np.inf)
-        self.errors = {} if compare else None
-        self.storage = storage  # how the converted file stores each group
+        self.comparison = Comparison(storage) if compare else None  # how the converted file stores each group
         self.counts = {g: dict.fromkeys(COUNT_KEYS, 0) for g in GROUPS} if compare else None
         self.damage = {g: {"infinity": 0, "garbled": 0} for g in HALF_GROUPS} if damage else None
 
@@ -405,13 +375,8 @@ class _Tally:
         if len(pos):
             self.lo = np.minimum(self.lo, pos.min(axis=0))
             self.hi = np.maximum(self.hi, pos.max(axis=0))
-        if self.errors is not None:
-            for group in GROUPS:
-                a, b = viewer.group_values(src, group), viewer.group_values(conv, group)
-                e = value_errors(a, b, group, self.storage[group])
-                self.errors[group] = self.errors[group].merge(e) if group in self.errors else e
-                for key, count in _counts(a, b, src, group).items():
-                    self.counts[group][key] += count
+        if self.comparison is not None:
+            self.comparison.add(src, conv, each=lambda group, a, b: self._count(group, a, b, src))
         if self.damage is not None:
             for group, d in splatvjs_damage(src).items():
                 for key, count in d.items():
@@ -420,25 +385,25 @@ class _Tally:
     def undrawable_counts(self) -> dict:
         return {kind: int(self.undrawable[i + 1]) for i, kind in enumerate(viewer.UNDRAWABLE_KINDS)}
 
+    def _count(self, group: str, a: np.ndarray, b: np.ndarray, src: dict) -> None:
+        for key, count in _counts(a, b, src, group).items():
+            self.counts[group][key] += count
+
     def bounds(self):
         if not np.isfinite(self.lo).all():
             return None
         return {"min": self.lo.tolist(), "max": self.hi.tolist()}
 
     def attributes(self):
-        if self.errors is None:
+        if self.comparison is None:
             return None
         return {g: {"max_abs_error": _finite(e.max_abs_error), "max_rel_error": _finite(e.max_rel_error),
-                    "rmse": _finite(e.rmse), **self.counts[g]}
-                for g, e in ((g, self.errors.get(g) or _NO_ERRORS[g]) for g in GROUPS)}
+                    "rmse": _finite(e.rmse), **self.counts[g]} for g, e in self.comparison.errors().items()}
 
 
 def _finite(v: float):
     """``v``, or None (JSON null) where it is infinite: JSON has no infinity."""
     return v if math.isfinite(v) else None
-
-
-_NO_ERRORS = {g: GroupError(g, 0.0, 0.0, 0.0, 0, 0.0, 0) for g in GROUPS}
 
 
 def stats_report(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
@@ -485,9 +450,8 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
     with progress.stage("comparing" if compare else "reading values", n, "splat") as advance:
         for start in range(0, n, BLOCK):
             rows = slice(start, min(start + BLOCK, n))
-            conv = _rows(converted.columns, rows, conv_mod.STORES_TEXTURE)
-            src = conv if not compare else _rows(source.columns, rows if order is None else order[rows],
-                                                 src_mod.STORES_TEXTURE)
+            conv = _rows(converted.columns, rows)
+            src = conv if not compare else _rows(source.columns, rows if order is None else order[rows])
             tally.add(rows, src, conv)
             advance(rows.stop - rows.start)
     # The viewer loads the texture side; with none (PLY to PLY), the converted file as converting would make it.

@@ -26,13 +26,14 @@ def unorm8_nearest(v: np.ndarray) -> tuple[np.ndarray, int, int]:
     -------
     bytes : (N,) uint8 ndarray
     clamped : int
-        Values outside [0, 255] (NaN excluded).
+        Values whose byte the clamp changes: those whose nearest integer is
+        outside [0, 255] (-0.4 rounds to 0 anyway; NaN excluded).
     nan : int
         NaN values (written as 0).
     """
     v = np.asarray(v, dtype=np.float64)
     nan = np.isnan(v)
-    clamped = int(np.count_nonzero((v < 0) | (v > 255)))
+    clamped = int(np.count_nonzero((np.rint(v) < 0) | (np.rint(v) > 255)))
     out = np.rint(np.clip(np.where(nan, 0.0, v), 0.0, 255.0)).astype(np.uint8)
     return out, clamped, int(np.count_nonzero(nan))
 
@@ -42,11 +43,11 @@ def unorm8_truncate(v: np.ndarray) -> tuple[np.ndarray, int, int]:
 
     ``Math.max(0, Math.min(255, v))`` then a Uint8Array store: truncation toward
     zero; NaN gives 0. Returns the bytes and the clamped and NaN counts, as
-    :func:`unorm8_nearest` does.
+    :func:`unorm8_nearest` does (clamped: values whose truncation is outside [0, 255]).
     """
     v = np.asarray(v, dtype=np.float64)
     nan = np.isnan(v)
-    clamped = int(np.count_nonzero((v < 0) | (v > 255)))
+    clamped = int(np.count_nonzero((np.trunc(v) < 0) | (np.trunc(v) > 255)))
     out = np.trunc(np.clip(np.where(nan, 0.0, v), 0.0, 255.0)).astype(np.uint8)
     return out, clamped, int(np.count_nonzero(nan))
 

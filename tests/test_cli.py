@@ -444,3 +444,73 @@ def test_a_stage_inside_another_gives_the_line_back_when_it_ends():
         advance()
     assert screen.getvalue().endswith("\r\x1b[K")  # cleared when the last stage ends
     assert progress_for(True, screen) is progress_for(False, io.StringIO())  # --quiet, or no terminal: silent
+
+
+#: Colours a hair outside [0, 1] whose byte is 0 or 255 anyway, then ones the clamp changes:
+#: (value, clamped rounding to nearest, clamped truncating as splaTV's converter does).
+EDGE_COLOURS = [(-1.5e-8, False, False), (1.0 + 2**-23, False, False), (-0.4 / 255, False, False),
+                (255.4 / 255, False, False), (-0.6 / 255, True, False), (255.6 / 255, True, False),
+                (-1.0 / 255, True, True), (256.0 / 255, True, True), (-0.2, True, True), (1.5, True, True)]
+
+
+@pytest.mark.parametrize("suffix, args, column", [(".splatv", [], 1), (".splatv", ["--compat", "splatv-js"], 2),
+                                                  (".splat", [], 1), (".html", [], 1)])
+def test_only_colours_whose_byte_the_clamp_changes_are_noted(tmp_path, suffix, args, column):
+    cols = lite_columns_with_normals(random_columns(len(EDGE_COLOURS), 4))
+    cols["f_dc_0"][:] = np.array([e[0] for e in EDGE_COLOURS], np.float32)
+    cols["f_dc_1"][:] = 0.5
+    cols["f_dc_2"][:] = 0.5
+    for name in [f"motion_{i}" for i in range(9)] + [f"omega_{i}" for i in range(4)]:
+        cols[name][:] = 0.0  # static, so that a .splat holds it
+    cols["trbf_scale"][:] = np.inf
+    clamped = sum(e[column] for e in EDGE_COLOURS)
+    p = write_ply(tmp_path / "edge.ply", cols)
+    r = run("convert", p, tmp_path / f"edge{suffix}", *args)
+    assert r.exit_code == 0, r.output
+    assert f"note: color: {clamped} values outside [0, 1] clamped\n" in r.stderr
+    if suffix == ".splatv" and not args:
+        stats = json.loads(run("stats", p, tmp_path / "edge.splatv", "--json", "--zstd-level", "1").stdout)
+        assert stats["attributes"]["color"]["clamped"] == clamped
+
+
+def test_a_baked_frame_converts_back_without_clamp_notes(tmp_path):
+    # A baked 3DGS PLY stores colour as SH coefficients; read back, a few colours sit a float32
+    # hair outside [0, 1]: their bytes are 0 and 255 anyway, so converting changes nothing there.
+    from .real_scenes import real_scene, unpadded_splatv
+
+    scene, _ = real_scene(3000, 2)
+    src = tmp_path / "scene.splatv"
+    unpadded_splatv(scene, src)
+    baked = tmp_path / "baked.ply"
+    assert run("bake", src, baked, "--time", "0.5").exit_code == 0
+    from splatconv import read
+
+    rgb = np.stack([read(baked).columns[f"f_dc_{i}"] for i in range(3)])
+    assert ((rgb < 0) | (rgb > 1)).any()  # the case in point
+    for suffix in (".splatv", ".splat"):
+        r = run("convert", baked, tmp_path / f"back{suffix}")
+        assert r.exit_code == 0 and "clamped" not in r.stderr, r.stderr
+
+
+def test_a_file_ending_after_its_last_record_is_said_once_in_info(tmp_path):
+    # Every real .splatv stops after its last record: nothing is lost, so only info says it.
+    from .real_scenes import real_scene, unpadded_splatv
+
+    scene, _ = real_scene(600, 1)
+    p = tmp_path / "real.splatv"
+    unpadded_splatv(scene, p)
+    info = run("info", p)
+    assert info.exit_code == 0
+    assert info.stdout.count("pad") == 1 and "pad" not in info.stderr
+    assert "texture:   4096 x 1 RGBA32UI, 65,536 bytes declared, 38,400 present (not padded: the rest reads " \
+           "as zeros)\n" in info.stdout
+    for args in (("convert", p, tmp_path / "out.ply"), ("stats", p, "--zstd-level", "1"),
+                 ("render", p, tmp_path / "f.png", "--size", "32x18"),
+                 ("verify", p, tmp_path / "out.ply", "--times", "0.5", "--cameras", "0", "--size", "32x18")):
+        r = run(*args)
+        notes = [line for line in r.output.splitlines() if line.startswith("note:")]
+        assert r.exit_code in (0, 1) and not [n for n in notes if "pad" in n or "shorter" in n], (args, r.output)
+    # Padded by its writer: info says nothing of padding.
+    padded = tmp_path / "padded.splatv"
+    assert run("convert", tmp_path / "out.ply", padded).exit_code == 0
+    assert "not padded" not in run("info", padded).stdout

@@ -240,3 +240,11 @@ def test_merge_drop_nonfinite_applies_to_every_input(tmp_path, actor):
     assert r.exit_code == 0, r.output
     assert r.stderr.count("note: input ") >= 2 and "drop-nonfinite" in r.stderr
     assert io.read(out).count == 2 * 46
+
+
+def test_merge_has_no_mode_option(tmp_path):
+    # --mode had one choice and was never read: it is gone from the command and its help.
+    help_text = run("merge", "--help").stdout
+    assert "--mode" not in help_text and "overlay:" not in help_text
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "c.ply", "--mode", "overlay")
+    assert r.exit_code == 2 and "No such option '--mode'" in r.stderr

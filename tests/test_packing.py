@@ -143,12 +143,14 @@ def test_pack_half2_roundtrip(a, b):
 
 
 def test_unorm8_nearest_and_truncate():
-    v = np.array([-3, 0, 0.49, 0.5, 1.5, 254.5, 254.99, 255, 300, np.nan])
+    # Clamped counts only values whose byte the clamp changes: -0.4 rounds (and truncates) to 0,
+    # -0.6 rounds to -1 (clamped) but truncates to 0; 255.4 and 255.6 truncate to 255.
+    v = np.array([-3, 0, 0.49, 0.5, 1.5, 254.5, 254.99, 255, 300, np.nan, -0.4, -0.6, 255.4, 255.6])
     near, clamped, nan = reference.unorm8_nearest(v)
-    assert near.tolist() == [0, 0, 0, 0, 2, 254, 255, 255, 255, 0]
-    assert (clamped, nan) == (2, 1)
+    assert near.tolist() == [0, 0, 0, 0, 2, 254, 255, 255, 255, 0, 0, 0, 255, 255]
+    assert (clamped, nan) == (4, 1)
     trunc, clamped, nan = reference.unorm8_truncate(v)
-    assert trunc.tolist() == [0, 0, 0, 0, 1, 254, 254, 255, 255, 0]
+    assert trunc.tolist() == [0, 0, 0, 0, 1, 254, 254, 255, 255, 0, 0, 0, 255, 255]
     assert (clamped, nan) == (2, 1)
 
 

@@ -185,6 +185,11 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert f"[default: {DEFAULT_EVERY}; x>=1]" in " ".join(help_text.split())
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
+    # The size written is said, as every write says it.
+    written = tmp_path / "t.ply"
+    assert r.stdout.endswith(f"wrote {written}: {io.read(written).count:,} splats, {written.stat().st_size:,} "
+                             f"bytes\n")
+    assert data["output"]["bytes"] == out.stat().st_size
     # Segments with no splats at all: a report, not a traceback (the ratio is undefined).
     io.write(Scene(columns={k: np.asarray(v)[:0] for k, v in a.columns.items()}), tmp_path / "empty.ply")
     r = run("merge", tmp_path / "empty.ply", tmp_path / "empty.ply", tmp_path / "e.ply", "--segments")

@@ -282,6 +282,10 @@ def test_image_diff(tmp_path):
     assert r.exit_code == 0
     heat = np.asarray(Image.open(tmp_path / "heat.png"))
     assert heat[5, 5].any() and not heat[0, 0].any()
+    # The write is said on stderr, as every write is, and stays out of stdout (the JSON).
+    size = (tmp_path / "heat.png").stat().st_size
+    assert r.stderr == f"note: wrote {tmp_path / 'heat.png'}: difference heatmap, 30x20, {size:,} bytes\n"
+    assert data["notes"] == [f"wrote {tmp_path / 'heat.png'}: difference heatmap, 30x20, {size:,} bytes"]
     r = run("diff", pa, pa)
     assert r.exit_code == 0 and "inf" in r.stdout
     assert run("diff", pa, pb, "--min-psnr", "60").exit_code == 1
@@ -591,3 +595,13 @@ def test_malformed_options_are_refused_before_any_file_is_read(tmp_path, monkeyp
         assert r.exit_code == 2, (args, r.output)
         r = run("diff", tmp_path / "a.ply", tmp_path / "b.splatv", *args)
         assert r.exit_code == 2, (args, r.output)
+
+
+def test_diff_of_scenes_says_which_frame_its_heatmap_shows(tmp_path, faithful):
+    heat = tmp_path / "heat.png"
+    r = run("diff", SAMPLE, faithful, "--times", "0.2,0.7", "--size", "48x27", "--out", heat, "--json")
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    worst = data["worst"]
+    assert r.stderr == (f"note: wrote {heat}: difference heatmap (t={worst['time']:g}, camera {worst['camera']}, "
+                        f"the worst frame), 48x27, {heat.stat().st_size:,} bytes\n")

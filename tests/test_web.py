@@ -135,6 +135,29 @@ def test_external_html_from_a_static_host(browser, sample, tmp_path):
     assert_matches(frame, rendered(sample, 0.5), "--external page from a static host")
 
 
+def test_an_external_page_whose_scene_is_missing_names_the_file_it_fetches(browser, tmp_path):
+    # Converted from a PLY, the page fetches "page.splatv": that is what a message must name.
+    cols = random_columns(50, 2)
+    src = tmp_path / "source.ply"
+    splatconv.write(Scene(columns=cols), src)
+    site = tmp_path / "site"
+    site.mkdir()
+    publish([src], site / "page.html", external=True)
+    (site / "page.splatv").unlink()
+    handler = partial(_QuietHandler, directory=str(site))
+    httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=httpd.serve_forever, daemon=True)
+    thread.start()
+    try:
+        page = open_page(browser, f"http://127.0.0.1:{httpd.server_address[1]}/page.html", W, H)
+        text = page.locator("#message").text_content()
+        page.close()
+    finally:
+        httpd.shutdown()
+        httpd.server_close()
+    assert text.startswith("Cannot show page.splatv: the server answered 404"), text
+
+
 class _QuietHandler(http.server.SimpleHTTPRequestHandler):
     def log_message(self, *args):
         pass
@@ -503,3 +526,45 @@ def test_readme_screenshot_is_the_page(browser, sample, tmp_path):
     stored = np.asarray(Image.open(target).convert("RGB"))
     assert compare(fresh, stored).psnr >= 30
     assert "docs/player.png" in (ROOT / "README.md").read_text()
+
+
+def _panel_after_load(browser, path):
+    """(stats text, note text, note colour, status of the segment) once ``path`` has loaded in the page."""
+    with serving([path]) as server:
+        page = open_page(browser, server.url + "#t=0.5", W, H)
+        page.wait_for_function("() => window.splatconvPlayer.status().loaded", timeout=60000)
+        page.wait_for_function("() => /splats( |$)/.test(document.getElementById('stats').textContent) && "
+                               "!/so far/.test(document.getElementById('stats').textContent)", timeout=60000)
+        stats = page.locator("#stats").text_content()
+        note = page.locator("#note").text_content()
+        segment = page.evaluate("() => window.splatconvPlayer.status().segments[0]")
+        page.close()
+    return stats, note, segment
+
+
+def test_a_file_that_stops_after_its_last_record_shows_its_splats_and_no_warning(browser, tmp_path):
+    # Real .splatv files carry no count and stop after their last record: the panel says the true
+    # number of splats (as the reader counts them), not the texture's slots, and warns of nothing.
+    from .real_scenes import real_scene, unpadded_splatv
+
+    scene, _ = real_scene(1500, 6)
+    path = tmp_path / "real.splatv"
+    unpadded_splatv(scene, path)
+    stats, note, segment = _panel_after_load(browser, path)
+    assert splatconv.read(path).count == 1500
+    assert "1,500 splats" in stats and "slots" not in stats
+    assert note == "" and segment["note"] is None and segment["count"] == 1500
+
+
+def test_a_file_cut_inside_a_record_is_noted(browser, tmp_path):
+    from .real_scenes import real_scene, unpadded_splatv
+
+    scene, _ = real_scene(1500, 6)
+    path = tmp_path / "cut.splatv"
+    unpadded_splatv(scene, path)
+    path.write_bytes(path.read_bytes()[:-10])
+    stats, note, segment = _panel_after_load(browser, path)
+    assert "1,500 splats" in stats  # the cut record is still a splat, as the reader counts it
+    assert splatconv.read(path).count == 1500
+    assert note == ("cut.splatv: the file ends inside splat 1499 (after 54 of its 64 bytes): truncated? its missing "
+                    "bytes read as zeros")

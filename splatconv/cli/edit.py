@@ -189,8 +189,6 @@ def _report_each(frames, names):
 @main.command()
 @click.argument("paths", metavar="INPUT... OUTPUT", nargs=-1, required=True, type=click.Path(dir_okay=False))
 @options(
-    click.option("--mode", type=click.Choice(merge_ops.MODES), default="overlay", show_default=True,
-                 help="overlay: all inputs together on the same timeline."),
     click.option("--translate", type=PerInput(FloatList(3, "X,Y,Z"), "X,Y,Z"), multiple=True,
                  help="Move input N by (X, Y, Z), e.g. --translate 2:1.5,0,0. Repeat for other inputs."),
     click.option("--rotate", type=PerInput(Rotation(), "STEPS"), multiple=True,
@@ -207,7 +205,7 @@ def _report_each(frames, names):
     quiet_option(),
 )
 @library_errors
-def merge(paths, mode, translate, rotate, scale, layout, sort, color, drop_nonfinite, force, quiet, segments,
+def merge(paths, translate, rotate, scale, layout, sort, color, drop_nonfinite, force, quiet, segments,
           **segment):
     """Put several scenes in one file on the same timeline.
 

@@ -247,13 +247,17 @@ def _encode(block: dict, rec: np.ndarray, report: WriteReport, changed: dict) ->
 
 
 def _bytes(values: np.ndarray, report: WriteReport, key: str) -> np.ndarray:
-    """Values in [0, 1] (float64) as the nearest of 0..255; outside clamped, NaN as 0 (counted)."""
-    scaled = values * 255.0
+    """Values in [0, 1] (float64) as the nearest of 0..255; NaN as 0 (counted).
+
+    Clamped after rounding: only a value whose nearest byte falls outside 0..255
+    is counted as clamped (-1.5e-8 rounds to byte 0 anyway).
+    """
+    scaled = np.rint(values * 255.0)
     nan = np.isnan(scaled)
     report.nan_bytes[key] += int(np.count_nonzero(nan))
     report.clamped[key] += int(np.count_nonzero((scaled < 0) | (scaled > 255)))
     scaled[nan] = 0.0
-    return np.rint(np.clip(scaled, 0.0, 255.0)).astype(np.uint8)
+    return np.clip(scaled, 0.0, 255.0).astype(np.uint8)
 
 
 def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:

@@ -326,12 +326,12 @@ def read_records(path: str | os.PathLike):
         chunks, chunk, start, offset, skipped = _splat_chunk(f, path, file_size)
         declared = chunk["size"]
         actual = max(0, min(declared, file_size - start))
-        if actual < declared:
-            notes.append(f"texture data is {declared - actual} bytes shorter than the {declared} declared "
-                         "(the writer did not pad); the rest is read as zeros")
-            if actual % RECORD_BYTES:
-                notes.append(f"record {actual // RECORD_BYTES} is cut after {actual % RECORD_BYTES} of its "
-                             f"{RECORD_BYTES} bytes: file truncated? its missing words read as zeros")
+        # Texture data that stops after its last record is how splaTV's converter
+        # writes every file: the rest reads as zeros and nothing is lost, so no
+        # note (``info`` shows the bytes present). A record cut short is damage.
+        if actual < declared and actual % RECORD_BYTES:
+            notes.append(f"record {actual // RECORD_BYTES} is cut after {actual % RECORD_BYTES} of its "
+                         f"{RECORD_BYTES} bytes: file truncated? its missing words read as zeros")
         if offset < file_size:
             notes.append(f"{file_size - offset} bytes after the last chunk ignored")
         n_records = -(-actual // RECORD_BYTES)
@@ -478,7 +478,8 @@ def decode_records(records: np.ndarray) -> tuple[dict, list]:
 def read(path: str | os.PathLike, **_options) -> Scene:
     """Read a ``.splatv`` file into a :class:`Scene`.
 
-    Texture data shorter than declared is padded with zeros (noted once); the
+    Texture data shorter than declared is padded with zeros (noted only when it
+    ends inside a record; ``info`` shows the bytes present); the
     splat count is the header's ``count`` (see :func:`_splat_count`), or, in
     files without one, excludes trailing all-zero records. NaN, infinities, subnormal
     halves and zero scales are read as they are.

@@ -334,9 +334,16 @@ def _exceptions(work: np.ndarray, halves: np.ndarray, logs: np.ndarray, listed: 
             setattr(c, what, getattr(c, what) + int(per_column[col]))
 
 
+#: The values that truncate to 0..255: (-1, 256), as closed bounds.
+_TRUNCATED_TO_A_BYTE = (float(np.nextafter(-1.0, 0.0)), float(np.nextafter(256.0, 0.0)))
+
+
 def _colour(rgba: np.ndarray, exp_neg_opacity: np.ndarray, out: np.ndarray, compat: bool, counts: WriteReport,
             scratch: Scratch) -> None:
-    """The colour word: RGB x255 and sigmoid(opacity) x255, clamped, then rounded or truncated.
+    """The colour word: RGB x255 and sigmoid(opacity) x255, rounded or truncated, then clamped.
+
+    ``counts.clamped`` counts the values whose byte the clamp changed (none for a
+    value a hair outside [0, 1] that rounds to 0 or 255 anyway).
 
     Parameters
     ----------
@@ -354,17 +361,20 @@ def _colour(rgba: np.ndarray, exp_neg_opacity: np.ndarray, out: np.ndarray, comp
         np.add(exp_neg_opacity, 1.0, out=alpha)
         np.divide(1.0, alpha, out=alpha)  # sigmoid, in double as splaTV's JS does
         scaled *= 255.0
-        if not (scaled.min() >= 0.0 and scaled.max() <= 255.0):  # also true for NaN
+        # Rounded (or truncated) first, a value clamps only where its byte would
+        # fall outside 0..255: -1.5e-8 rounds to byte 0 anyway, a change of nothing.
+        # compat truncates, which the float -> uint8 cast does for values in (-1, 256).
+        if not compat:
+            np.rint(scaled, out=scaled)
+        lo, hi = _TRUNCATED_TO_A_BYTE if compat else (0.0, 255.0)
+        if not (scaled.min() >= lo and scaled.max() <= hi):  # also true for NaN
             for channel, name in enumerate(("color", "color", "color", "alpha")):
                 v = scaled[:, channel]
                 nan = np.isnan(v)
-                counts.clamped[name] += int(np.count_nonzero((v < 0) | (v > 255)))
+                counts.clamped[name] += int(np.count_nonzero((v < lo) | (v > hi)))
                 counts.nan_bytes[name] += int(np.count_nonzero(nan))
                 v[nan] = 0.0
                 np.clip(v, 0.0, 255.0, out=v)
-        if not compat:
-            np.rint(scaled, out=scaled)
-        # compat truncates, which the float -> uint8 cast does for values in [0, 255].
         rgba8 = scratch.get("rgba8", (m, 4), np.uint8)
         np.copyto(rgba8, scaled, casting="unsafe")
     np.copyto(out[:, COLOR_WORD], rgba8.view("<u4")[:, 0])

@@ -26,11 +26,6 @@ from ..model import Scene
 from ..wording import plural
 from .report import OpReport
 
-#: How :func:`merge` lays its inputs out in time. ``overlay``: all on the same
-#: timeline (this module). Other modes (segments end to end) belong to other modules.
-MODES = ("overlay",)
-
-
 @dataclass
 class MergeReport(OpReport):
     """What composing did: an :class:`~splatconv.ops.report.OpReport` (``op`` ``"merge"``, no splat removed).

@@ -110,16 +110,20 @@ def diff_files(a, b, *, size: str | None = None, cameras: str | None = None, tim
         ia, ib = imgdiff.load_image(a), imgdiff.load_image(b)
         outcome = Outcome("diff", (a, b), min_psnr)
         outcome.frames.append(Frame(0.0, 0, imgdiff.compare(ia, ib), names=(a, b)))
-        worst.append((ia, ib))
+        worst.append((outcome.frames[0], (ia, ib)))
     else:
         def keep_worst(frame, ia, ib):
-            if not worst or frame.diff.psnr < worst[0][0]:
-                worst[:] = [(frame.diff.psnr, (ia, ib))]
+            if not worst or frame.diff.psnr < worst[0][0].diff.psnr:
+                worst[:] = [(frame, (ia, ib))]
 
         outcome = diff_scenes(a, b, times=times, cameras=cameras, size=size, min_psnr=min_psnr, color=color,
                               reference=reference, progress=progress, on_frame=keep_worst if out else None)
-        worst = [w[1] for w in worst]
     if out is not None:
+        frame, pair = worst[0]
+        heat = imgdiff.heatmap(*pair)
         with atomic_writer(out) as stream:
-            imgdiff.save_png(imgdiff.heatmap(*worst[0]), stream)
+            imgdiff.save_png(heat, stream)
+        of = "" if frame.names else f" (t={frame.time:g}, camera {frame.camera}, the worst frame)"
+        outcome.notes.append(f"wrote {os.fspath(out)}: difference heatmap{of}, {heat.shape[1]}x{heat.shape[0]}, "
+                             f"{os.path.getsize(out):,} bytes")
     return outcome

@@ -72,7 +72,7 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
             if keep:
                 check_splatv(path)
                 report.notes.append(f"{name}: the page plays this input where it is")
-                refs.append(SceneRef(name=os.path.basename(path), url=quote(os.path.basename(name)), duration=share))
+                refs.append(SceneRef(name=os.path.basename(name), url=quote(os.path.basename(name)), duration=share))
                 continue
             data, notes = splatv_bytes(path)
             report.notes.extend(f"{path}: {n}" for n in notes)
@@ -80,7 +80,8 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
                 with group.open(name) as stream:
                     stream.write(data)
                 report.written.append((name, len(data)))
-                refs.append(SceneRef(name=os.path.basename(path), url=quote(os.path.basename(name)), duration=share))
+                # Named as the file the page fetches: a message about it names what is missing.
+                refs.append(SceneRef(name=os.path.basename(name), url=quote(os.path.basename(name)), duration=share))
             else:
                 refs.append(SceneRef(name=os.path.basename(path), data=data, duration=share))
         page = build_page(refs, title=os.path.basename(stem))

@@ -334,12 +334,33 @@
       describeFailure(seg, e.message || String(e));
       return;
     }
-    if (seg.received < seg.data.length) {
-      // A short file: the rest of the texture is zeros, as `splatconv render` reads it.
-      seg.note = `the file ends after ${Math.floor(seg.received / RECORD_BYTES)} of ${seg.total} records`;
-      seg.received = seg.data.length;
+    // A file that stops after its last record, as splaTV's converter writes them, is whole: the rest of the
+    // texture is zeros, as `splatconv render` reads it. Only a file that ends inside a record, or before the
+    // splats its header counts, was cut short (formats/splatv.py notes the same).
+    const present = Math.ceil(seg.received / RECORD_BYTES), cut = seg.received % RECORD_BYTES;
+    const counted = seg.header.count;
+    if (cut) {
+      seg.note = `the file ends inside splat ${present - 1} (after ${cut} of its ${RECORD_BYTES} bytes): ` +
+        "truncated? its missing bytes read as zeros";
+    } else if (Number.isInteger(counted) && counted > present && counted <= seg.total) {
+      seg.note = `the file holds ${present.toLocaleString()} of the ${counted.toLocaleString()} splats its ` +
+        "header counts: truncated?";
     }
+    seg.received = seg.data.length;
+    seg.count = splatCount(seg, present);
     seg.done = true;
+  }
+
+  // Splats in a loaded segment of ``present`` records, as formats/splatv.py counts them: the header's count
+  // (splatconv's writer stores it) where every record after it is zero, else the records up to the last one
+  // that is not all zero (other writers store no count; the rest of their texture is padding).
+  function splatCount(seg, present) {
+    const count = seg.header.count;
+    let last = seg.words.length;
+    while (last > 0 && seg.words[last - 1] === 0) last--;
+    const used = Math.ceil(last / 16);
+    if (Number.isInteger(count) && count >= 0 && count <= seg.total && used <= count) return Math.min(count, present);
+    return used;
   }
 
   // Upload whatever arrived since the last frame and hand the positions to the worker.
@@ -717,10 +738,12 @@
     const seg = state.segments[where.index];
     const parts = [];
     if (seg && seg.header) {
-      // splatconv's writer stores the count (COUNT_KEY in formats/splatv_layout.py); others only the texture size.
-      const count = seg.header.count;
+      // Once loaded, the splats counted as formats/splatv.py counts them; while loading, splatconv's writer's
+      // count (COUNT_KEY in formats/splatv_layout.py) where there is one, else the records so far.
+      const count = seg.done ? seg.count : seg.header.count;
       parts.push(Number.isInteger(count) && count >= 0 && count <= seg.total
-        ? `${count.toLocaleString()} splats` : `${seg.total.toLocaleString()} splat slots`);
+        ? `${count.toLocaleString()} splats`
+        : `${Math.floor(seg.received / RECORD_BYTES).toLocaleString()} splats so far`);
     }
     if (state.segments.length > 1) parts.push(`segment ${where.index + 1} of ${state.segments.length}`);
     // No frame drawn twice in a row yet (paused from the start): nothing measured, so no number.
@@ -748,7 +771,8 @@
       drawn: state.drawnKey,
       time: state.time, playing: state.playing, view: state.view, fx: state.fx, fy: state.fy,
       width: canvas.width, height: canvas.height, hash: location.hash,
-      segments: state.segments.map((s) => ({name: s.name, total: s.total, received: s.received, done: s.done})),
+      segments: state.segments.map((s) => ({name: s.name, total: s.total, received: s.received, done: s.done,
+                                            count: s.done ? s.count : null, note: s.note || null})),
       firstMegabyteAt: state.firstMegabyteAt, firstFrameAt: state.firstFrameAt, sortMs: state.sortMs,
     };
   }
