@@ -474,7 +474,7 @@ def test_only_colours_whose_byte_the_clamp_changes_are_noted(tmp_path, suffix, a
 
 
 def test_a_baked_frame_converts_back_without_clamp_notes(tmp_path):
-    # A baked 3DGS PLY stores colour as SH coefficients; read back, a few colours sit a float32
+    # A baked 3DGS PLY stores colour as SH coefficients; read back, colours may sit a float32
     # hair outside [0, 1]: their bytes are 0 and 255 anyway, so converting changes nothing there.
     from .real_scenes import real_scene, unpadded_splatv
 
@@ -483,13 +483,19 @@ def test_a_baked_frame_converts_back_without_clamp_notes(tmp_path):
     unpadded_splatv(scene, src)
     baked = tmp_path / "baked.ply"
     assert run("bake", src, baked, "--time", "0.5").exit_code == 0
-    from splatconv import read
-
-    rgb = np.stack([read(baked).columns[f"f_dc_{i}"] for i in range(3)])
-    assert ((rgb < 0) | (rgb > 1)).any()  # the case in point
-    for suffix in (".splatv", ".splat"):
-        r = run("convert", baked, tmp_path / f"back{suffix}")
-        assert r.exit_code == 0 and "clamped" not in r.stderr, r.stderr
+    # The case in point, planted: colours a hair outside [0, 1] whose bytes are 0 and 255.
+    cols = random_columns(50, seed=3)
+    cols["f_dc_0"][:25] = np.float32(-1.5e-8)
+    cols["f_dc_1"][25:] = np.nextafter(np.float32(1), np.float32(2))
+    cols["rot_0"][:] = 1.0
+    for name in [f"motion_{i}" for i in range(9)] + [f"omega_{i}" for i in range(4)]:
+        cols[name][:] = 0.0
+    cols["trbf_scale"][:] = np.inf  # static: a .splat may hold it
+    hair = write_ply(tmp_path / "hair.ply", cols)
+    for source in (baked, hair):
+        for suffix in (".splatv", ".splat"):
+            r = run("convert", source, tmp_path / f"back{suffix}", "--force")
+            assert r.exit_code == 0 and "clamped" not in r.stderr, r.stderr
 
 
 def test_a_file_ending_after_its_last_record_is_said_once_in_info(tmp_path):
