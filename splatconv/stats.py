@@ -15,7 +15,7 @@ from .compare import Comparison, align
 from .formats import format_for, splatv
 from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
 from .io import reading
-from .model import COLOR, COLUMNS, GROUPS, SCALE, Scene
+from .model import COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
 from .transport import DEFAULT_LEVEL, compressed_bytes
@@ -30,7 +30,9 @@ def _finite_range(values: np.ndarray):
 
 
 #: Version of the ``info`` JSON (``specs/json.md``); raised when a key changes meaning or goes.
-#: 2: ``nonfinite`` no longer counts a log scale of -inf (a flat splat, counted in ``flat``).
+#: 2: ``nonfinite`` counts only values the viewer gives no meaning (what ``--drop-nonfinite``
+#: removes): no longer a log scale of -inf (a flat splat, counted in ``flat``), a temporal
+#: scale of +inf (counted in ``visible_always``), or an infinite opacity or colour.
 INFO_SCHEMA = "splatconv.info/2"
 
 
@@ -91,13 +93,11 @@ def describe(scene: Scene, path: str, module) -> dict:
 
 
 def _nonfinite(values: np.ndarray, name: str) -> int:
-    """NaN and infinite values of column ``name``, but a log scale of -inf: that is a linear scale of
-    exactly 0, a flat splat, which the viewer draws (counted by :func:`_flat`)."""
-    values = np.asarray(values)
-    bad = ~np.isfinite(values)
-    if name in SCALE:
-        bad &= values != -np.inf
-    return int(np.count_nonzero(bad))
+    """Values of column ``name`` the viewer gives no meaning (:func:`splatconv.viewer.without_meaning`):
+    NaN, and infinities but a log scale of -inf (a flat splat, counted by :func:`_flat`), a temporal
+    scale of +inf (visible at every time, counted in ``visible_always``) and an opacity or colour
+    of either sign (sigmoid and clamp give them 0 or 1): what ``--drop-nonfinite`` removes."""
+    return int(np.count_nonzero(viewer.without_meaning(values, name)))
 
 
 def _flat(cols: dict) -> np.ndarray:

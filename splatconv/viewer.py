@@ -238,6 +238,41 @@ def float_record(cols: dict) -> dict:
 
 
 # --------------------------------------------------------------------------
+# Values without meaning: NaN, and the infinities the viewer gives no meaning.
+
+#: Per attribute group: its columns, and the infinities the viewer gives a meaning.
+#: NaN never has one, nor has an infinity not listed. Position, rotation, motion,
+#: omega or trbf centre: any infinity puts the splat nowhere or everywhere, or gives
+#: it no orientation. A log scale of -inf is a linear scale of exactly 0: a flat
+#: splat, which the viewer draws (+inf: an infinitely large one). A temporal scale
+#: of +inf is "visible at every time". An opacity of -inf/+inf is sigmoid 0/1; a
+#: colour of -inf/+inf is clamped to 0/1. ``drop-nonfinite`` removes a splat with a
+#: value without meaning, and ``info`` counts those values.
+MEANINGFUL_INFINITIES = {
+    "position": (POSITION, ()),
+    "rotation": (ROTATION, ()),
+    "scale": (SCALE, (-np.inf,)),
+    "motion": (MOTION, ()),
+    "omega": (OMEGA, ()),
+    "trbf centre": (("trbf_center",), ()),
+    "trbf scale": (("trbf_scale",), (np.inf,)),
+    "opacity": (("opacity",), (-np.inf, np.inf)),
+    "color": (COLOR, (-np.inf, np.inf)),
+}
+_KEPT_INFINITIES = {name: kept for names, kept in MEANINGFUL_INFINITIES.values() for name in names}
+
+
+def without_meaning(values: np.ndarray, name: str) -> np.ndarray:
+    """Values of column ``name`` the viewer gives no meaning: NaN, or an infinity not in
+    :data:`MEANINGFUL_INFINITIES` for it: ``(N,) bool``."""
+    values = np.asarray(values)
+    bad = ~np.isfinite(values)
+    for kept in _KEPT_INFINITIES[name]:
+        bad &= values != kept
+    return bad
+
+
+# --------------------------------------------------------------------------
 # Undrawable splats: what the viewer can never draw at any time in [0, 1].
 
 #: Kinds of undrawable splat, in the order a splat is classed (a splat of several

@@ -134,10 +134,12 @@ def test_convert_and_info_roundtrip(tmp_path, lite_ply):
 def test_info_lists_ignored_and_nonfinite(tmp_path):
     cols = lite_columns_with_normals(random_columns(10))
     cols["x"][3] = np.nan
-    cols["trbf_scale"][4] = np.inf
+    cols["trbf_scale"][4] = np.inf  # visible at every time: has a meaning
+    cols["trbf_scale"][5] = -np.inf  # visible at no time: none
     p = write_ply(tmp_path / "e.ply", cols, extra_props=("f_rest_0",))
     info = json.loads(run("info", p, "--json").stdout)
     assert info["nonfinite"]["x"] == 1 and info["nonfinite"]["trbf_scale"] == 1
+    assert info["visible_always"] == 1
     assert info["details"]["ignored_properties"] == ["f_rest_0"]
     assert info["variant"] == "Spacetime Gaussians lite"
 

@@ -536,7 +536,8 @@ def test_info_says_when_splats_are_drawn_at_every_time(tmp_path):
     src = write_ply(tmp_path / "always.ply", cols)
     info = json.loads(run("info", src, "--json").stdout)
     assert info["visible_time_range"] == [None, None] and info["visible_always"] == 2
-    assert info["nonfinite"]["trbf_center"] == 2 and info["nonfinite"]["trbf_scale"] == 2
+    # An infinite temporal scale means "always visible" (counted there), not a value without meaning.
+    assert info["nonfinite"]["trbf_center"] == 2 and info["nonfinite"]["trbf_scale"] == 0
     text = run("info", src).stdout
     assert "visible at every time (2 splats with an infinite temporal scale)" in text
     # Without them, the ends are those of the splats with finite centres only.

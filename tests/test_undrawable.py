@@ -113,11 +113,25 @@ def test_info_counts_undrawable_and_flat_splats(scene_files, name):
     assert list(info["undrawable"]) == list(KINDS)
     flat = np.any([f64(cols, f"scale_{i}") == -np.inf for i in range(3)], axis=0)
     assert info["flat"] == int(flat.sum()) == len(rows.flat)
+    # Values the viewer gives no meaning, written out here: NaN, and infinities but a log scale of
+    # -inf (flat), a temporal scale of +inf (always visible), an infinite opacity or colour.
     for c in COLUMNS:
         v = f64(cols, c)
-        bad = ~np.isfinite(v) & ~((v == -np.inf) & c.startswith("scale_"))
-        assert info["nonfinite"][c] == int(bad.sum()), c
+        meant = (((v == -np.inf) & c.startswith("scale_")) | ((v == np.inf) & (c == "trbf_scale"))
+                 | (np.isinf(v) & (c == "opacity" or c.startswith("f_dc_"))))
+        assert info["nonfinite"][c] == int((~np.isfinite(v) & ~meant).sum()), c
     assert all(info["nonfinite"][f"scale_{i}"] == 0 for i in range(3))  # flat splats are not non-finite
+    assert info["nonfinite"]["trbf_scale"] == 0 and info["visible_always"] == len(rows.infinite_trbf)
+    # info counts what --drop-nonfinite removes: every splat with a counted value, and no other.
+    kept = run("convert", folder / name, folder / "kept.ply", "--drop-nonfinite", "--force")
+    assert kept.exit_code == 0, kept.output
+    removed = np.zeros(600, bool)
+    for c in COLUMNS:
+        v = f64(cols, c)
+        meant = (((v == -np.inf) & c.startswith("scale_")) | ((v == np.inf) & (c == "trbf_scale"))
+                 | (np.isinf(v) & (c == "opacity" or c.startswith("f_dc_"))))
+        removed |= ~np.isfinite(v) & ~meant
+    assert io.read(folder / "kept.ply").count == 600 - int(removed.sum())
     text = run("info", folder / name).stdout
     total = sum(counts(cols).values())
     listed = ", ".join(f"{WORDS[k]} {v:,}" for k, v in counts(cols).items() if v)

@@ -13,30 +13,14 @@ import numpy as np
 
 from .. import viewer
 from ..errors import UsageError
-from ..model import COLOR, COLUMNS, MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene, row_fields
+from ..model import COLUMNS, MOTION, POSITION, SCALE, Scene, row_fields
 from ..wording import kinds_text, plural
 from ._table import blockwise, derive, gather, keep_rows, run_blocks
 from .report import OpReport
 
-#: What removes a splat in :func:`drop_nonfinite`, per group: its columns, and the
-#: infinities the viewer gives a meaning (kept); NaN always removes, and so does
-#: an infinity not listed. Position, rotation, motion, omega or trbf centre: any
-#: infinity puts the splat nowhere or everywhere, or gives it no orientation. A
-#: log scale of -inf is a linear scale of exactly 0: a flat splat, which the viewer
-#: draws (+inf: an infinitely large one). A temporal scale of +inf is "visible at
-#: every time". An opacity of -inf/+inf is sigmoid 0/1; a colour of -inf/+inf is
-#: clamped to 0/1.
-NONFINITE_RULES = {
-    "position": (POSITION, ()),
-    "rotation": (ROTATION, ()),
-    "scale": (SCALE, (-np.inf,)),
-    "motion": (MOTION, ()),
-    "omega": (OMEGA, ()),
-    "trbf centre": (("trbf_center",), ()),
-    "trbf scale": (("trbf_scale",), (np.inf,)),
-    "opacity": (("opacity",), (-np.inf, np.inf)),
-    "color": (COLOR, (-np.inf, np.inf)),
-}
+#: What removes a splat in :func:`drop_nonfinite`: a value the viewer gives no meaning
+#: (:data:`splatconv.viewer.MEANINGFUL_INFINITIES`, per group).
+NONFINITE_RULES = viewer.MEANINGFUL_INFINITIES
 #: Groups whose every value must be finite for a splat to be kept.
 FINITE_GROUPS = {g: names for g, (names, kept) in NONFINITE_RULES.items() if not kept}
 #: Groups where only NaN removes a splat: both infinities mean something to the viewer.
