@@ -190,7 +190,7 @@ class _StallingHandler(http.server.BaseHTTPRequestHandler):
         if data is self.scene:
             self.wfile.write(data[: self.head])
             self.wfile.flush()
-            self.release.wait(60)
+            self.release.wait()  # until the test has seen the partial frame (it always sets it, in finally)
             data = data[self.head:]
         self.wfile.write(data)
 
