@@ -83,7 +83,12 @@ def open_page(browser, url: str, width: int = 640, height: int = 360, settle: bo
 
 def wait_settled(page, timeout_ms: int = EVENT_DEADLINE_MS) -> dict:
     """Wait until the page drew its whole scene sorted for its current view (or failed)."""
-    page.wait_for_function(SETTLED, timeout=timeout_ms)
+    try:
+        page.wait_for_function(SETTLED, timeout=timeout_ms)
+    except Exception as e:  # playwright's TimeoutError: say where the page stood
+        state = page.evaluate("window.splatconvPlayer ? window.splatconvPlayer.status() : null")
+        pytest.fail(f"the page did not settle in {timeout_ms / 1000:.0f} s ({type(e).__name__}): {state}; "
+                    f"page errors: {page.js_errors}")
     status = page.evaluate("window.splatconvPlayer.status()")
     assert not page.js_errors, page.js_errors
     return status

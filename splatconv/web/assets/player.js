@@ -340,6 +340,9 @@
       seg.received = seg.data.length;
     }
     seg.done = true;
+    // A frame reports completeness with "done": redraw, in case the last records were already drawn
+    // sorted before this line ran (a paused page otherwise never draws again: seen under load).
+    state.version++;
   }
 
   // Upload whatever arrived since the last frame and hand the positions to the worker.
