@@ -9,7 +9,7 @@ every command of ``tests.fuzzing._commands`` in-process (``info``, ``info --json
 ``stats``, ``convert`` to ``.splatv``, ``.ply``, ``.splat`` and ``.html``, ``bake``,
 ``render`` and ``diff``); a mutant fails on a traceback, a warning, an exit status other than
 0 or 1 (1 with exactly one ``Error:`` line), a file left behind, a changed input,
-more than 30 s or more than 512 MiB of traced memory. Failing mutants are kept
+more than 120 s (a hang) or more than 512 MiB of traced memory. Failing mutants are kept
 in ``--keep`` (default: a temporary folder, removed).
 
 Run::

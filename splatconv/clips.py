@@ -23,14 +23,14 @@ from .io import check_write_options, read, refuse_empty, splat_count, write
 from .model import COLUMNS, Scene
 from .ops.segments import (DEFAULT_BUDGET, DEFAULT_LEAK, check_budget, check_durations, check_segment_count,
                            merge_segments)
-from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity, fidelity_summary
+from .render.fidelity import DEFAULT_CAMERA, checked_frames, fidelity, fidelity_summary
 from .ops.sequence import fit_sequence
 from .progress import SILENT
 from .transport import inner_name
 
 _GLOB_CHARS = re.compile(r"[*?[]")
 #: The first key of ``merge --segments --json`` (specs/json.md).
-SEGMENTS_SCHEMA = "splatconv.merge-segments/2"
+SEGMENTS_SCHEMA = "splatconv.merge-segments/3"
 
 
 def natural_key(path: str):
@@ -138,19 +138,26 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
 
 def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
                         sort=None, layout=None, color: str = "auto", force: bool = False, zstd_level=None,
-                        check: bool = True,
-                        check_every: int = DEFAULT_EVERY, camera: int = DEFAULT_CAMERA, progress=SILENT):
+                        check: bool = True, check_every: int | None = None, camera: int = DEFAULT_CAMERA,
+                        progress=SILENT):
     """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
 
     Parameters
     ----------
     check : bool
-        Measure each output frame against its segment (:func:`splatconv.render.fidelity.fidelity`).
+        Measure output frames against their segments (:func:`splatconv.render.fidelity.fidelity`).
+    check_every : int, optional
+        Measure every ``check_every``-th output frame (1: all). None: a sample of
+        :data:`~splatconv.render.fidelity.DEFAULT_SAMPLE` frames spread evenly and both
+        sides of every hand-over (:func:`~splatconv.render.fidelity.checked_frames`).
 
     Returns
     -------
-    (Scene, SegmentReport, WriteReport, list of dict)
-        The merged scene, what merging did, what the writer did, the per-frame fidelity ([] unless ``check``).
+    (Scene, SegmentReport, WriteReport, dict)
+        The merged scene, what merging did, what the writer did, and the check:
+        ``rule`` ("sample", "every" or "none"), ``every`` (K or None), ``frames``
+        (the output frames measured), ``of`` (output frames in all), ``rows`` (the
+        per-frame fidelity, one per frame measured).
     """
     inputs = [os.fspath(p) for p in inputs]
     # Before any reading.
@@ -165,13 +172,17 @@ def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_L
     check_output(output, inputs, force)
     scenes = [read(p, color=color) for p in inputs]
     merged, report = merge_segments(scenes, durations, leak=leak, budget=budget, progress=progress)
-    rows = fidelity(merged, scenes, report, camera=camera, every=check_every, progress=progress) if check else []
+    frames = checked_frames(report, check_every) if check else []
+    rows = fidelity(merged, scenes, report, camera=camera, frames=frames, progress=progress) if check else []
     written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level, layout=layout,
                     progress=progress)
-    return merged, report, written, rows
+    checked = {"rule": "none" if not check else "sample" if check_every is None else "every",
+               "every": check_every if check else None, "frames": frames,
+               "of": sum(p.frames for p in report.placements), "rows": rows}
+    return merged, report, written, checked
 
 
-def segments_data(report, written, output, rows: list) -> dict:
+def segments_data(report, written, output, checked: dict) -> dict:
     """``merge --segments``'s report as data, the keys of specs/json.md in order.
 
     Parameters
@@ -179,11 +190,13 @@ def segments_data(report, written, output, rows: list) -> dict:
     report : splatconv.ops.segments.SegmentReport
     written : splatconv.formats.base.WriteReport
     output : path
-    rows : list of dict
-        Per-frame fidelity (:func:`splatconv.render.fidelity.fidelity`; [] when not measured).
+    checked : dict
+        The check :func:`merge_segment_files` returns: its rule, the frames measured, their fidelity.
     """
     data = {"schema": SEGMENTS_SCHEMA, **report.as_dict()}
     data["output"] = {"path": str(output), "splats": written.count, "bytes": os.path.getsize(output)}
-    data["frames"] = list(rows)
-    data["fidelity"] = fidelity_summary(rows)
+    data["check"] = {"rule": checked["rule"], "every": checked["every"], "frames": list(checked["frames"]),
+                     "of": checked["of"]}
+    data["frames"] = list(checked["rows"])
+    data["fidelity"] = fidelity_summary(checked["rows"])
     return data

@@ -363,6 +363,14 @@ def _db(v) -> str:
     return "identical" if v is None else f"{v:.2f} dB"
 
 
+def _nth(k: int) -> str:
+    """1 -> 'frame', 2 -> '2nd frame', 11 -> '11th frame'."""
+    if k == 1:
+        return "frame"
+    suffix = "th" if 10 <= k % 100 <= 20 else {1: "st", 2: "nd", 3: "rd"}.get(k % 10, "th")
+    return f"{k}{suffix} frame"
+
+
 def segments_text(data: dict) -> str:
     """``merge --segments``'s report (:func:`splatconv.clips.segments_data`) as text."""
     lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
@@ -377,6 +385,11 @@ def segments_text(data: dict) -> str:
                      f"(t {s['start']:.4f}..{s['end']:.4f}), {s['splats_in']:,} -> {plural(s['splats_out'], 'splat')}, "
                      f"{s['long_lived']:,} long-lived" + (f" (pieces: {pieces})" if pieces else "")
                      + (f", {s['dropped']:,} dropped" if s["dropped"] else ""))
+    check = data.get("check")
+    if check and check["rule"] != "none":
+        how = ("a sample: evenly spread and both sides of every hand-over; --check-every 1 for all"
+               if check["rule"] == "sample" else f"every {_nth(check['every'])}")
+        lines.append(f"checked {len(check['frames']):,} of {plural(check['of'], 'output frame')} ({how})")
     frames = data.get("frames") or []
     if frames:
         lines.append("frame  time      segment  local    PSNR vs the segment alone")

@@ -371,13 +371,16 @@ def _bomb(tmp_path, head: bytes, zeros: int, name="bomb.splatv.zst", content_siz
     return path
 
 
-def test_zstd_frame_declaring_more_than_the_ceiling_fails_at_once(tmp_path, private_tmp):
+def test_zstd_frame_declaring_more_than_the_ceiling_fails_at_once(tmp_path, private_tmp, monkeypatch):
     head = sv([chunk(size=4096 * 16 * 40000, texheight=40000)])
     path = _bomb(tmp_path, head, 3 << 30, content_size=True)
     assert os.path.getsize(path) < 200_000
-    t = time.perf_counter()
+    # "At once": refused from the frame header, before one byte is decompressed (not timed: a loaded
+    # machine is slower, not wrong).
+    decompressors = []
+    monkeypatch.setattr(zstandard, "ZstdDecompressor", lambda *a, **k: decompressors.append(a) or 1 / 0)
     r = run("info", path)
-    assert time.perf_counter() - t < 5
+    assert decompressors == []
     assert (r.exit_code, r.stderr) == (1, f"Error: {path}: its zstd frame declares {len(head) + (3 << 30):,} "
                                           "decompressed bytes, more than the 2 GiB allowed (raise it with "
                                           "--max-decompressed or SPLATCONV_MAX_DECOMPRESSED)\n")
@@ -547,7 +550,7 @@ def test_stale_parts_are_removed_live_ones_kept(tmp_path, lite_ply):
     assert not stale.exists() and live.exists() and all(p.exists() for p in other)
 
 
-def _wait_for(predicate, timeout=60.0):
+def _wait_for(predicate, timeout=120.0):
     end = time.monotonic() + timeout
     while time.monotonic() < end:
         if predicate():

@@ -22,26 +22,43 @@ def quick_start_commands() -> list:
 
 
 def splatconv_args(line: str) -> list:
-    """The splatconv part of 'pip install ... && splatconv ...'."""
-    part = line.split("&&", 1)[1].strip()
-    words = shlex.split(part)
+    """The splatconv part of 'pip install ... && mkdir -p ... && splatconv ...'."""
+    words = shlex.split(line.split("&&")[-1])
     assert words[0] == "splatconv"
     return words[1:]
+
+
+def quick_start(monkeypatch, tmp_path) -> None:
+    """Run the Quick start's conversion in ``tmp_path`` (a copy of the checkout, as CI runs it), then stand
+    where the examples below it run: in the folder of its output, ``sample_data/`` beside it."""
+    os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
+    monkeypatch.chdir(tmp_path)
+    *setup, convert = quick_start_commands()[0].split("&&")
+    for step in setup[1:]:  # after pip install
+        assert shlex.split(step)[:2] == ["mkdir", "-p"]
+        for folder in shlex.split(step)[2:]:
+            os.makedirs(folder, exist_ok=True)
+    args = splatconv_args(convert)
+    result = CliRunner().invoke(main, args)
+    assert result.exit_code == 0, result.output
+    out = os.path.dirname(args[2])
+    assert out, "the Quick start writes its output into the checkout's root"
+    monkeypatch.chdir(tmp_path / out)
+    os.symlink(ROOT / "sample_data", tmp_path / out / "sample_data")
 
 
 def test_quick_start_has_two_commands_install_and_test():
     lines = quick_start_commands()
     assert len(lines) == 2
-    assert lines[0].startswith("pip install . && splatconv convert sample_data/")
+    assert lines[0].startswith("pip install . && mkdir -p out && splatconv convert sample_data/")
     assert lines[1] == "pip install '.[test]' && python -m pytest"
+    # The output goes into out/ (ignored by git), not into the checkout's root.
+    assert splatconv_args(lines[0])[2] == "out/dancers.splatv"
+    assert "/out/" in (ROOT / ".gitignore").read_text().splitlines()
 
 
 def test_quick_start_conversion_and_info_example(monkeypatch, tmp_path):
-    os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
-    monkeypatch.chdir(tmp_path)
-    args = splatconv_args(quick_start_commands()[0])
-    result = CliRunner().invoke(main, args)
-    assert result.exit_code == 0, result.output
+    quick_start(monkeypatch, tmp_path)
     example = re.search(r"\$ splatconv info (\S+)\n(.*?)```", README, re.S)
     result = CliRunner().invoke(main, ["info", example.group(1)])
     assert result.exit_code == 0
@@ -65,9 +82,7 @@ def test_verify_example_runs_and_passes(monkeypatch, tmp_path):
 
 
 def test_stats_example(monkeypatch, tmp_path):
-    os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
-    monkeypatch.chdir(tmp_path)
-    assert CliRunner().invoke(main, splatconv_args(quick_start_commands()[0])).exit_code == 0
+    quick_start(monkeypatch, tmp_path)
     block = README.split("$ splatconv stats ", 1)[1]
     command, printed = block.split("\n", 1)
     printed = printed.split("```", 1)[0]
@@ -91,9 +106,7 @@ def psnr(a, b) -> float:
 def test_preview_commands_run_and_draw_the_pictures_shown(monkeypatch, tmp_path):
     from PIL import Image, ImageSequence
 
-    os.symlink(ROOT / "sample_data", tmp_path / "sample_data")
-    monkeypatch.chdir(tmp_path)
-    assert CliRunner().invoke(main, splatconv_args(quick_start_commands()[0])).exit_code == 0
+    quick_start(monkeypatch, tmp_path)
     text = section("### Previews without a browser")
     lines = re.search(r"```\n(.*?)```", text, re.S).group(1).strip().splitlines()
     assert len(lines) == 3 and all(ln.startswith("splatconv render dancers.splatv ") for ln in lines)

@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from splatconv.render.fidelity import DEFAULT_EVERY, fidelity, fidelity_summary
+from splatconv.render.fidelity import DEFAULT_SAMPLE, checked_frames, fidelity, fidelity_summary
 from splatconv import clips, io, viewer
 from splatconv.clips import SEGMENTS_SCHEMA, segments_data
-from splatconv.report import to_json
+from splatconv.report import segments_text, to_json
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import segments as sg
@@ -159,14 +159,15 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
             "--json", "--check-every", "3")
     assert r.exit_code == 0, r.output
     data = json.loads(r.stdout)
-    assert [f["frame"] for f in data["frames"]] == list(range(0, 2 * per, 3))
+    assert [f["frame"] for f in data["frames"]] == data["check"]["frames"] == list(range(0, 2 * per, 3))
+    assert data["check"] == {"rule": "every", "every": 3, "frames": list(range(0, 2 * per, 3)), "of": 2 * per}
     assert data["splats_out"] <= 2 * data["splats_in"] and data["output"]["splats"] == data["splats_out"]
     assert set(data["fidelity"]) == {"frames", "median_psnr", "min_psnr", "below_40", "below_30"}
-    assert data["schema"] == "splatconv.merge-segments/2"
+    assert data["schema"] == "splatconv.merge-segments/3"
     spec = (ROOT / "specs" / "json.md").read_text(encoding="utf-8").split("\n## merge --segments", 1)[1]
     rows = dict(re.findall(r"^\| (`.+?`) \| \w.*? \| (.+) \|$", spec, re.M))
     assert [k for names in rows for k in re.findall(r"`(\w+)`", names)] == list(data)
-    for key, entries in (("segments", data["segments"][0]), ("frames", data["frames"][0]),
+    for key, entries in (("segments", data["segments"][0]), ("check", data["check"]), ("frames", data["frames"][0]),
                          ("fidelity", data["fidelity"]), ("output", data["output"])):
         named = [k for k in re.findall(r"`(\w+)`", rows[f"`{key}`"].split(":", 1)[-1]) if k != "null"]
         assert named == list(entries), key
@@ -177,12 +178,13 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
         assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
     assert io.read(out).count == data["splats_out"]
     # The CLI prints what the library assembles (clips.segments_data), schema included.
-    merged, report, written, frames = clips.merge_segment_files([tmp_path / "a.ply", tmp_path / "b.ply"], out,
-                                                                durations=[per, per], check_every=3, force=True)
-    assert json.loads(to_json(segments_data(report, written, out, frames))) == data
+    merged, report, written, checked = clips.merge_segment_files([tmp_path / "a.ply", tmp_path / "b.ply"], out,
+                                                                 durations=[per, per], check_every=3, force=True)
+    assert json.loads(to_json(segments_data(report, written, out, checked))) == data
     assert data["schema"] == SEGMENTS_SCHEMA
-    help_text = run("merge", "--help").stdout
-    assert f"[default: {DEFAULT_EVERY}; x>=1]" in " ".join(help_text.split())
+    help_text = " ".join(run("merge", "--help").stdout.split()).replace("hand- over", "hand-over")  # wrapped
+    assert (f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of every hand-over between "
+            f"segments]") in help_text
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
     # The size written is said, as every write says it.
@@ -190,6 +192,10 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert r.stdout.endswith(f"wrote {written}: {io.read(written).count:,} splats, {written.stat().st_size:,} "
                              f"bytes\n")
     assert data["output"]["bytes"] == out.stat().st_size
+    assert "checked" not in r.stdout
+    r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t2.ply", "--segments", "--no-check",
+            "--check-every", "2")
+    assert (r.exit_code, r.stderr) == (2, "Error: --check-every and --no-check exclude each other\n")
     # Segments with no splats at all: a report, not a traceback (the ratio is undefined).
     io.write(Scene(columns={k: np.asarray(v)[:0] for k, v in a.columns.items()}), tmp_path / "empty.ply")
     r = run("merge", tmp_path / "empty.ply", tmp_path / "empty.ply", tmp_path / "e.ply", "--segments")
@@ -214,6 +220,50 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "x.splatv", "--leak", "3")
     assert r.exit_code == 2 and "apply to --segments only" in r.stderr
     assert not (tmp_path / "x.splatv").exists()
+
+
+def test_the_default_check_is_a_bounded_sample_with_every_hand_over_and_all_is_on_request(tmp_path, source):
+    """By default a few frames spread evenly and both sides of each hand-over; --check-every 1 measures all."""
+    per, k = 6, 3
+    total = per * k
+    paths = []
+    for i in range(k):
+        seg, _ = trim(source, per * i / (total - 1), (per * i + per - 1) / (total - 1))
+        paths.append(tmp_path / f"s{i}.ply")
+        io.write(perturbed(seg, i) if i % 2 else seg, paths[-1])
+    r = run("merge", *paths, tmp_path / "clip.splatv", "--segments", "--durations", f"{per},{per},{per}", "--json")
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    checked = data["check"]["frames"]
+    hand_overs = {f for s in data["segments"][1:] for f in (s["first_frame"] - 1, s["first_frame"])}
+    assert hand_overs == {5, 6, 11, 12}
+    assert hand_overs <= set(checked) and {0, total - 1} <= set(checked)
+    assert len(checked) <= DEFAULT_SAMPLE + 2 * (k - 1) < total
+    assert checked == sorted(set(checked))
+    # Spread evenly: no gap between checked frames is more than twice the even spacing.
+    assert max(np.diff(checked)) <= 2 * (total - 1) / (DEFAULT_SAMPLE - 1)
+    assert data["check"] == {"rule": "sample", "every": None, "frames": checked, "of": total}
+    assert [f["frame"] for f in data["frames"]] == checked and data["fidelity"]["frames"] == len(checked)
+    # The text report (what the CLI prints without --json) says so too.
+    assert (f"checked {len(checked)} of {total} output frames (a sample: evenly spread and both sides of every "
+            f"hand-over; --check-every 1 for all)") in segments_text(data)
+    # Every frame on request.
+    r = run("merge", *paths, tmp_path / "all.splatv", "--segments", "--durations", f"{per},{per},{per}", "--json",
+            "--check-every", "1")
+    assert r.exit_code == 0, r.output
+    data = json.loads(r.stdout)
+    assert data["check"] == {"rule": "every", "every": 1, "frames": list(range(total)), "of": total}
+    assert [f["frame"] for f in data["frames"]] == list(range(total))
+    # The README's sample of its six 50-frame segments is this one.
+    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    listed = re.search(r"The default sample of this merge \(frames ([\d, ]+)\)", readme).group(1)
+    six = sg.SegmentReport(sg.placements([50] * 6), *[[]] * 5, leak=sg.DEFAULT_LEAK, budget=sg.DEFAULT_BUDGET)
+    assert checked_frames(six) == [int(f) for f in listed.split(", ")]
+    # Many segments: the hand-overs are all there, the spread stays at the sample.
+    _, report = sg.merge_segments([io.read(p) for p in paths] * 4, [per] * 12)
+    many = checked_frames(report)
+    assert {f for p in report.placements[1:] for f in (p.first - 1, p.first)} <= set(many)
+    assert len(many) <= DEFAULT_SAMPLE + 2 * 11
 
 
 def test_every_removed_splat_is_counted_and_said(tmp_path, source):

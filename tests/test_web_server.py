@@ -28,6 +28,8 @@ from .web_support import serving
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data" / "dancers.ply"
+#: Seconds a test waits for a reply or a process's exit: generous, so that a loaded machine is only slower.
+DEADLINE_S = 120
 
 
 def run(*args):
@@ -43,7 +45,7 @@ def sample(tmp_path_factory):
 
 def get(port, path, host=None, method="GET"):
     """A request with ``path`` sent exactly as given (no normalising)."""
-    conn = http.client.HTTPConnection(HOST, port, timeout=10)
+    conn = http.client.HTTPConnection(HOST, port, timeout=DEADLINE_S)
     conn.putrequest(method, path, skip_host=True, skip_accept_encoding=True)
     conn.putheader("Host", host or f"{HOST}:{port}")
     conn.endheaders()
@@ -182,7 +184,7 @@ def test_view_process_exits_cleanly_on_signal(sample, sig):
         assert line == f"serving {sample} at http://127.0.0.1:{port}/ (Ctrl-C to stop)\n"
         assert get(port, "/")[0] == 200
         proc.send_signal(sig)
-        assert proc.wait(timeout=10) == 0
+        assert proc.wait(timeout=DEADLINE_S) == 0
         assert proc.stderr.read() == ""
     finally:
         if proc.poll() is None:
@@ -320,7 +322,7 @@ def test_without_a_display_view_does_not_start_a_text_browser(sample):
         assert proc.stdout.readline().startswith(f"serving {sample} at http://127.0.0.1:")
         assert proc.stderr.readline() == "note: no display to open a browser on: open the address above in a browser\n"
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=10) == 0
+        assert proc.wait(timeout=DEADLINE_S) == 0
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -354,7 +356,7 @@ def test_readme_player_commands(sample, tmp_path, monkeypatch):
         port = int(re.search(r"127\.0\.0\.1:(\d+)/", proc.stdout.readline()).group(1))
         assert get(port, "/scene/0.splatv")[1] == sample.read_bytes()
         proc.send_signal(signal.SIGINT)
-        assert proc.wait(timeout=10) == 0
+        assert proc.wait(timeout=DEADLINE_S) == 0
     finally:
         if proc.poll() is None:
             proc.kill()

@@ -26,6 +26,9 @@ CHROMIUM_ARGS = (
 )
 INSTALL_HINT = ("browser tests need Chromium and playwright: `apt-get install chromium` "
                 "and `pip install -e '.[test]'` (or set SPLATCONV_CHROMIUM to a Chromium binary)")
+#: How long a test waits for an event in the page (a frame drawn, a wrap, a zoom): generous, so that a
+#: loaded machine is only slower, never failed; a test never waits for a fixed stretch of time instead.
+EVENT_DEADLINE_MS = 120_000
 SETTLED = """() => {
   const p = window.splatconvPlayer;
   if (!p) return false;
@@ -68,6 +71,7 @@ def launched():
 def open_page(browser, url: str, width: int = 640, height: int = 360, settle: bool = True):
     """A new page at ``url`` (viewport ``width`` x ``height``, device pixel ratio 1)."""
     page = browser.new_page(viewport={"width": width, "height": height}, device_scale_factor=1)
+    page.set_default_timeout(EVENT_DEADLINE_MS)  # loading, clicks and waits alike
     errors = []
     page.on("pageerror", lambda e: errors.append(str(e)))
     page.js_errors = errors
@@ -77,9 +81,14 @@ def open_page(browser, url: str, width: int = 640, height: int = 360, settle: bo
     return page
 
 
-def wait_settled(page, timeout_ms: int = 60000) -> dict:
+def wait_settled(page, timeout_ms: int = EVENT_DEADLINE_MS) -> dict:
     """Wait until the page drew its whole scene sorted for its current view (or failed)."""
-    page.wait_for_function(SETTLED, timeout=timeout_ms)
+    try:
+        page.wait_for_function(SETTLED, timeout=timeout_ms)
+    except Exception as e:  # playwright's TimeoutError: say where the page stood
+        state = page.evaluate("window.splatconvPlayer ? window.splatconvPlayer.status() : null")
+        pytest.fail(f"the page did not settle in {timeout_ms / 1000:.0f} s ({type(e).__name__}): {state}; "
+                    f"page errors: {page.js_errors}")
     status = page.evaluate("window.splatconvPlayer.status()")
     assert not page.js_errors, page.js_errors
     return status

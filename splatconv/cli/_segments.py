@@ -6,7 +6,7 @@ import click
 
 from .. import clips
 from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
-from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY
+from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_SAMPLE
 from ..report import segments_text, to_json
 from ..wording import plural
 from ._base import Failure, notes, progress
@@ -43,9 +43,13 @@ def segment_options():
                           "long-lived splats fade out (in)."),
         click.option("--budget", type=click.FloatRange(min=1.0), default=DEFAULT_BUDGET, show_default=True,
                      help="--segments: at most this many times the segments' splats."),
-        click.option("--check-every", type=click.IntRange(min=1), default=DEFAULT_EVERY, show_default=True,
-                     help="--segments: measure every K-th output frame against its segment."),
-        click.option("--no-check", is_flag=True, help="--segments: skip the per-frame fidelity measurement."),
+        click.option("--check-every", type=click.IntRange(min=1), default=None, metavar="K",
+                     help=f"--segments: measure every K-th output frame against its segment (1: every frame) "
+                          f"instead of the default sample. Each frame checked costs two renders: every frame can "
+                          f"take several times as long as the merge (README, \"Joining segments\") "
+                          f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of every "
+                          f"hand-over between segments]"),
+        click.option("--no-check", is_flag=True, help="--segments: skip the fidelity measurement."),
         click.option("--camera", type=click.IntRange(min=0), default=DEFAULT_CAMERA, show_default=True,
                      help="--segments: stored camera the fidelity is measured from."),
         click.option("--json", "as_json", is_flag=True,
@@ -56,7 +60,7 @@ def segment_options():
 def given(options: dict) -> bool:
     """Whether any --segments-only option differs from its default."""
     return (options["durations"] is not None or options["leak"] != DEFAULT_LEAK or options["budget"] != DEFAULT_BUDGET
-            or options["check_every"] != DEFAULT_EVERY or options["no_check"] or options["camera"] != DEFAULT_CAMERA
+            or options["check_every"] is not None or options["no_check"] or options["camera"] != DEFAULT_CAMERA
             or options["as_json"])
 
 
@@ -65,11 +69,13 @@ def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, le
     """The body of ``merge --segments``."""
     if durations is not None and len(durations) != len(inputs):
         raise Failure(f"--durations gives {plural(len(durations), 'value')} for {plural(len(inputs), 'segment')}", 2)
-    merged, report, written, rows = clips.merge_segment_files(
+    if no_check and check_every is not None:
+        raise Failure("--check-every and --no-check exclude each other", 2)
+    merged, report, written, checked = clips.merge_segment_files(
         inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout, color=color,
         force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet))
     notes(merged.notes)
     notes(report.notes)
     notes(written.notes)
-    data = clips.segments_data(report, written, output_path, rows)
+    data = clips.segments_data(report, written, output_path, checked)
     click.echo(to_json(data) if as_json else segments_text(data))

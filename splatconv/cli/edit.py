@@ -220,8 +220,9 @@ def merge(paths, translate, rotate, scale, layout, sort, color, drop_nonfinite, 
     With --segments the inputs are laid end to end instead (Spacetime
     Gaussians segments of one long clip): segment i plays in its own interval
     of the timeline, its long-lived splats split into pieces that fade out at
-    its ends, and each output frame is measured against its segment alone
-    (see README "Joining segments" and specs/segments.md).
+    its ends, and a sample of output frames (every frame with --check-every 1)
+    is measured against its segment alone (see README "Joining segments" and
+    specs/segments.md).
 
     \b
     Example:

@@ -23,8 +23,11 @@ from .layout import float_attributes
 from .preview import Renderer, View
 
 
-#: Output frames measured: every this many (1: all).
-DEFAULT_EVERY = 1
+#: Output frames the default check measures, spread evenly over the clip (its first and last
+#: frame included), besides both sides of every hand-over between segments (where merges go
+#: wrong). Bounded so that the check costs about as much as the merge: each frame is two float
+#: reference renders.
+DEFAULT_SAMPLE = 5
 #: Stored camera the fidelity is measured from.
 DEFAULT_CAMERA = 0
 #: Width of the fidelity renders (the camera's size scaled down to it).
@@ -47,9 +50,33 @@ def _visible_rows(columns: dict, t: float) -> np.ndarray:
     return np.flatnonzero(~(viewer.temporal_opacity(columns, t, cut=False) < _PRESELECT))
 
 
+def checked_frames(report: SegmentReport, every: int | None = None, sample: int = DEFAULT_SAMPLE) -> list:
+    """The output frames a check measures, in order.
+
+    Parameters
+    ----------
+    every : int, optional
+        Every ``every``-th output frame from frame 0 (1: all). None: the sample.
+    sample : int
+        With ``every`` None: this many frames spread evenly over the clip (the
+        first and the last included), and both sides of every hand-over (the
+        last frame of each segment but the last and the first of the next).
+
+    Returns
+    -------
+    list of int
+        Output frame numbers, ascending, without repeats.
+    """
+    total = sum(p.frames for p in report.placements)
+    if every is not None:
+        return list(range(0, total, max(1, int(every))))
+    spread = np.round(np.linspace(0, total - 1, min(max(1, int(sample)), total))).astype(np.int64)
+    hand_overs = [f for p in report.placements[1:] for f in (p.first - 1, p.first)]
+    return sorted(set(spread.tolist()) | set(hand_overs))
+
+
 def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: int = DEFAULT_CAMERA,
-             every: int = DEFAULT_EVERY,
-             width: int = FIDELITY_WIDTH, progress=SILENT) -> list:
+             frames=None, width: int = FIDELITY_WIDTH, progress=SILENT) -> list:
     """PSNR of the merged scene at each output frame time against its segment at the local time.
 
     Both are drawn with the float reference renderer (unquantized attributes,
@@ -60,15 +87,16 @@ def fidelity(merged: Scene, segments: list, report: SegmentReport, *, camera: in
 
     Parameters
     ----------
-    every : int
-        Check every ``every``-th output frame (1: all).
+    frames : list of int, optional
+        The output frames to measure (:func:`checked_frames`); None: every frame.
 
     Returns
     -------
     list of dict
-        ``frame``, ``time``, ``segment``, ``local_time``, ``psnr`` (None when identical).
+        ``frame``, ``time``, ``segment``, ``local_time``, ``psnr`` (None when identical), one per frame measured.
     """
-    frames = report.frame_times()[::max(1, int(every))]
+    times = report.frame_times()  # indexed by output frame: the segments' frames are consecutive
+    frames = times if frames is None else [times[f] for f in frames]
     view = _view(merged.cameras or next((s.cameras for s in segments if s.cameras), None), camera,
                  merged.columns, width)
     a = Renderer(view.width, view.height)

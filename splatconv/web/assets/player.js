@@ -349,6 +349,9 @@
     seg.received = seg.data.length;
     seg.count = splatCount(seg, present);
     seg.done = true;
+    // A frame reports completeness with "done": redraw, in case the last records were already drawn
+    // sorted before this line ran (a paused page otherwise never draws again: seen under load).
+    state.version++;
   }
 
   // Splats in a loaded segment of ``present`` records, as formats/splatv.py counts them: the header's count
