@@ -106,10 +106,8 @@ def test_nothing_outside_formats_names_a_format_to_decide_what_to_do():
                 for side in [node.left, *node.comparators]:
                     if isinstance(side, ast.Constant) and side.value in ("splatv", "ply", "splat"):
                         offenders.append(f"{module}:{node.lineno}: {text}")
-            # path.endswith(".html"): a format chosen by its suffix outside the registry. The player
-            # (web/) plays .splatv files and writes .html pages: those two it may name.
-            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "endswith"
-                    and not module.startswith("splatconv.web")):
+            # path.endswith(".html"): a format chosen by its suffix outside the registry.
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "endswith":
                 for arg in node.args:
                     if isinstance(arg, ast.Constant) and arg.value in REGISTRY:
                         offenders.append(f"{module}:{node.lineno}: {ast.unparse(node)}")
@@ -241,9 +239,14 @@ def test_every_format_module_fills_the_one_contract():
     assert {importlib.import_module(m).FORMAT for m in declared} == set(FORMATS), sorted(declared)
     for fmt in FORMATS:
         assert isinstance(fmt, Format), fmt
-        for f in dataclasses.fields(Format):
+        for f in dataclasses.fields(Format):  # the annotations are strings (postponed evaluation)
             value = getattr(fmt, f.name)
-            assert value is None or not f.name.islower() or value == value, (fmt.name, f.name)
+            if f.type in ("str", "bool"):
+                assert type(value).__name__ == f.type, (fmt.name, f.name, value)
+            elif f.type == "tuple":
+                assert isinstance(value, tuple) and all(isinstance(v, str) for v in value), (fmt.name, f.name)
+            elif f.type.startswith("Callable"):
+                assert callable(value) or (value is None and f.type.endswith("None")), (fmt.name, f.name)
         assert all(callable(getattr(fmt, name)) for name in ("info_fields", "storage")), fmt.name
         assert all(callable(getattr(fmt, name)) for name in ("read", "splat_count", "most_splats")) == fmt.can_read
     # The old spelling of the contract, module constants, is gone: a second statement of it would be a second truth.
@@ -307,3 +310,20 @@ def test_no_format_is_named_outside_formats():
                   and node.value.lower() in words):
                 found.append(f"{module}:{node.lineno}: {node.value!r}")
     assert not found, found
+
+
+def test_a_format_declaration_that_leaves_out_what_it_implies_is_refused():
+    """A declaration is checked when it is made: a readable format that cannot count its splats, a texture
+    that cannot be read, a mixed-case suffix."""
+    import pytest
+
+    from splatconv.formats import splatv
+    from splatconv.formats.base import Format
+
+    base = dict(name="x", suffixes=(".x",), default_sort="none", holds_empty=True, dynamic=False, read=None,
+                write=splatv.FORMAT.write, info_fields=dict, storage=dict)
+    Format(**base)  # write-only, nothing else implied
+    for broken in (dict(read=splatv.FORMAT.read), dict(texture=splatv.FORMAT.texture),
+                   dict(check_playable=splatv.FORMAT.check_playable), dict(suffixes=(".X",)), dict(write=None)):
+        with pytest.raises(TypeError):
+            Format(**{**base, **broken})
