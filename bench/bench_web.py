@@ -34,7 +34,7 @@ from bench_render import make_scene
 
 import splatconv
 from splatconv.render import camera as cam
-from splatconv.web.server import ViewServer
+from splatconv.server import ViewServer
 
 ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox",
         "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run")

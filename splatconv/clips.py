@@ -53,7 +53,7 @@ def is_sequence(inputs) -> bool:
 
 def _readable(name: str) -> bool:
     lower = inner_name(name).lower()
-    return any(lower.endswith(suffix) and module.CAN_READ for suffix, module in REGISTRY.items())
+    return any(lower.endswith(suffix) and fmt.can_read for suffix, fmt in REGISTRY.items())
 
 
 def frame_paths(inputs) -> list:
@@ -111,7 +111,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     paths = frame_paths(inputs)
     for p in paths:
         format_for(p, purpose="read")
-    module = check_write_options(output, compat=compat, sort=sort, layout=layout)
+    fmt = check_write_options(output, compat=compat, sort=sort, layout=layout)
     check_output(output, paths, force)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     found = {}
@@ -125,11 +125,11 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     # Counted from headers, not by reading: only the fit's own passes read the frames.
     # Frame times must stay apart as the output stores them (halves in the viewer's texture).
     empty = Scene(columns={name: np.empty(0, np.float32) for name in COLUMNS})
-    time_type = np.float16 if module.storage(empty).get("trbf") == "half" else np.float32
+    time_type = np.float16 if fmt.storage(empty).get("trbf") == "half" else np.float32
     scene, fit = fit_sequence(read_frame, len(paths), times=frame_times, same_splats=same_splats,
                               max_error=max_error, counts=[splat_count(p) for p in paths], time_type=time_type,
                               progress=progress)
-    refuse_empty(module, scene.count, paths[0], "the frames hold no splats")
+    refuse_empty(fmt, scene.count, paths[0], "the frames hold no splats")
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
                    layout=layout, progress=progress)

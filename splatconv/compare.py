@@ -54,17 +54,10 @@ RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np
 #: ``none``: not stored at all (a static format's time and motion): nothing to compare,
 #: the frames drawn at several times check what the viewer shows.
 STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "none")
-#: The viewer's texture (``.splatv``), the default.
-TEXTURE_STORAGE = {"position": "exact", "rotation": "half", "scale": "half", "color": "byte", "opacity": "byte",
-                   "motion": "half", "omega": "half", "trbf": "half"}
 
 
-def quantization_bound(group: str, values: np.ndarray, kind: str | None = None) -> np.ndarray:
-    """Largest error a faithful conversion may introduce, per value, for storage ``kind``.
-
-    ``kind`` defaults to how the viewer's texture stores ``group`` (:data:`TEXTURE_STORAGE`).
-    """
-    kind = kind or TEXTURE_STORAGE[group]
+def quantization_bound(group: str, values: np.ndarray, kind: str) -> np.ndarray:
+    """Largest error a faithful conversion may introduce, per value, for storage ``kind`` (:data:`STORAGE_KINDS`)."""
     if kind == "exact":
         return np.zeros_like(values)
     if kind == "byte":
@@ -105,7 +98,8 @@ def _matching_rows(a: np.ndarray, b: np.ndarray, order: np.ndarray) -> int:
     return int(np.count_nonzero((a[order] == b).all(axis=1)))
 
 
-def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED"):
+def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED", *,
+          storage: dict):
     """Row order of ``source`` matching ``converted`` row by row.
 
     Tries the orders a writer produces (input order; importance, double or
@@ -120,6 +114,9 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     writer's order for its undamaged rows, so the damage is all that differs:
     sorting by position would shift every row between a changed position's old
     and new places onto another splat.
+
+    ``storage`` (group -> :data:`STORAGE_KINDS` name) is the quantization the
+    tie-break allows for.
 
     Returns
     -------
@@ -148,7 +145,7 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     best = [order for count, _, order in scored if count == scored[0][0]]
     if len(best) == 1:
         return best[0]
-    return min(best, key=lambda order: sum(g.unexplained for g in compare_scenes(source, converted, order).values()))
+    return min(best, key=lambda order: sum(g.unexplained for g in compare_scenes(source, converted, order, storage).values()))
 
 
 def _distinct_scored(orders: list, a: np.ndarray, b: np.ndarray) -> list:
@@ -196,7 +193,7 @@ class GroupError:
                           nan_stored=self.nan_stored + other.nan_stored, storage=self.storage)
 
 
-def group_errors(source_cols: dict, converted_cols: dict, group: str, kind: str | None = None) -> GroupError:
+def group_errors(source_cols: dict, converted_cols: dict, group: str, kind: str) -> GroupError:
     """Error statistics of one group over finite pairs; NaN must stay NaN.
 
     A byte cannot hold NaN: a NaN there stored as a number is explained (and
@@ -208,14 +205,14 @@ def group_errors(source_cols: dict, converted_cols: dict, group: str, kind: str 
         Model columns, row i of one matching row i of the other.
     group : str
         A key of :data:`splatconv.model.GROUPS`.
-    kind : str, optional
-        How the converted file stores the group (:data:`STORAGE_KINDS`; default the texture's).
+    kind : str
+        How the converted file stores the group (:data:`STORAGE_KINDS`).
     """
     return value_errors(viewer.group_values(source_cols, group), viewer.group_values(converted_cols, group), group,
                         kind)
 
 
-def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str | None = None) -> GroupError:
+def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str) -> GroupError:
     """:func:`group_errors` of values already in viewer units.
 
     Parameters
@@ -223,15 +220,14 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str | None = No
     a, b : (N, k) float64 ndarray
         ``viewer.group_values`` of source and converted rows.
     group : str
-    kind : str, optional
-        How the converted file stores the group (default the texture's).
+    kind : str
+        How the converted file stores the group (:data:`STORAGE_KINDS`).
 
     Notes
     -----
     Differences and ratios are taken only where both values are finite (``where=``
     masks): computing inf - inf and masking it afterwards would warn.
     """
-    kind = kind or TEXTURE_STORAGE[group]
     if kind == "unit_quaternion_byte":
         a, b = _unit_rows(a), _unit_rows(b)
     both = np.isfinite(a) & np.isfinite(b)
@@ -283,13 +279,12 @@ class Comparison:
 
     Parameters
     ----------
-    storage : dict of str to str, optional
-        How the converted file stores each group (a format module's ``storage``;
-        default :data:`TEXTURE_STORAGE`).
+    storage : dict of str to str
+        How the converted file stores each group (its format's ``storage``).
     """
 
-    def __init__(self, storage: dict | None = None):
-        self.storage = storage or TEXTURE_STORAGE
+    def __init__(self, storage: dict):
+        self.storage = storage
         self._errors = {}
 
     def add(self, source_cols: dict, converted_cols: dict, each=None) -> None:
@@ -316,12 +311,11 @@ class Comparison:
                 for g in GROUPS}
 
 
-def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None = None,
-                   storage: dict | None = None) -> dict:
+def compare_scenes(source: Scene, converted: Scene, order: np.ndarray | None, storage: dict) -> dict:
     """Per-group errors of ``converted`` against ``source``; rows aligned by ``order``.
 
-    ``storage`` maps each group to how the converted file stores it (a format
-    module's ``STORAGE``; default :data:`TEXTURE_STORAGE`). Computed :data:`_ROWS`
+    ``storage`` maps each group to how the converted file stores it (its
+    format's ``storage``). Computed :data:`_ROWS`
     rows at a time (:class:`Comparison`), so that memory stays bounded whatever
     the scene's size.
     """

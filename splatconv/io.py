@@ -1,7 +1,7 @@
 """Reading and writing scene files: the format by suffix, ``.zst`` transparently, atomically.
 
 :func:`read`, :func:`write` and :func:`convert` are re-exported by
-:mod:`splatconv`. Nothing here knows a format by name: each format module says
+:mod:`splatconv`. Nothing here knows a format by name: each format declares
 what it supports (see :mod:`splatconv.formats`).
 """
 
@@ -14,7 +14,7 @@ import os
 from . import viewer
 from .cameras import load_cameras
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
-from .formats import REGISTRY, compat_modes, format_for
+from .formats import REGISTRY, compat_modes, format_for, layouts
 from .fsutil import atomic_group, atomic_writer, check_output
 from .model import COLUMNS, Scene
 from .progress import SILENT
@@ -29,7 +29,7 @@ COLOR_MODES = ("auto", "rgb", "sh")
 #: Byte-identical modes some writer offers.
 COMPAT_MODES = compat_modes()
 #: Record layouts some writer offers (``.ply``: lite, 3dgs).
-LAYOUTS = tuple(dict.fromkeys(name for module in REGISTRY.values() for name in getattr(module, "LAYOUTS", ())))
+LAYOUTS = layouts()
 #: Most bytes a splat takes in memory once read: a float32 for each column of the model.
 SPLAT_MEMORY_BYTES = 4 * len(COLUMNS)
 
@@ -104,18 +104,18 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
     size) does not decompress it twice.
     """
     _choice(color, COLOR_MODES, "colour mode")
-    module = format_for(path, purpose="read")
-    with plain_input(path, declared_size=getattr(module, "declared_size", None), progress=progress) as plain:
+    fmt = format_for(path, purpose="read")
+    with plain_input(path, declared_size=fmt.declared_size, progress=progress) as plain:
         if is_compressed(path):
-            check_memory(module, plain, path)
-        scene = module.read(plain, color=color)
+            check_memory(fmt, plain, path)
+        scene = fmt.read(plain, color=color)
         if is_compressed(path):
             scene.meta["compressed_bytes"] = os.path.getsize(path)
         _check_undrawable(scene, path)
         yield scene, plain
 
 
-def check_memory(module, plain, path) -> None:
+def check_memory(fmt, plain, path) -> None:
     """Refuse a decompressed file whose scene would take more memory than the decompression ceiling.
 
     A few hundred kilobytes of zstd expand to gigabytes, and a scene takes up
@@ -127,7 +127,7 @@ def check_memory(module, plain, path) -> None:
 
     Parameters
     ----------
-    module : format module
+    fmt : splatconv.formats.base.Format
         The format of ``plain``.
     plain : path
         The decompressed file.
@@ -139,10 +139,10 @@ def check_memory(module, plain, path) -> None:
     FormatError
     """
     ceiling = max_decompressed()
-    most = module.most_splats(plain)
+    most = fmt.most_splats(plain)
     if most * SPLAT_MEMORY_BYTES <= ceiling:
         return
-    holds = f"holds {most:,} splats" if module.splat_count(plain) == most else f"may hold up to {most:,} splats"
+    holds = f"holds {most:,} splats" if fmt.splat_count(plain) == most else f"may hold up to {most:,} splats"
     raise FormatError(f"{holds}: up to {most * SPLAT_MEMORY_BYTES:,} bytes in memory ({SPLAT_MEMORY_BYTES} a "
                       f"splat), more than the "
                       f"{describe_bytes(ceiling)} a decompressed scene may take (raise it with --max-decompressed "
@@ -156,8 +156,8 @@ def splat_count(path: str | os.PathLike) -> int | None:
     ``splat_count``); None when only reading tells: a ``.zst`` file (its header
     is compressed), or a file whose header the format cannot vouch for.
     """
-    module = format_for(path, purpose="read")
-    return None if is_compressed(path) else module.splat_count(path)
+    fmt = format_for(path, purpose="read")
+    return None if is_compressed(path) else fmt.splat_count(path)
 
 
 def read_texture(path: str | os.PathLike, *, progress=SILENT):
@@ -169,52 +169,52 @@ def read_texture(path: str | os.PathLike, *, progress=SILENT):
     -------
     (padded, scene) or None
         None for a format that does not store the viewer's texture
-        (``STORES_TEXTURE`` false): draw its attributes instead.
+        (no ``texture``): draw its attributes instead.
     """
-    module = format_for(path, purpose="read")
-    if not getattr(module, "STORES_TEXTURE", False):
+    fmt = format_for(path, purpose="read")
+    if not fmt.stores_texture:
         return None
-    with plain_input(path, declared_size=getattr(module, "declared_size", None), progress=progress) as plain:
+    with plain_input(path, declared_size=fmt.declared_size, progress=progress) as plain:
         if is_compressed(path):
-            check_memory(module, plain, path)
-        padded, scene = module.read_texture(plain)
+            check_memory(fmt, plain, path)
+        padded, scene = fmt.texture.read(plain)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)
     _check_undrawable(scene, path)
     return padded, scene
 
 
-def refuse_empty(module, count: int, path, what: str = "no splats to write") -> None:
+def refuse_empty(fmt, count: int, path, what: str = "no splats to write") -> None:
     """Raise :class:`UnsupportedError` (naming ``path``, saying ``what``) when ``count`` is 0 and
-    ``module``'s format cannot hold an empty scene."""
-    if count == 0 and not module.HOLDS_EMPTY:
-        raise UnsupportedError(f"{what}; a {module.SUFFIXES[0]} file cannot hold an empty scene", path)
+    its format ``fmt`` cannot hold an empty scene."""
+    if count == 0 and not fmt.holds_empty:
+        raise UnsupportedError(f"{what}; a {fmt.suffixes[0]} file cannot hold an empty scene", path)
 
 
 def check_write_options(path, *, compat: str | None = None, sort: str | None = None, layout: str | None = None):
-    """Refuse options the output's format does not take; the format module.
+    """Refuse options the output's format does not take; return that format.
 
     Raises
     ------
     UsageError
     """
-    module = format_for(path, purpose="write")
+    fmt = format_for(path, purpose="write")
     _choice(compat, COMPAT_MODES, "compat mode")
-    if compat is not None and compat not in module.COMPAT_MODES:
+    if compat is not None and compat not in fmt.compat_modes:
         suffixes = ", ".join(_suffixes_taking(compat))
         raise UsageError(f"--compat {compat} applies to {suffixes} output only", path)
     _choice(sort, SORT_MODES, "sort")
-    if layout is not None and layout not in getattr(module, "LAYOUTS", ()):
-        takes = [suffix for suffix, m in REGISTRY.items() if layout in getattr(m, "LAYOUTS", ())]
+    if layout is not None and layout not in fmt.layouts:
+        takes = [suffix for suffix, f in REGISTRY.items() if layout in f.layouts]
         if not takes:
             raise UsageError(f"unknown layout {layout!r}")
         raise UsageError(f"layout {layout} applies to {', '.join(takes)} output only", path)
-    return module
+    return fmt
 
 
 def _suffixes_taking(compat: str) -> list:
     """Suffixes of the formats whose writer takes ``compat``."""
-    return [suffix for suffix, module in REGISTRY.items() if compat in module.COMPAT_MODES]
+    return [suffix for suffix, fmt in REGISTRY.items() if compat in fmt.compat_modes]
 
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
@@ -230,7 +230,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         A byte-identical mode the output format offers (``.splatv``: splaTV's
         own converter).
     sort : {None, "importance", "none"}
-        Record order; None means the format's ``DEFAULT_SORT``.
+        Record order; None means the format's ``default_sort``.
     force : bool
         Replace an existing file (never an input).
     inputs : iterable of path
@@ -239,7 +239,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         Level for a ``.zst`` output (default :data:`splatconv.transport.DEFAULT_LEVEL`);
         the data is compressed as it is written, never held twice.
     layout : str, optional
-        A record layout the output's format offers (``LAYOUTS``; ``.ply``:
+        A record layout the output's format offers (``layouts``; ``.ply``:
         ``lite`` or ``3dgs``); None: the format's choice for the scene.
     progress : splatconv.progress.Progress
         Told the splats written as they are written, and, for a ``.zst``
@@ -250,14 +250,14 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     WriteReport
         Counts and ``notes`` describing every lossy step.
     """
-    module = check_write_options(path, compat=compat, sort=sort, layout=layout)
-    refuse_empty(module, scene.count, path)
+    fmt = check_write_options(path, compat=compat, sort=sort, layout=layout)
+    refuse_empty(fmt, scene.count, path)
     check_output(path, inputs, force)
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     extra = {"layout": layout} if layout is not None else {}
     try:
         with atomic_writer(path, replace=force) as stream, output_stream(stream, path, level, progress) as out:
-            return module.write(scene, out, compat=compat, sort=sort or module.DEFAULT_SORT, progress=progress,
+            return fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,
                                 name=os.path.basename(path), **extra)
     except SplatconvError as e:
         if e.path is not None:
@@ -288,18 +288,18 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     list of WriteReport
     """
     paths = [os.fspath(p) for p in paths]
-    modules = [check_write_options(p, sort=sort, layout=layout) for p in paths]
+    formats = [check_write_options(p, sort=sort, layout=layout) for p in paths]
     for path in paths:
         check_output(path, inputs, force)
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     extra = {"layout": layout} if layout is not None else {}
     reports = []
     with atomic_group(replace=force) as group, progress.stage("files", len(paths), "file") as advance:
-        for module, path, scene in zip(modules, paths, scenes):
-            refuse_empty(module, scene.count, path)
+        for fmt, path, scene in zip(formats, paths, scenes):
+            refuse_empty(fmt, scene.count, path)
             try:
                 with group.open(path) as stream, output_stream(stream, path, level) as out:
-                    reports.append(module.write(scene, out, sort=sort or module.DEFAULT_SORT,
+                    reports.append(fmt.write(scene, out, sort=sort or fmt.default_sort,
                                                 name=os.path.basename(path), **extra))
             except SplatconvError as e:
                 if e.path is not None:
@@ -369,14 +369,14 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         ``edit`` did when it says so) and the write report.
     """
     format_for(source, purpose="read")
-    module = check_write_options(output, compat=compat, sort=sort, layout=layout)
+    fmt = check_write_options(output, compat=compat, sort=sort, layout=layout)
     # Check the output before the (possibly long) read: fail fast, touch nothing.
     check_output(output, [source], force)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     with progress.stage("reading", 1, "file") as advance:
         scene = read(source, color=color, progress=progress)
         advance()
-    refuse_empty(module, scene.count, source, "holds no splats")
+    refuse_empty(fmt, scene.count, source, "holds no splats")
     if camera_list is not None:
         scene.cameras = camera_list
     if edit is not None:

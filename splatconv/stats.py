@@ -12,8 +12,7 @@ import numpy as np
 from . import viewer
 from .cameras import framing_camera
 from .compare import Comparison, align
-from .formats import format_for, splatv
-from .formats.splatv_layout import TEXWIDTH, texture_bytes, texture_height
+from .formats import format_for, texture_format
 from .io import reading
 from .model import COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
@@ -36,18 +35,18 @@ def _finite_range(values: np.ndarray):
 INFO_SCHEMA = "splatconv.info/2"
 
 
-def describe(scene: Scene, path: str, module) -> dict:
+def describe(scene: Scene, path: str, fmt) -> dict:
     """Facts about a scene file, as JSON-able data (keys documented in ``specs/json.md``).
 
     The same keys for every format, in the same order; what only the file's
-    format has (its module's ``info_fields``) is under ``details``.
+    format has (its ``info_fields``) is under ``details``.
 
     Parameters
     ----------
     scene : Scene
     path : str
-    module : format module
-        The file's format (see :mod:`splatconv.formats`).
+    fmt : splatconv.formats.base.Format
+        The file's format (:func:`splatconv.formats.format_for`).
 
     Returns
     -------
@@ -72,7 +71,7 @@ def describe(scene: Scene, path: str, module) -> dict:
     return {
         "schema": INFO_SCHEMA,
         "path": path,
-        "format": module.NAME,
+        "format": fmt.name,
         "variant": scene.variant,
         "count": scene.count,
         "file_bytes": meta.get("file_bytes"),
@@ -87,7 +86,7 @@ def describe(scene: Scene, path: str, module) -> dict:
         "nonfinite": {name: _nonfinite(cols[name], name) for name in COLUMNS},
         "flat": int(np.count_nonzero(_flat(cols))),
         "undrawable": viewer.undrawable_counts(cols),
-        "details": module.info_fields(scene),
+        "details": fmt.info_fields(scene),
         "notes": list(scene.notes),
     }
 
@@ -121,8 +120,9 @@ def _visible_range(lo: np.ndarray, hi: np.ndarray):
 def _texture(scene: Scene) -> dict:
     """The texture the viewer holds for the scene: as a .splatv declares it, or as converting would make it."""
     meta = scene.meta
-    height = meta.get("texheight", texture_height(scene.count))
-    return {"width": TEXWIDTH, "height": height, "declared_bytes": meta.get("declared_bytes", texture_bytes(height)),
+    height = meta.get("texheight", viewer.texture_height(scene.count))
+    return {"width": viewer.TEXWIDTH, "height": height,
+            "declared_bytes": meta.get("declared_bytes", viewer.texture_bytes(height)),
             "actual_bytes": meta.get("actual_bytes")}
 
 
@@ -300,14 +300,15 @@ def _simulated_conversion(source: Scene, level: int, progress) -> tuple:
     The texture is encoded once, in memory; its zstd size is measured from that
     copy (with the header ``convert`` would write) and the scene decoded from it.
     """
-    records, _ = splatv.encode(source)
+    texture = texture_format().texture
+    records, _ = texture.encode(source)
     cameras = source.cameras or [framing_camera(source.columns["x"], source.columns["y"], source.columns["z"])]
-    header = splatv.header_bytes(source.count, cameras)
-    rows = max(1, _READ_BYTES // splatv.RECORD_BYTES)
+    header = texture.header(source.count, cameras)
+    rows = max(1, _READ_BYTES // (4 * viewer.WORDS_PER_SPLAT))  # uint32 words a record
     pieces = [header] + [memoryview(records[start:start + rows]) for start in range(0, len(records), rows)]
     size = len(header) + records.nbytes
     zstd_bytes = compressed_bytes(pieces, size, level, progress=progress, label=f"zstd-{level} (as converted)")
-    columns, _ = splatv.decode_records(records[:source.count])
+    columns, _ = texture.decode(records[:source.count])
     return Scene(columns=columns, cameras=cameras), size, zstd_bytes
 
 
@@ -315,7 +316,7 @@ def _viewer_limits(scene: Scene) -> dict:
     """The ``viewer`` checks of the file the viewer would load (``scene``)."""
     # A .splatv's texture is as tall as its header says, whatever it holds;
     # anything else is as tall as converting it would declare.
-    texheight = scene.meta.get("texheight", splatv.texture_height(scene.count))
+    texheight = scene.meta.get("texheight", viewer.texture_height(scene.count))
     nan = np.zeros(scene.count, dtype=bool)
     for c in ("x", "y", "z"):
         nan |= ~np.isfinite(scene.columns[c])
@@ -429,24 +430,25 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
     """
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     source, src_bytes, src_zstd = _read_measured(source_path, color, level, progress)
-    src_mod = format_for(source_path)
-    files = [_file_entry("source", source_path, src_mod.NAME, src_bytes, source.count, src_zstd, level, src_bytes)]
+    src_fmt = format_for(source_path)
+    files = [_file_entry("source", source_path, src_fmt.name, src_bytes, source.count, src_zstd, level, src_bytes)]
     compare = True
     if converted_path is not None:
         converted, conv_bytes, conv_zstd = _read_measured(converted_path, color, level, progress)
-        conv_mod = format_for(converted_path)
-        order = align(source, converted, source_path, converted_path)
-        files.append(_file_entry("converted", converted_path, conv_mod.NAME, conv_bytes, converted.count, conv_zstd,
+        conv_fmt = format_for(converted_path)
+        # Ties between a writer's orders are broken as the viewer's texture would store the values.
+        order = align(source, converted, source_path, converted_path, storage=texture_format().storage(converted))
+        files.append(_file_entry("converted", converted_path, conv_fmt.name, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
-    elif src_mod.STORES_TEXTURE or source.count == 0:
-        converted, conv_mod, order, compare = source, src_mod, None, False  # reported as stored
+    elif src_fmt.stores_texture or source.count == 0:
+        converted, conv_fmt, order, compare = source, src_fmt, None, False  # reported as stored
     else:
         converted, size, zstd_bytes = _simulated_conversion(source, level, progress)
-        conv_mod = splatv
-        order = align(source, converted)
-        files.append(_file_entry("converted", None, conv_mod.NAME, size, source.count, zstd_bytes, level, src_bytes))
+        conv_fmt = texture_format()
+        order = align(source, converted, storage=texture_format().storage(converted))
+        files.append(_file_entry("converted", None, conv_fmt.name, size, source.count, zstd_bytes, level, src_bytes))
     n = converted.count
-    tally = _Tally(n, compare, damage=not src_mod.STORES_TEXTURE, storage=conv_mod.storage(converted))
+    tally = _Tally(n, compare, damage=not src_fmt.stores_texture, storage=conv_fmt.storage(converted))
     with progress.stage("comparing" if compare else "reading values", n, "splat") as advance:
         for start in range(0, n, BLOCK):
             rows = slice(start, min(start + BLOCK, n))
@@ -455,7 +457,7 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
             tally.add(rows, src, conv)
             advance(rows.stop - rows.start)
     # The viewer loads the texture side; with none (PLY to PLY), the converted file as converting would make it.
-    viewed = source if src_mod.STORES_TEXTURE and not conv_mod.STORES_TEXTURE else converted
+    viewed = source if src_fmt.stores_texture and not conv_fmt.stores_texture else converted
     return {
         "schema": STATS_SCHEMA,
         "files": files,

@@ -39,6 +39,24 @@ VISIBLE_RADIUS = math.sqrt(-math.log(TEMPORAL_CUTOFF))
 #: The viewer's time range.
 TIME_RANGE = (0.0, 1.0)
 
+# The texture the viewer draws from (``splatconv/render/shaders/fetch_splatv.glsl``): an
+# RGBA32UI texture this many texels wide, each splat 16 uint32 words (4 texels) in a row.
+TEXWIDTH = 4096
+WORDS_PER_SPLAT = 16
+SPLATS_PER_ROW = TEXWIDTH * 4 // WORDS_PER_SPLAT  # 1024: the shader's index & 0x3ff
+#: Bytes of one RGBA32UI texel.
+TEXEL_BYTES = 16
+
+
+def texture_height(count: int) -> int:
+    """Rows of the texture for ``count`` splats: ceil(count / 1024)."""
+    return -(-count // SPLATS_PER_ROW)
+
+
+def texture_bytes(texheight: int) -> int:
+    """Bytes of a texture of ``texheight`` rows."""
+    return TEXWIDTH * texheight * TEXEL_BYTES
+
 
 def wide(values) -> np.ndarray:
     """``values`` as float64, the way every column is widened for the viewer's maths.

@@ -106,10 +106,8 @@ def test_nothing_outside_formats_names_a_format_to_decide_what_to_do():
                 for side in [node.left, *node.comparators]:
                     if isinstance(side, ast.Constant) and side.value in ("splatv", "ply", "splat"):
                         offenders.append(f"{module}:{node.lineno}: {text}")
-            # path.endswith(".html"): a format chosen by its suffix outside the registry. The player
-            # (web/) plays .splatv files and writes .html pages: those two it may name.
-            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "endswith"
-                    and not module.startswith("splatconv.web")):
+            # path.endswith(".html"): a format chosen by its suffix outside the registry.
+            if isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute) and node.func.attr == "endswith":
                 for arg in node.args:
                     if isinstance(arg, ast.Constant) and arg.value in REGISTRY:
                         offenders.append(f"{module}:{node.lineno}: {ast.unparse(node)}")
@@ -156,15 +154,176 @@ def test_the_viewers_sigmoid_and_logit_are_written_once():
     assert not found, found
 
 
-def test_every_format_module_declares_what_it_supports():
-    """formats/base.py's list: callers ask these of any module, so every module states each one."""
-    from splatconv.formats import _MODULES
+def _package_node(module: str) -> str | None:
+    """The package-level node of ``module``: its sub-package of splatconv, or itself when a top-level module
+    (None for the root package, which importing anything below it runs first)."""
+    parts = module.split(".")
+    return ".".join(parts[:2]) if len(parts) > 1 else None
 
-    declared = ("NAME", "SUFFIXES", "CAN_READ", "CAN_WRITE", "COMPAT_MODES", "DEFAULT_SORT", "HOLDS_EMPTY", "DYNAMIC",
-                "STORES_TEXTURE", "PLAYS_SEGMENTS")
-    for module in _MODULES:
-        missing = [name for name in declared if not hasattr(module, name)]
-        missing += [name for name in ("read", "write", "info_fields", "storage") if not callable(getattr(module, name, None))]
-        missing += [name for name in ("splat_count", "most_splats")
-                    if module.CAN_READ and not callable(getattr(module, name, None))]
-        assert not missing, (module.__name__, missing)
+
+def _package_graph() -> dict:
+    """Sub-package or top-level module -> those it imports (its members' imports, its own members left out)."""
+    graph = {}
+    for module, targets in _imports(_modules()).items():
+        node = _package_node(module)
+        if node is None:
+            continue
+        edges = graph.setdefault(node, set())
+        edges.update(t for t in map(_package_node, targets) if t is not None and t != node)
+    return graph
+
+
+def _cycles(graph: dict) -> list:
+    """One path round each cycle of ``graph`` found from each node (as ``a -> b -> a`` strings)."""
+    found = []
+    for start in sorted(graph):
+        stack, seen = [(start, [start])], set()
+        while stack:
+            node, trail = stack.pop()
+            for nxt in sorted(graph.get(node, ())):
+                if nxt == start:
+                    found.append(" -> ".join(trail + [nxt]))
+                elif nxt not in seen:
+                    seen.add(nxt)
+                    stack.append((nxt, trail + [nxt]))
+    return found
+
+
+def test_the_cycle_finder_sees_a_package_circle():
+    assert _cycles({"p.a": {"p.b"}, "p.b": {"p.a"}, "p.c": {"p.a"}}) == ["p.a -> p.b -> p.a", "p.b -> p.a -> p.b"]
+    assert _cycles({"p.a": {"p.b"}, "p.b": set()}) == []
+
+
+def test_no_package_imports_one_that_imports_it_back():
+    """Layers hold between packages, not only modules: formats/html.py using web/ while web/ used formats/
+    was a circle no two modules showed."""
+    graph = _package_graph()
+    assert "splatconv.formats" in graph and "splatconv.web" in graph  # the graph is built from the real tree
+    cycles = _cycles(graph)
+    assert not cycles, cycles[:5]
+
+
+def test_the_player_page_is_a_leaf():
+    """web/ (the page and its assets) imports only the base layer; the .html format, publishing and the
+    server use it."""
+    graph = _package_graph()
+    allowed = {"splatconv.errors", "splatconv.wording"}
+    assert graph["splatconv.web"] <= allowed, graph["splatconv.web"] - allowed
+    users = {node for node, targets in graph.items() if "splatconv.web" in targets}
+    assert {"splatconv.formats", "splatconv.publish", "splatconv.server"} <= users, users
+
+
+def _format_modules() -> dict:
+    """Modules of formats/ that declare a format (``FORMAT = ...`` at the top level), by module name."""
+    found = {}
+    for module, path in _modules().items():
+        if not module.startswith("splatconv.formats."):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        if any(isinstance(node, ast.Assign) and any(getattr(t, "id", None) == "FORMAT" for t in node.targets)
+               for node in tree.body):
+            found[module] = tree
+    return found
+
+
+def test_every_format_module_fills_the_one_contract():
+    """formats/base.py's Format is the contract, stated once: each format module fills it (``FORMAT``), every
+    such module is registered, and none states a declaration beside it."""
+    import dataclasses
+    import importlib
+
+    from splatconv.formats import FORMATS
+    from splatconv.formats.base import Format
+
+    declared = _format_modules()
+    assert {importlib.import_module(m).FORMAT for m in declared} == set(FORMATS), sorted(declared)
+    for fmt in FORMATS:
+        assert isinstance(fmt, Format), fmt
+        for f in dataclasses.fields(Format):  # the annotations are strings (postponed evaluation)
+            value = getattr(fmt, f.name)
+            if f.type in ("str", "bool"):
+                assert type(value).__name__ == f.type, (fmt.name, f.name, value)
+            elif f.type == "tuple":
+                assert isinstance(value, tuple) and all(isinstance(v, str) for v in value), (fmt.name, f.name)
+            elif f.type.startswith("Callable"):
+                assert callable(value) or (value is None and f.type.endswith("None")), (fmt.name, f.name)
+        assert all(callable(getattr(fmt, name)) for name in ("info_fields", "storage")), fmt.name
+        assert all(callable(getattr(fmt, name)) for name in ("read", "splat_count", "most_splats")) == fmt.can_read
+    # The old spelling of the contract, module constants, is gone: a second statement of it would be a second truth.
+    old = {"NAME", "SUFFIXES", "CAN_READ", "CAN_WRITE", "COMPAT_MODES", "DEFAULT_SORT", "HOLDS_EMPTY", "DYNAMIC",
+           "STORES_TEXTURE", "PLAYS_SEGMENTS"}
+    for module, tree in declared.items():
+        names = {t.id for node in tree.body if isinstance(node, ast.Assign) for t in node.targets
+                 if isinstance(t, ast.Name)}
+        assert not names & old, (module, names & old)
+
+
+def test_a_format_is_read_directly_never_with_getattr():
+    """Outside formats/, no ``getattr``/``hasattr`` of a declaration: every Format field exists, so a default
+    would only hide a misspelling."""
+    import dataclasses
+
+    from splatconv.formats.base import Format
+
+    names = {f.name for f in dataclasses.fields(Format)} | {"can_read", "can_write", "stores_texture", "FORMAT",
+                                                            "NAME", "STORES_TEXTURE", "LAYOUTS", "DEFAULT_SORT"}
+    found = []
+    for module, path in _modules().items():
+        if module.startswith("splatconv.formats"):
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id in ("getattr", "hasattr")
+                    and len(node.args) > 1 and isinstance(node.args[1], ast.Constant) and node.args[1].value in names):
+                found.append(f"{module}:{node.lineno}: {ast.unparse(node)}")
+    assert not found, found
+
+
+def _docstrings(tree) -> set:
+    return {id(node.body[0].value) for node in ast.walk(tree)
+            if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body
+            and isinstance(node.body[0], ast.Expr) and isinstance(node.body[0].value, ast.Constant)}
+
+
+def test_no_format_is_named_outside_formats():
+    """Outside formats/, a format is found by what it declares (``format_for``, ``texture_format``,
+    ``page_format``), never by name: no import of a format's module, no suffix as a value."""
+    from splatconv.formats import FORMATS
+
+    # Suffixes, not names: "splat" is also the word for one Gaussian (comparisons with a format's name are
+    # checked above).
+    words = {s for fmt in FORMATS for s in fmt.suffixes}
+    found = []
+    for module, path in _modules().items():
+        if module.startswith("splatconv.formats"):
+            continue
+        tree = ast.parse(path.read_text(encoding="utf-8"))
+        docstrings = _docstrings(tree)
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom):
+                targets = _resolve(module, path, node)
+                named = [t for t in targets[1:] if t.startswith("splatconv.formats.") and t != "splatconv.formats.base"]
+                if targets[0].startswith("splatconv.formats.") and targets[0] != "splatconv.formats.base":
+                    named.append(targets[0])
+                found += [f"{module}:{node.lineno}: imports {t}" for t in named if t[len("splatconv.formats."):] in
+                          {m.rsplit(".", 1)[-1] for m in _format_modules()} | {"splatv_layout", "splatv_engine"}]
+            elif (isinstance(node, ast.Constant) and isinstance(node.value, str) and id(node) not in docstrings
+                  and node.value.lower() in words):
+                found.append(f"{module}:{node.lineno}: {node.value!r}")
+    assert not found, found
+
+
+def test_a_format_declaration_that_leaves_out_what_it_implies_is_refused():
+    """A declaration is checked when it is made: a readable format that cannot count its splats, a texture
+    that cannot be read, a mixed-case suffix."""
+    import pytest
+
+    from splatconv.formats import splatv
+    from splatconv.formats.base import Format
+
+    base = dict(name="x", suffixes=(".x",), default_sort="none", holds_empty=True, dynamic=False, read=None,
+                write=splatv.FORMAT.write, info_fields=dict, storage=dict)
+    Format(**base)  # write-only, nothing else implied
+    for broken in (dict(read=splatv.FORMAT.read), dict(texture=splatv.FORMAT.texture),
+                   dict(check_playable=splatv.FORMAT.check_playable), dict(suffixes=(".X",)), dict(write=None)):
+        with pytest.raises(TypeError):
+            Format(**{**base, **broken})

@@ -15,6 +15,7 @@ import pytest
 from click.testing import CliRunner
 
 from splatconv import read
+from splatconv.formats import splatv
 from splatconv.cli import main
 from splatconv.compare import align, compare_scenes
 from splatconv.model import GROUPS
@@ -139,8 +140,8 @@ def test_a_damaged_file_is_paired_by_the_writers_order(tmp_path, seed):
     assert 0 < differ <= 200
     # The undamaged rows keep the writer's order: align pairs them as it pairs the faithful file.
     source, clean, hurt = read(ply), read(faithful), read(broken)
-    writer = align(source, clean)
-    order = align(source, hurt)
+    writer = align(source, clean, storage=splatv.STORAGE)
+    order = align(source, hurt, storage=splatv.STORAGE)
     data, start = _records(faithful)
     same = (np.frombuffer(data[start:], np.uint8).reshape(-1, 64)
             == np.frombuffer(broken.read_bytes()[start:], np.uint8).reshape(-1, 64)).all(axis=1)
@@ -150,7 +151,7 @@ def test_a_damaged_file_is_paired_by_the_writers_order(tmp_path, seed):
     attributes = verify_attributes(ply, broken)
     for group, a in attributes.items():
         assert a["unexplained"] <= differ * len(GROUPS[group]), (group, a["unexplained"], differ)
-    errors = compare_scenes(source, hurt, order)
+    errors = compare_scenes(source, hurt, order, splatv.STORAGE)
     assert sum(e.unexplained for e in errors.values()) > 0
 
 

@@ -6,6 +6,7 @@ traceback, never a file left behind; nothing silently loses data.
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import json
 import os
@@ -29,7 +30,7 @@ from splatconv import cameras as camera_module
 from splatconv import transport
 from splatconv.cli import main
 from splatconv.errors import FormatError, OutputError
-from splatconv.formats import ply, splatv
+from splatconv.formats import REGISTRY, ply, splatv
 from splatconv.fsutil import atomic_writer, remove_stale_parts
 from splatconv.render import camera as cam
 
@@ -516,7 +517,8 @@ def test_racing_converts_to_one_new_output_give_one_winner(tmp_path, lite_ply, m
             out.write_bytes(b"another run")  # lands between the existence check and the rename
         return report
 
-    monkeypatch.setattr(splatv, "write", slow_write)
+    # The registry holds each format's declaration: the writer is replaced there.
+    monkeypatch.setitem(REGISTRY, ".splatv", dataclasses.replace(REGISTRY[".splatv"], write=slow_write))
     r = run("convert", lite_ply, out)
     assert (r.exit_code, r.stderr) == (1, f"Error: {out}: already exists (use --force to replace it)\n")
     assert out.read_bytes() == b"another run"

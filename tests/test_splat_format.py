@@ -197,7 +197,7 @@ def test_splat_zst_and_determinism(tmp_path):
         assert run("convert", src, tmp_path / name).exit_code == 0
     assert (tmp_path / "b.splat.zst").read_bytes() == (tmp_path / "c.splat.zst").read_bytes()
     assert io.read(tmp_path / "b.splat.zst").count == 100
-    assert format_for("x.SPLAT").NAME == "splat" and format_for("x.splatv").NAME == "splatv"
+    assert format_for("x.SPLAT").name == "splat" and format_for("x.splatv").name == "splatv"
     # A .splat is a static 3DGS scene: to .ply it goes as a 3DGS PLY, and back to the same bytes.
     assert run("convert", src, tmp_path / "d.ply").exit_code == 0
     assert io.read(tmp_path / "d.ply").variant == model.VARIANT_3DGS
@@ -347,5 +347,5 @@ def test_every_format_says_how_it_stores_each_group(tmp_path):
     scene = Scene(columns=static_columns(4), variant=model.VARIANT_3DGS)
     for module in set(REGISTRY.values()):
         kinds = module.storage(scene)
-        assert set(kinds) == set(model.GROUPS) and set(kinds.values()) <= set(STORAGE_KINDS), module.NAME
+        assert set(kinds) == set(model.GROUPS) and set(kinds.values()) <= set(STORAGE_KINDS), module.name
     assert ply.storage(scene)["trbf"] == "none" and ply.storage(Scene(columns=static_columns(4)))["trbf"] == "exact"

@@ -444,13 +444,13 @@ def test_info_keys_are_documented_for_every_format(tmp_path, lite_ply, gs_ply):
 
     spec = spec_keys("info")
     details = spec.pop("details")
-    modules = {m.NAME: m for m in REGISTRY.values() if m.CAN_READ}  # info reads: a write-only format has no details
+    modules = {m.name: m for m in REGISTRY.values() if m.can_read}  # info reads: a write-only format has no details
     assert set(details) == set(modules), "every readable format's details are documented"
     for name, module in modules.items():
-        if not (module.CAN_WRITE and module.CAN_READ):
+        if not (module.can_write and module.can_read):
             continue
-        path = tmp_path / f"written{module.SUFFIXES[0]}"
-        assert run("convert", lite_ply if module.DYNAMIC else gs_ply, path).exit_code == 0, name
+        path = tmp_path / f"written{module.suffixes[0]}"
+        assert run("convert", lite_ply if module.dynamic else gs_ply, path).exit_code == 0, name
         info = json.loads(run("info", path, "--json").stdout)
         assert [k for k in info if k != "details"] == list(spec), name
         assert list(info).index("details") == list(info).index("notes") - 1  # where the spec lists it
@@ -657,12 +657,12 @@ def test_group_errors_of_infinities_and_nan_without_warning():
 
     a = np.array([[np.inf], [-np.inf], [np.nan], [1.0], [np.inf], [5e-324], [1e308]])
     b = np.array([[np.inf], [np.inf], [np.nan], [1.5], [2.0], [1.0], [-1e308]])
-    e = value_errors(a, b, "motion")  # warnings are errors here
+    e = value_errors(a, b, "motion", "half")  # warnings are errors here
     # Only the finite pairs are compared: 1 vs 1.5, 5e-324 vs 1, 1e308 vs -1e308 (a difference past
     # the float64 range: infinite, and said so).
     assert e.compared == 3 and e.max_abs_error == math.inf and e.rmse == math.inf
     assert e.unexplained == 5  # -inf -> inf, inf -> 2, and the three finite pairs
-    finite = value_errors(a[3:4], b[3:4], "motion")
+    finite = value_errors(a[3:4], b[3:4], "motion", "half")
     assert (finite.max_abs_error, finite.max_rel_error, finite.rmse) == (0.5, 0.5, 0.5)
 
 
@@ -728,11 +728,12 @@ def test_a_faithful_conversion_of_a_nasty_scene_is_all_explained(nasty_files):
     # stays NaN: all expected of the default writer, so no group drifted (the check verify runs).
     from splatconv import read
     from splatconv.compare import align, compare_scenes
+    from splatconv.formats.splatv import STORAGE
 
     src, default, _, back = nasty_files
     for a, b in ((src, default), (default, back)):
         source, converted = read(a), read(b)
-        errors = compare_scenes(source, converted, align(source, converted))
+        errors = compare_scenes(source, converted, align(source, converted, storage=STORAGE), STORAGE)
         assert {g: e.unexplained for g, e in errors.items()} == dict.fromkeys(errors, 0), (a, b)
 
 

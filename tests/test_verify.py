@@ -534,12 +534,13 @@ def test_attribute_check_in_row_blocks_gives_the_whole_scenes_figures(faithful, 
     # compare_scenes works a block of rows at a time (bounded memory on 1M splats);
     # the merged figures are those of one pass over every row.
     from splatconv import compare, io
+    from splatconv.formats import splatv
 
     source, converted = io.read(SAMPLE), io.read(faithful)
-    order = compare.align(source, converted)
-    whole = compare.compare_scenes(source, converted, order)
+    order = compare.align(source, converted, storage=splatv.STORAGE)
+    whole = compare.compare_scenes(source, converted, order, splatv.STORAGE)
     monkeypatch.setattr(compare, "_ROWS", 1000)
-    blocks = compare.compare_scenes(source, converted, order)
+    blocks = compare.compare_scenes(source, converted, order, splatv.STORAGE)
     for g, e in whole.items():
         b = blocks[g]
         assert (b.max_abs_error, b.max_rel_error, b.unexplained, b.compared, b.values) == (

@@ -25,7 +25,7 @@ from splatconv.render import camera as cam
 from splatconv.render.diff import compare
 from splatconv.render.frames import cameras_of, load, render_frames, resolve_view
 from splatconv.web.page import SceneRef, build_page
-from splatconv.web.publish import publish
+from splatconv.publish import publish
 
 from .conftest import random_columns
 from .web_support import EVENT_DEADLINE_MS, capture, launched, open_page, serving, view_hash, wait_settled

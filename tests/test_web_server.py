@@ -22,7 +22,7 @@ from splatconv.cli import main
 from splatconv.formats.splatv_layout import COUNT_KEY
 from splatconv.transport import plain_input
 from splatconv.web.page import SHADERS, SceneRef, build_page
-from splatconv.web.server import HOST, IDLE_TIMEOUT, ViewServer
+from splatconv.server import HOST, IDLE_TIMEOUT, ViewServer
 
 from .web_support import serving
 

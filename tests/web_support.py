@@ -16,7 +16,7 @@ from contextlib import contextmanager
 import numpy as np
 import pytest
 
-from splatconv.web.server import ViewServer
+from splatconv.server import ViewServer
 
 #: WebGL2 on SwiftShader (ANGLE's Vulkan CPU driver), nothing fetched from the network.
 CHROMIUM_ARGS = (
@@ -110,7 +110,7 @@ def view_hash(matrix, t=None, ui=False) -> str:
 
 @contextmanager
 def serving(paths, **options):
-    """A :class:`splatconv.web.server.ViewServer` for ``paths``, running in a thread."""
+    """A :class:`splatconv.server.ViewServer` for ``paths``, running in a thread."""
     server = ViewServer(paths, **options)
     thread = threading.Thread(target=server.serve, kwargs={"open_browser": False}, daemon=True)
     thread.start()

@@ -7,7 +7,7 @@ import os
 import click
 
 from .. import io
-from ..formats import REGISTRY
+from ..formats import FRAME_SUFFIX, REGISTRY
 from ..fsutil import check_output
 from ..ops import apply_transform, make_transform
 from ..ops import drop_nonfinite as ops_drop_nonfinite
@@ -118,7 +118,7 @@ def _wrote(path, report) -> None:
     click.option("--frames", type=click.IntRange(min=2), metavar="N",
                  help="Bake N moments, frame k at time k/(N-1), as OUTPUT/frame_0000.ply ... "
                       "OUTPUT is a folder (made if missing); all frames are written or none."),
-    click.option("--frame-suffix", type=click.Choice(sorted(REGISTRY)), default=".ply", show_default=True,
+    click.option("--frame-suffix", type=click.Choice(sorted(REGISTRY)), default=FRAME_SUFFIX, show_default=True,
                  help="File type of the --frames files."),
     _layout_option("3dgs"),
     _sort_option(),

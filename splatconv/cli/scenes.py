@@ -12,7 +12,7 @@ from ..ops.sequence import SAME_SPLATS_MODES
 from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
 from ..stats import describe, stats_report
 from ..transport import DEFAULT_LEVEL
-from ..web.publish import publish
+from ..publish import publish
 from ..wording import plural
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, quiet_option)
@@ -109,7 +109,7 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
       splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
       splatconv convert scene.splatv scene.html
     """
-    # Player pages of several segments or with --external: splatconv.web.publish.
+    # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
         if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
             raise Failure("--external and several inputs take no other options but --durations and --force", 2)

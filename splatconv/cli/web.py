@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..web.server import ViewServer, can_open_browser
+from ..server import ViewServer, can_open_browser
 from ._base import library_errors, main, notes, options
 
 

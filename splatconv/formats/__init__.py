@@ -1,17 +1,13 @@
 """One module per format behind one registry keyed by file suffix.
 
-Every format module declares what it supports (see :mod:`splatconv.formats.base`):
-``NAME``, ``SUFFIXES``, ``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``,
-``DEFAULT_SORT``, ``HOLDS_EMPTY``, ``DYNAMIC``, ``STORES_TEXTURE``, ``PLAYS_SEGMENTS``
-(a player page), and provides ``read``, ``write``, ``info_fields``,
-``storage`` (how it stores each attribute group, which ``verify`` and ``stats``
-judge errors by) and, when it can be read, ``splat_count`` (the splats ``read``
-would give, from the header or the file size without reading them, or None when
-only reading tells) and ``most_splats`` (at most that many, always known).
-Callers look a module up with :func:`format_for` and ask it those questions;
-none of them names a format. Adding a format is adding a module and one line to
-``_MODULES``. A ``.zst`` suffix after a format's suffix means the
-same format, zstd-compressed (see :mod:`splatconv.transport`).
+Every format module fills one declaration, ``FORMAT``, a
+:class:`~splatconv.formats.base.Format`: its name and suffixes, what it can do
+and how it stores a scene, and the functions that do it. Callers look one up
+with :func:`format_for` (or, for the viewer's texture, :func:`texture_format`)
+and read its fields; none of them names a format. Adding a format is adding a
+module that ends with ``FORMAT = Format(...)`` and one line to ``FORMATS``. A
+``.zst`` suffix after a format's suffix means the same format, zstd-compressed
+(see :mod:`splatconv.transport`).
 """
 
 from __future__ import annotations
@@ -21,22 +17,31 @@ import os
 from ..errors import UsageError
 from ..transport import inner_name
 from . import html, ply, splat, splatv
+from .base import Format
 
-_MODULES = (ply, splatv, splat, html)
-REGISTRY = {suffix: module for module in _MODULES for suffix in module.SUFFIXES}
+#: Every format, in the order suffixes are tried.
+FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splat.FORMAT, html.FORMAT)
+REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
+#: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
+FRAME_SUFFIX = ply.FORMAT.suffixes[0]
+
+_TEXTURE = [fmt for fmt in FORMATS if fmt.stores_texture and fmt.can_write]
+_PAGE = [fmt for fmt in FORMATS if fmt.plays_segments]
+if len(_TEXTURE) != 1 or len(_PAGE) != 1:  # pragma: no cover (a registry mistake, caught on import)
+    raise TypeError("exactly one writable format must store the viewer's texture, and one be the player page")
 
 
-def _lookup(path: str):
-    """The module whose suffix ``path`` ends in (case-insensitive, after any ``.zst``), or None."""
+def _lookup(path: str) -> Format | None:
+    """The format whose suffix ``path`` ends in (case-insensitive, after any ``.zst``), or None."""
     lower = inner_name(path).lower()
-    for suffix, module in REGISTRY.items():
+    for suffix, fmt in REGISTRY.items():
         if lower.endswith(suffix):
-            return module
+            return fmt
     return None
 
 
-def format_for(path: str | os.PathLike, *, purpose: str | None = None):
-    """The format module for ``path``, chosen by its (case-insensitive) suffix.
+def format_for(path: str | os.PathLike, *, purpose: str | None = None) -> Format:
+    """The format of ``path``, chosen by its (case-insensitive) suffix.
 
     Parameters
     ----------
@@ -50,24 +55,40 @@ def format_for(path: str | os.PathLike, *, purpose: str | None = None):
         For a suffix no format claims, or one that cannot serve ``purpose``.
     """
     path = os.fspath(path)
-    module = _lookup(path)
-    if module is None:
+    fmt = _lookup(path)
+    if fmt is None:
         known = ", ".join(sorted(REGISTRY))
         raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)
-    if purpose == "read" and not module.CAN_READ:
-        raise UsageError(f"{module.NAME} files can be written, not read", path)
-    if purpose == "write" and not module.CAN_WRITE:
-        raise UsageError(f"{module.NAME} files can be read, not written", path)
-    return module
+    if purpose == "read" and not fmt.can_read:
+        raise UsageError(f"{fmt.name} files can be written, not read", path)
+    if purpose == "write" and not fmt.can_write:
+        raise UsageError(f"{fmt.name} files can be read, not written", path)
+    return fmt
+
+
+def texture_format() -> Format:
+    """The format that stores the viewer's texture itself and can be written: what the viewer loads,
+    and what any other scene becomes for it (``stats``' simulated conversion, drawing, the player)."""
+    return _TEXTURE[0]
+
+
+def page_format() -> Format:
+    """The format whose files are the player page (``plays_segments``): what ``publish`` writes."""
+    return _PAGE[0]
 
 
 def plays_segments(path: str | os.PathLike) -> bool:
-    """Whether ``path``'s format plays several scenes as the segments of one clip (``PLAYS_SEGMENTS``);
+    """Whether ``path``'s format plays several scenes as the segments of one clip (``plays_segments``);
     False for a suffix no format claims."""
-    module = _lookup(os.fspath(path))
-    return module is not None and module.PLAYS_SEGMENTS
+    fmt = _lookup(os.fspath(path))
+    return fmt is not None and fmt.plays_segments
 
 
 def compat_modes() -> tuple:
     """Every compat mode some format accepts, for option choices."""
-    return tuple(sorted({mode for module in _MODULES for mode in module.COMPAT_MODES}))
+    return tuple(sorted({mode for fmt in FORMATS for mode in fmt.compat_modes}))
+
+
+def layouts() -> tuple:
+    """Every record layout some format's writer offers, for option choices (first offered first)."""
+    return tuple(dict.fromkeys(name for fmt in FORMATS for name in fmt.layouts))

@@ -1,19 +1,15 @@
-"""What every format module shares: the report a write returns.
+"""What every format module shares: the one contract it fills (:class:`Format`) and the report a write returns.
 
-A format module (see :mod:`splatconv.formats`) declares ``NAME``, ``SUFFIXES``,
-``CAN_READ``, ``CAN_WRITE``, ``COMPAT_MODES``, ``DEFAULT_SORT``, ``HOLDS_EMPTY``,
-``DYNAMIC``, ``STORES_TEXTURE`` and ``PLAYS_SEGMENTS`` and
-provides ``read(path, **options) -> Scene``,
-``write(scene, stream, *, compat=None, sort=None, **options) -> WriteReport``,
-``info_fields(scene) -> dict`` and, when ``CAN_READ``, ``splat_count(path) -> int or None``
-(the splats ``read`` would give, found from the header or the file size without
-reading them; None when only reading tells) and ``most_splats(path) -> int`` (at
-most the splats ``read`` would give, found the same way: it bounds the memory a
-read takes before it starts).
+Each format module ends with ``FORMAT = Format(...)``: its name and suffixes,
+what it can do and how it stores the scene, and the functions that do it.
+:mod:`splatconv.formats` registers these declarations and callers read them
+(``format_for(path).holds_empty``); nothing outside ``formats/`` names a format.
+The fields are stated here once; the architecture test reads them from here.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -55,6 +51,130 @@ class WriteReport:
         return notes + [f"{key}: {plural(count, 'NaN value')} written as 0"
                         for key, count in self.nan_bytes.items() if count]
 
+
+
+@dataclass(frozen=True, kw_only=True)
+class Texture:
+    """How a format that stores the viewer's texture itself packs and unpacks it.
+
+    Attributes
+    ----------
+    encode : callable
+        ``encode(scene, *, compat=None, sort=None) -> (records, WriteReport)``: the
+        ``(N, 16) uint32`` records a write would store, in texture order.
+    decode : callable
+        ``decode(records) -> (columns, notes)``: the model's columns back from records.
+    header : callable
+        ``header(count, cameras) -> bytes``: what a file of ``count`` records holds before them.
+    read : callable
+        ``read(path) -> (padded, scene)``: a file's texture as the viewer holds it
+        (``(rows * 1024, 16) uint32``, zero padded) and the scene decoded from it, in one read.
+    """
+
+    encode: Callable
+    decode: Callable
+    header: Callable
+    read: Callable
+
+
+@dataclass(frozen=True, kw_only=True)
+class Format:
+    """One format's declaration: what it is, what it can do, and the functions that do it.
+
+    Every format module fills one (``FORMAT``) and :mod:`splatconv.formats`
+    registers it; callers ask it, never a module. Fields without a default are
+    questions every format answers; the rest default to "no".
+
+    Attributes
+    ----------
+    name : str
+        What ``info`` and ``stats`` call the format.
+    suffixes : tuple of str
+        Lower-case file suffixes it claims (``.zst`` after one means the same, compressed).
+    default_sort : {"importance", "none"}
+        The record order a write uses when none is asked for.
+    holds_empty : bool
+        Whether a file can hold zero splats (an empty scene is refused otherwise).
+    dynamic : bool
+        Whether it holds motion and a temporal basis (False: static, a baked moment).
+    read : callable or None
+        ``read(path, **options) -> Scene``; None for a format that cannot be read.
+    splat_count, most_splats : callable or None
+        Given exactly when ``read`` is: ``splat_count(path) -> int or None`` (the
+        splats ``read`` would give, from the header or the file size without reading
+        them; None when only reading tells) and ``most_splats(path) -> int`` (at most
+        that many, always known: it bounds the memory a read takes before it starts).
+    write : callable or None
+        ``write(scene, stream, *, compat=None, sort=None, progress=..., name=None, **options)
+        -> WriteReport``; None for a format that cannot be written.
+    info_fields : callable
+        ``info_fields(scene) -> dict``: what ``info`` shows of a scene read from it
+        besides the common facts.
+    storage : callable
+        ``storage(scene) -> dict``: how it stores each attribute group of ``scene``
+        (a :data:`splatconv.compare.STORAGE_KINDS` name for each of
+        :data:`splatconv.model.GROUPS`), which ``verify`` and ``stats`` judge errors by.
+    compat_modes : tuple of str
+        Byte-identical modes its writer offers (``compat=``).
+    layouts : tuple of str
+        Record layouts its writer offers (``layout=``).
+    declared_size : callable or None
+        ``declared_size(head) -> int or None``: the file size the header at the start
+        of ``head`` (bytes) declares; bounds the decompression of a ``.zst`` file.
+    texture : Texture or None
+        Given when a file stores the viewer's texture itself: drawn, played and
+        measured as stored. Exactly one writable format does (:func:`splatconv.formats.texture_format`).
+    plays_segments : bool
+        Several scenes given for one output play as the segments of one clip (a
+        player page), not as a frame sequence.
+    check_playable : callable or None
+        Given when the player page plays this format's files as they are:
+        ``check_playable(path)`` raises :class:`~splatconv.errors.FormatError` for a file
+        the page could not play. Any other format is given to the page as the
+        texture format's bytes, converted.
+    """
+
+    name: str
+    suffixes: tuple
+    default_sort: str
+    holds_empty: bool
+    dynamic: bool
+    read: Callable | None
+    write: Callable | None
+    info_fields: Callable
+    storage: Callable
+    splat_count: Callable | None = None
+    most_splats: Callable | None = None
+    compat_modes: tuple = ()
+    layouts: tuple = ()
+    declared_size: Callable | None = None
+    texture: Texture | None = None
+    plays_segments: bool = False
+    check_playable: Callable | None = None
+
+    def __post_init__(self):
+        readers = (self.read, self.splat_count, self.most_splats)
+        if any(f is None for f in readers) != all(f is None for f in readers):
+            raise TypeError(f"format {self.name}: read, splat_count and most_splats come together")
+        if self.read is None and self.write is None:
+            raise TypeError(f"format {self.name}: neither read nor write")
+        if (self.texture is not None or self.check_playable is not None) and self.read is None:
+            raise TypeError(f"format {self.name}: a texture or a playable file must be readable")
+        if not self.suffixes or any(s != s.lower() or not s.startswith(".") for s in self.suffixes):
+            raise TypeError(f"format {self.name}: suffixes must be lower-case and start with '.'")
+
+    @property
+    def can_read(self) -> bool:
+        return self.read is not None
+
+    @property
+    def can_write(self) -> bool:
+        return self.write is not None
+
+    @property
+    def stores_texture(self) -> bool:
+        """Whether a file holds the viewer's texture itself (:attr:`texture`)."""
+        return self.texture is not None
 
 #: Smallest temporal opacity over the viewer's clip at which a static format
 #: may drop a splat's temporal basis: the alpha byte moves by at most half a

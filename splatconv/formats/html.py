@@ -4,7 +4,7 @@ Write-only. The scene is packed as ``.splatv`` (the same writer and options) and
 embedded as base64 in the page built by :mod:`splatconv.web.page`, so the file
 plays opened from disk or from any static host. base64 makes the page 4/3 the
 size of the ``.splatv``; ``splatconv convert --external`` writes the scene beside
-the page instead (:func:`splatconv.web.publish.publish`).
+the page instead (:func:`splatconv.publish.publish`).
 """
 
 from __future__ import annotations
@@ -12,32 +12,11 @@ from __future__ import annotations
 import io
 import os
 
-from ..errors import UnsupportedError
 from ..model import Scene
 from ..transport import inner_name
 from ..web.page import SceneRef, build_page
 from . import splatv
-
-NAME = "html"
-SUFFIXES = (".html",)
-CAN_READ = False
-CAN_WRITE = True
-COMPAT_MODES = ("splatv-js",)
-DEFAULT_SORT = "importance"
-#: The viewer cannot show an empty texture.
-HOLDS_EMPTY = False
-#: Holds motion and a temporal basis (the embedded ``.splatv``).
-DYNAMIC = True
-#: Not the texture itself: a page around it, which nothing here reads back.
-STORES_TEXTURE = False
-#: Several scenes given for one page play as the segments of one clip
-#: (:func:`splatconv.web.publish.publish`), not as a frame sequence.
-PLAYS_SEGMENTS = True
-
-
-def read(path, **options) -> Scene:
-    """Not supported: a page is a player, not a scene format."""
-    raise UnsupportedError("an .html player page cannot be read as a scene (convert its .splatv instead)", path)
+from .base import Format
 
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, name: str | None = None,
@@ -59,16 +38,30 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     splatv.WriteReport
     """
     buffer = io.BytesIO()
-    report = splatv.write(scene, buffer, compat=compat, sort=sort or DEFAULT_SORT, **options)
+    report = splatv.write(scene, buffer, compat=compat, sort=sort or splatv.FORMAT.default_sort, **options)
     stem = os.path.splitext(inner_name(name))[0] if name else ""
     title = {"title": stem} if stem else {}
     stream.write(build_page([SceneRef(name=stem or "scene", data=buffer.getvalue())], **title))
     return report
 
 
-#: What the embedded ``.splatv`` stores.
-storage = splatv.storage
-
-
 def info_fields(scene: Scene) -> dict:
+    """Nothing: a page is written, never read."""
     return {}
+
+
+FORMAT = Format(
+    name="html",
+    suffixes=(".html",),
+    default_sort=splatv.FORMAT.default_sort,
+    holds_empty=False,  # the viewer cannot show an empty texture
+    dynamic=True,  # the embedded .splatv holds motion and a temporal basis
+    read=None,  # a page is a player, not a scene format
+    write=write,
+    compat_modes=splatv.FORMAT.compat_modes,
+    info_fields=info_fields,
+    storage=splatv.storage,  # what the embedded .splatv stores
+    # Several scenes given for one page play as the segments of one clip
+    # (splatconv.publish.publish), not as a frame sequence.
+    plays_segments=True,
+)

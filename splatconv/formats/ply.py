@@ -28,22 +28,8 @@ from ..jsonutil import loads_strict
 from ..model import COLUMNS, GROUPS, Scene, constant_column
 from ..progress import SILENT
 from ..viewer import importance, importance_order, wide
-from .base import WriteReport, refuse_time_varying
+from .base import Format, WriteReport, refuse_time_varying
 
-NAME = "ply"
-SUFFIXES = (".ply",)
-CAN_READ = True
-CAN_WRITE = True
-COMPAT_MODES = ()
-#: Input order: a PLY is a training format, its row order is the user's.
-DEFAULT_SORT = "none"
-#: A PLY may hold zero rows.
-HOLDS_EMPTY = True
-DYNAMIC = True
-#: A PLY holds attributes, not the viewer's texture.
-STORES_TEXTURE = False
-#: One scene a file: several inputs for one output are a frame sequence, not a page's segments.
-PLAYS_SEGMENTS = False
 # The largest structured dtype numpy makes: its itemsize must fit a C int.
 _MAX_DTYPE_BYTES = 2**31 - 1
 
@@ -823,3 +809,17 @@ def info_fields(scene: Scene) -> dict:
         "ignored_properties": meta.get("ignored_properties", []),
         "extra_elements": meta.get("extra_elements", []),
     }
+
+
+FORMAT = Format(
+    name="ply",
+    suffixes=(".ply",),
+    default_sort="none",  # a PLY is a training format: its row order is the user's
+    holds_empty=True,  # a PLY may hold zero rows
+    dynamic=True,
+    read=read, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
+    write=write, layouts=tuple(LAYOUTS),
+    info_fields=info_fields, storage=storage,
+    # Attributes, not the viewer's texture; one scene a file (several inputs for one
+    # output are a frame sequence, not a page's segments).
+)

@@ -36,22 +36,10 @@ from ..packing import F32_EXP_MASK, F32_MANT_MASK, F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales, wide
 from ..wording import plural
-from .base import WriteReport, refuse_time_varying
+from .base import Format, WriteReport, refuse_time_varying
 from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
 from .splatv_layout import MAGIC as SPLATV_MAGIC
 
-NAME = "splat"
-SUFFIXES = (".splat",)
-CAN_READ = True
-CAN_WRITE = True
-COMPAT_MODES = ()
-DEFAULT_SORT = "importance"
-#: An empty file is refused on reading, so an empty scene is not written.
-HOLDS_EMPTY = False
-DYNAMIC = False
-STORES_TEXTURE = False
-#: One scene a file: several inputs for one output are a frame sequence, not a page's segments.
-PLAYS_SEGMENTS = False
 #: How each attribute group is stored (see :data:`splatconv.compare.STORAGE_KINDS`):
 #: no time or motion at all, the rest as the record table above says.
 STORAGE = {"position": "exact", "scale": "float32", "color": "byte", "opacity": "byte",
@@ -310,3 +298,15 @@ def storage(scene: Scene) -> dict:
 def info_fields(scene: Scene) -> dict:
     """What ``info`` shows of a ``.splat``: its record count."""
     return {"records": scene.meta.get("records")}
+
+
+FORMAT = Format(
+    name="splat",
+    suffixes=(".splat",),
+    default_sort="importance",
+    holds_empty=False,  # an empty file is refused on reading, so an empty scene is not written
+    dynamic=False,
+    read=read, splat_count=splat_count, most_splats=most_splats,
+    write=write,
+    info_fields=info_fields, storage=storage,
+)

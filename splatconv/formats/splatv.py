@@ -14,7 +14,6 @@ import numpy as np
 
 from .. import packing
 from ..cameras import validate_cameras
-from ..compare import TEXTURE_STORAGE
 from ..errors import FormatError, UnsupportedError
 from ..fsutil import open_input
 from ..jsonutil import decode as decode_json
@@ -23,30 +22,18 @@ from ..model import Scene, lite_rows
 from ..progress import SILENT
 from ..wording import plural
 from . import splatv_engine as engine
-from .base import WriteReport
+from .base import Format, Texture, WriteReport
 from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE,
                             COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
                             MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXEL_BYTES,
                             TEXWIDTH, WORDS_PER_SPLAT, header_bytes, texture_bytes, texture_height)
 
-NAME = "splatv"
-SUFFIXES = (".splatv",)
-CAN_READ = True
-CAN_WRITE = True
-#: ``"splatv-js"``: texture bytes identical to splaTV's in-browser converter.
-COMPAT_MODES = ("splatv-js",)
-#: Largest, most opaque first, so the viewer draws them first while streaming.
-DEFAULT_SORT = "importance"
-#: The viewer cannot show an empty texture.
-HOLDS_EMPTY = False
-#: Holds motion and a temporal basis.
-DYNAMIC = True
-#: The file holds the viewer's texture itself: draw it as stored (:func:`read_texture`).
-STORES_TEXTURE = True
-#: One scene a file: several inputs for one output are a frame sequence, not a page's segments.
-PLAYS_SEGMENTS = False
+#: How the viewer's texture stores each attribute group (:data:`splatconv.compare.STORAGE_KINDS`):
+#: positions as float32 bits, colour and alpha as bytes, everything else as halves.
+STORAGE = {"position": "exact", "rotation": "half", "scale": "half", "color": "byte", "opacity": "byte",
+           "motion": "half", "omega": "half", "trbf": "half"}
 
-__all__ = ["NAME", "SUFFIXES", "read", "write", "encode", "info_fields", "read_records", "decode_records",
+__all__ = ["FORMAT", "STORAGE", "read", "write", "encode", "info_fields", "read_records", "decode_records",
            "read_texture", "header_bytes", "texture_height", "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW",
            "WORDS_PER_SPLAT", "RECORD_BYTES", "HALF_WORDS", "POSITION_WORDS", "COLOR_WORD", "EXP_ATTRIBUTES",
            "MAGIC", "PREAMBLE", "LOG_OF_HALF", "COLOR_OF_BYTE", "LOGIT_OF_BYTE", "ALPHA_LOGIT_LIMIT"]
@@ -492,8 +479,8 @@ def read(path: str | os.PathLike, **_options) -> Scene:
 
 
 def storage(scene: Scene) -> dict:
-    """How a ``.splatv`` stores each attribute group: the viewer's texture (see :mod:`splatconv.compare`)."""
-    return TEXTURE_STORAGE
+    """How a ``.splatv`` stores each attribute group: :data:`STORAGE`, the viewer's texture."""
+    return STORAGE
 
 
 def info_fields(scene: Scene) -> dict:
@@ -523,3 +510,19 @@ def read_texture(path: str | os.PathLike):
     scene = Scene(columns=columns, cameras=list(chunk.get("cameras", [])), variant="splatv", meta=meta,
                   notes=notes + decode_notes)
     return padded, scene
+
+
+FORMAT = Format(
+    name="splatv",
+    suffixes=(".splatv",),
+    default_sort="importance",  # largest, most opaque first: the viewer draws them first while streaming
+    holds_empty=False,  # the viewer cannot show an empty texture
+    dynamic=True,  # motion and a temporal basis
+    read=read, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
+    write=write,
+    compat_modes=("splatv-js",),  # texture bytes identical to splaTV's in-browser converter
+    info_fields=info_fields, storage=storage,
+    # The file holds the viewer's texture itself: drawn, played and measured as stored.
+    texture=Texture(encode=encode, decode=decode_records, header=header_bytes, read=read_texture),
+    check_playable=read_records,  # the page plays a .splatv's bytes as they are
+)

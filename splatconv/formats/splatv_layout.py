@@ -13,12 +13,11 @@ import struct
 import numpy as np
 
 from .. import packing, viewer
+# The texture's geometry is the viewer's; the record layout on top of it is this format's.
+from ..viewer import SPLATS_PER_ROW, TEXEL_BYTES, TEXWIDTH, WORDS_PER_SPLAT, texture_bytes, texture_height  # noqa: F401
 
 MAGIC = 0x674B
 PREAMBLE = struct.Struct("<II")
-TEXWIDTH = 4096
-WORDS_PER_SPLAT = 16
-SPLATS_PER_ROW = TEXWIDTH * 4 // WORDS_PER_SPLAT  # 1024: the shader's index & 0x3ff
 RECORD_BYTES = WORDS_PER_SPLAT * 4
 #: Largest JSON header read (a header is cameras and a few numbers).
 MAX_JSON_BYTES = 64 << 20
@@ -50,18 +49,6 @@ COLOR_WORD = 7
 #: Attributes the texture stores as exp(value) (the model keeps logarithms).
 EXP_ATTRIBUTES = frozenset({"scale_0", "scale_1", "scale_2", "trbf_scale"})
 
-#: Bytes of one RGBA32UI texel.
-TEXEL_BYTES = 16
-
-
-def texture_height(count: int) -> int:
-    """Rows of the texture for ``count`` splats: ceil(count / 1024)."""
-    return -(-count // SPLATS_PER_ROW)
-
-
-def texture_bytes(texheight: int) -> int:
-    """Bytes of a texture of ``texheight`` rows."""
-    return TEXWIDTH * texheight * TEXEL_BYTES
 
 
 def header_bytes(count: int, cameras: list) -> bytes:

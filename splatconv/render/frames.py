@@ -18,7 +18,7 @@ import numpy as np
 from .. import viewer
 from ..cameras import framing_camera
 from ..errors import UnsupportedError, UsageError
-from ..formats import splatv
+from ..formats import texture_format
 from ..io import read as read_scene
 from ..io import read_texture
 from ..model import Scene
@@ -73,7 +73,7 @@ class Source:
         """
         if self.stored is not None:
             return self.stored
-        records, _report = splatv.encode(self.scene)
+        records, _report = texture_format().texture.encode(self.scene)
         return records
 
     def reference(self, order: np.ndarray | None = None, records: int | None = None) -> np.ndarray:

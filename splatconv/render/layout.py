@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from .. import viewer
-from ..formats.splatv_layout import SPLATS_PER_ROW, TEXWIDTH, texture_height
+from ..viewer import SPLATS_PER_ROW, TEXWIDTH, texture_height
 
 #: Texel k of a splat -> the names of its (x, y, z, w) components, as
 #: :func:`splatconv.viewer.float_record` names the values; None: unused (zero).

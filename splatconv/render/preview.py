@@ -16,7 +16,7 @@ from importlib import resources
 
 import numpy as np
 
-from ..formats.splatv_layout import SPLATS_PER_ROW, TEXWIDTH, WORDS_PER_SPLAT
+from ..viewer import SPLATS_PER_ROW, TEXWIDTH, WORDS_PER_SPLAT
 from . import camera as cam
 from .gl import create_context
 from .layout import FLOAT_SPLATS_PER_ROW, FLOAT_WORDS

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
-from ..formats import format_for
+from ..formats import format_for, texture_format
 from ..fsutil import atomic_group, check_output
 from ..progress import SILENT, Progress
 from ..wording import plural
@@ -205,7 +205,8 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     paths = os.fspath(source_path), os.fspath(converted_path)
     source, converted = _load_pair(paths, color, progress)
     with progress.stage("checking attributes", 2, "step") as advance:
-        order = align(source.scene, converted.scene, *paths)
+        # Ties between a writer's orders are broken as the viewer's texture would store the values.
+        order = align(source.scene, converted.scene, *paths, storage=texture_format().storage(converted.scene))
         advance()
         storage = format_for(paths[1]).storage(converted.scene)
         attributes = compare_scenes(source.scene, converted.scene, order, storage)

@@ -1,8 +1,10 @@
-"""The browser player: a WebGL2 page of our own and the ``view`` server.
+"""The browser player: a WebGL2 page of our own, a leaf of the package.
 
 The page (``assets/``: HTML, CSS, JavaScript, the depth-sort worker) runs the same
 shader sources as :mod:`splatconv.render` (read from ``splatconv/render/shaders``,
 never copied). :mod:`.page` builds it, self-contained, around one scene or a list
-of segments; :mod:`.server` serves it on 127.0.0.1 for ``splatconv view``.
+of segments, given as bytes or URLs. Nothing here reads or writes a scene file or
+knows a format: the ``.html`` format (:mod:`splatconv.formats.html`), publishing
+(:mod:`splatconv.publish`) and the ``view`` server (:mod:`splatconv.server`) use it.
 Nothing here imports moderngl.
 """

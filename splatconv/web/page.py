@@ -20,7 +20,7 @@ from importlib import resources
 from ..errors import UsageError
 from ..wording import plural
 
-#: The vertex shader is these three files joined, as ``render.preview.vertex_source("splatv")``.
+#: The vertex shader is these three files joined, as ``render.preview.vertex_source("texture")``.
 SHADERS = ("splat_head.glsl", "fetch_splatv.glsl", "splat_main.glsl", "splat.frag")
 _TEMPLATE_FIELD = re.compile(r"\{\{([A-Z]+)\}\}")
 

@@ -18,9 +18,9 @@ from dataclasses import dataclass
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
 from urllib.parse import urlsplit
 
-from ..errors import UsageError
-from .page import SceneRef, build_page, parse_durations
-from .scenes import check_splatv, is_plain_splatv, splatv_bytes
+from .errors import UsageError
+from .publish import check_playable, is_plain_playable, page_bytes, page_suffix
+from .web.page import SceneRef, build_page, parse_durations
 
 HOST = "127.0.0.1"
 #: Seconds a connection may sit idle (no byte of a request received, or none of
@@ -50,12 +50,12 @@ def scene_resources(paths, durations=None) -> tuple[dict, list, list]:
     shares = durations or [None] * len(paths)
     for i, path in enumerate(paths):
         path = os.fspath(path)
-        url = f"scene/{i}.splatv"
-        if is_plain_splatv(path):
-            check_splatv(path)
+        url = f"scene/{i}{page_suffix(path)}"
+        if is_plain_playable(path):
+            check_playable(path)
             resources["/" + url] = _Resource("application/octet-stream", path=os.path.abspath(path))
         else:
-            data, lost = splatv_bytes(path)
+            data, lost = page_bytes(path)
             notes.extend(f"{path}: {n}" for n in lost)
             resources["/" + url] = _Resource("application/octet-stream", data=data)
         refs.append(SceneRef(name=os.path.basename(path), url=url, duration=shares[i]))

@@ -1,15 +1,79 @@
-"""Write player pages: one scene or a list of segments, embedded or beside the page."""
+"""Publish scenes in the player page: the bytes the page plays for any scene file, and pages written.
+
+The page itself is built by :mod:`splatconv.web.page`, which knows no format:
+this module asks the registry which formats the page plays as they are
+(``check_playable``) and gives it every other scene as the viewer's texture
+format (:func:`splatconv.formats.texture_format`), converted in memory.
+"""
 
 from __future__ import annotations
 
+import io
 import os
 from dataclasses import dataclass, field
 from urllib.parse import quote
 
-from ..errors import UsageError
-from ..fsutil import atomic_group, check_output
-from .page import SceneRef, build_page, parse_durations
-from .scenes import check_splatv, is_plain_splatv, splatv_bytes
+from .errors import UnsupportedError, UsageError
+from .formats import format_for, page_format, texture_format
+from .fsutil import atomic_group, check_output, open_input
+from .io import read as read_scene
+from .transport import is_compressed, plain_input
+from .web.page import SceneRef, build_page, parse_durations
+
+
+def _played_as(path):
+    """The format whose bytes the page is given for ``path``: its own when the page plays it as it is."""
+    fmt = format_for(path, purpose="read")
+    return fmt if fmt.check_playable is not None else texture_format()
+
+
+def page_suffix(path: str | os.PathLike) -> str:
+    """The suffix of the file the page is given for ``path`` (what ``view`` serves, ``--external`` writes)."""
+    return _played_as(path).suffixes[0]
+
+
+def check_playable(path: str | os.PathLike) -> None:
+    """Check a plain file the page plays as it is, as every command reads it (a header, the splats).
+
+    Raises
+    ------
+    FormatError
+        For a file the page could not play: a damaged header, no splats.
+    """
+    format_for(path, purpose="read").check_playable(path)
+
+
+def is_plain_playable(path: str | os.PathLike) -> bool:
+    """True for an uncompressed file the player plays as it is, which it can fetch from disk."""
+    return format_for(path, purpose="read").check_playable is not None and not is_compressed(path)
+
+
+def page_bytes(path: str | os.PathLike) -> tuple[bytes, list]:
+    """The bytes the page plays for any scene file, and notes on what converting it lost.
+
+    A file the page plays as it is (the viewer's texture, ``.splatv``; maybe
+    ``.zst``) is passed through unchanged; any other format is read and packed
+    in memory as the texture format, exactly as ``convert`` would write it.
+
+    Returns
+    -------
+    data : bytes
+    notes : list of str
+    """
+    path = os.fspath(path)
+    fmt = format_for(path, purpose="read")
+    if fmt.check_playable is not None:
+        with plain_input(path, declared_size=fmt.declared_size) as plain:
+            fmt.check_playable(plain)
+            with open_input(plain) as f:
+                return f.read(), []
+    scene = read_scene(path)
+    if scene.count == 0:
+        raise UnsupportedError("holds no splats to show", path)
+    buffer = io.BytesIO()
+    texture = texture_format()
+    report = texture.write(scene, buffer, sort=texture.default_sort)
+    return buffer.getvalue(), list(scene.notes) + list(report.notes)
 
 
 @dataclass
@@ -50,15 +114,17 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
     """
     inputs = [os.fspath(p) for p in inputs]
     output = os.fspath(output)
-    if not output.lower().endswith(".html"):
-        raise UsageError("a player page must be written to an .html file", output)
+    page_ending = page_format().suffixes[0]
+    if not output.lower().endswith(page_ending):
+        raise UsageError(f"a player page must be written to an {page_ending} file", output)
     if not inputs:
         raise UsageError("give at least one scene file")
     shares = parse_durations(durations, len(inputs))
-    stem = output[: -len(".html")]
-    names = [f"{stem}.splatv"] if len(inputs) == 1 else [f"{stem}.{i}.splatv" for i in range(len(inputs))]
-    # An input that is already the .splatv the page would fetch stays where it is.
-    kept = [external and is_plain_splatv(path) and _same_file(path, name) for path, name in zip(inputs, names)]
+    stem = output[: -len(page_ending)]
+    suffixes = [page_suffix(path) for path in inputs]
+    names = [f"{stem}{suffixes[0]}"] if len(inputs) == 1 else [f"{stem}.{i}{s}" for i, s in enumerate(suffixes)]
+    # An input that is already the file the page would fetch stays where it is.
+    kept = [external and is_plain_playable(path) and _same_file(path, name) for path, name in zip(inputs, names)]
     outputs = [output] + ([name for name, keep in zip(names, kept) if not keep] if external else [])
     for path in outputs:
         check_output(path, inputs, force)
@@ -70,11 +136,11 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
     with atomic_group(replace=force) as group:
         for path, name, share, keep in zip(inputs, names, shares, kept):
             if keep:
-                check_splatv(path)
+                check_playable(path)
                 report.notes.append(f"{name}: the page plays this input where it is")
                 refs.append(SceneRef(name=os.path.basename(name), url=quote(os.path.basename(name)), duration=share))
                 continue
-            data, notes = splatv_bytes(path)
+            data, notes = page_bytes(path)
             report.notes.extend(f"{path}: {n}" for n in notes)
             if external:
                 with group.open(name) as stream:
