@@ -18,7 +18,7 @@ import numpy as np
 from .cameras import load_cameras
 from .errors import UsageError
 from .formats import REGISTRY, format_for
-from .fsutil import check_output
+from .files.output import check_output
 from .io import check_write_options, read, refuse_empty, splat_count, write
 from .model import COLUMNS, Scene
 from .ops.segments import (DEFAULT_BUDGET, DEFAULT_LEAK, check_budget, check_durations, check_segment_count,
@@ -26,7 +26,7 @@ from .ops.segments import (DEFAULT_BUDGET, DEFAULT_LEAK, check_budget, check_dur
 from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity, fidelity_summary
 from .ops.sequence import fit_sequence
 from .progress import SILENT
-from .transport import inner_name
+from .zstd import inner_name
 
 _GLOB_CHARS = re.compile(r"[*?[]")
 #: The first key of ``merge --segments --json`` (specs/json.md).

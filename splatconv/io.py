@@ -15,10 +15,10 @@ from . import viewer
 from .cameras import load_cameras
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
 from .formats import REGISTRY, compat_modes, format_for
-from .fsutil import atomic_group, atomic_writer, check_output
+from .files.output import atomic_group, atomic_writer, check_output
 from .model import COLUMNS, Scene
 from .progress import SILENT
-from .transport import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, is_compressed, max_decompressed,
+from .zstd import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, is_compressed, max_decompressed,
                         output_stream, plain_input)
 from .wording import kinds_text, plural
 
@@ -121,7 +121,7 @@ def check_memory(module, plain, path) -> None:
     A few hundred kilobytes of zstd expand to gigabytes, and a scene takes up
     to :data:`SPLAT_MEMORY_BYTES` a splat in memory (columns a format does not
     store are held once), 2 to 4 times what a file stores it in: a scene read from a ``.zst`` file may take at most
-    :func:`splatconv.transport.max_decompressed` bytes (``--max-decompressed``),
+    :func:`splatconv.zstd.max_decompressed` bytes (``--max-decompressed``),
     so that ``info`` or ``convert`` takes about 1.3 times that at its peak
     (``bench/bench_memory.py``).
 
@@ -236,7 +236,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     inputs : iterable of path
         Files the scene came from; writing onto them is refused.
     zstd_level : int, optional
-        Level for a ``.zst`` output (default :data:`splatconv.transport.DEFAULT_LEVEL`);
+        Level for a ``.zst`` output (default :data:`splatconv.zstd.DEFAULT_LEVEL`);
         the data is compressed as it is written, never held twice.
     layout : str, optional
         A record layout the output's format offers (``LAYOUTS``; ``.ply``:

@@ -18,7 +18,7 @@ from .io import reading
 from .model import COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
-from .transport import DEFAULT_LEVEL, compressed_bytes
+from .zstd import DEFAULT_LEVEL, compressed_bytes
 
 
 def _finite_range(values: np.ndarray):
@@ -422,7 +422,7 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
     ----------
     source_path, converted_path : str
     zstd_level : int, optional
-        Level of the transport sizes (default :data:`splatconv.transport.DEFAULT_LEVEL`).
+        Level of the transport sizes (default :data:`splatconv.zstd.DEFAULT_LEVEL`).
     color : {"auto", "rgb", "sh"}
     progress : splatconv.progress.Progress
         Receives a stage per file compressed and one for the comparison.

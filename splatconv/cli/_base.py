@@ -9,9 +9,9 @@ import click
 
 from .. import __version__
 from ..errors import SplatconvError, UsageError
-from ..fsutil import exit_on_signals
+from ..files.signals import exit_on_signals
 from ..io import COLOR_MODES, noting_undrawable
-from ..transport import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
+from ..zstd import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
 from ._progress import progress_for
 
 

@@ -8,7 +8,7 @@ import click
 
 from .. import io
 from ..formats import REGISTRY
-from ..fsutil import check_output
+from ..files.output import check_output
 from ..ops import apply_transform, make_transform
 from ..ops import drop_nonfinite as ops_drop_nonfinite
 from ..ops import bake as bake_ops

@@ -11,7 +11,7 @@ from ..formats import format_for, plays_segments
 from ..ops.sequence import SAME_SPLATS_MODES
 from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
 from ..stats import describe, stats_report
-from ..transport import DEFAULT_LEVEL
+from ..zstd import DEFAULT_LEVEL
 from ..web.publish import publish
 from ..wording import plural
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,

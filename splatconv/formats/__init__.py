@@ -11,7 +11,7 @@ only reading tells) and ``most_splats`` (at most that many, always known).
 Callers look a module up with :func:`format_for` and ask it those questions;
 none of them names a format. Adding a format is adding a module and one line to
 ``_MODULES``. A ``.zst`` suffix after a format's suffix means the
-same format, zstd-compressed (see :mod:`splatconv.transport`).
+same format, zstd-compressed (see :mod:`splatconv.zstd`).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from __future__ import annotations
 import os
 
 from ..errors import UsageError
-from ..transport import inner_name
+from ..zstd import inner_name
 from . import html, ply, splat, splatv
 
 _MODULES = (ply, splatv, splat, html)

@@ -14,7 +14,7 @@ import os
 
 from ..errors import UnsupportedError
 from ..model import Scene
-from ..transport import inner_name
+from ..zstd import inner_name
 from ..web.page import SceneRef, build_page
 from . import splatv
 

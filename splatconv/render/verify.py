@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
 from ..formats import format_for
-from ..fsutil import atomic_group, check_output
+from ..files.output import atomic_group, check_output
 from ..progress import SILENT, Progress
 from ..wording import plural
 from . import camera as cam
@@ -339,7 +339,7 @@ def check_report_dir(directory, frames, inputs=(), force: bool = False) -> None:
 def save_report_frame(directory, frame: Frame, a, b, inputs=(), force: bool = False, *, group) -> list:
     """Save one frame's two images, heatmap and side-by-side picture through ``group``; returns the paths.
 
-    ``group`` (:func:`splatconv.fsutil.atomic_group`) puts them in place when it
+    ``group`` (:func:`splatconv.files.atomic_group`) puts them in place when it
     ends; an existing file is replaced only with ``force``.
     """
     heat = imgdiff.heatmap(a, b)

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 from urllib.parse import quote
 
 from ..errors import UsageError
-from ..fsutil import atomic_group, check_output
+from ..files.output import atomic_group, check_output
 from .page import SceneRef, build_page, parse_durations
 from .scenes import check_splatv, is_plain_splatv, splatv_bytes
 

@@ -8,8 +8,8 @@ import os
 from ..errors import UnsupportedError
 from ..formats import format_for, splatv
 from ..io import read as read_scene
-from ..fsutil import open_input
-from ..transport import is_compressed, plain_input
+from ..files.inputs import open_input
+from ..zstd import is_compressed, plain_input
 
 
 def check_splatv(path: str | os.PathLike) -> None:
