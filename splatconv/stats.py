@@ -1,5 +1,5 @@
-"""Reports as data: what a scene file holds (``info``), what a conversion costs and loses
-(``stats``). Never prints."""
+"""Findings as data: what a scene file holds (``info``), what a conversion costs and loses
+(``stats``). Never prints (:mod:`splatconv.text` does)."""
 
 from __future__ import annotations
 
@@ -134,7 +134,7 @@ def _texture(scene: Scene) -> dict:
 STATS_SCHEMA = "splatconv.stats/2"
 #: Time steps at which the number of drawn splats is counted.
 TIME_STEPS = 20
-#: GPU texture size limits the report checks the texture height against.
+#: GPU texture size limits the findings check the texture height against.
 MAX_TEXTURE_SIZES = (8192, 16384)
 #: Groups stored as halves (colour and opacity are bytes, positions float32).
 HALF_GROUPS = ("rotation", "scale", "motion", "omega", "trbf")
@@ -350,7 +350,7 @@ def _rows(cols: dict, index) -> dict:
 
 
 class _Tally:
-    """What the ``stats`` report adds up over blocks of rows."""
+    """What the ``stats`` findings add up over blocks of rows."""
 
     def __init__(self, n: int, compare: bool, damage: bool, storage: dict):
         self.times = _times()
@@ -406,9 +406,9 @@ def _finite(v: float):
     return v if math.isfinite(v) else None
 
 
-def stats_report(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
+def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
                  color: str = "auto", progress=SILENT) -> dict:
-    """The ``stats`` report as JSON-able data (keys documented in ``specs/json.md``).
+    """The ``stats`` findings: JSON-able data (keys documented in ``specs/json.md``).
 
     With one file, the conversion it would get (default writer) is simulated in
     memory and reported as ``converted``, with ``path`` null; a file the viewer

@@ -133,10 +133,10 @@ def test_the_library_never_imports_click_and_the_cli_holds_no_numpy():
 
 
 def test_operations_do_no_io_and_draw_nothing():
-    """ops/ works on the model: no files, no formats, no renderer, no reports."""
+    """ops/ works on the model: no files, no formats, no renderer, no findings or text."""
     graph = _imports(_modules())
     forbidden = ("splatconv.io", "splatconv.files", "splatconv.zstd", "splatconv.formats", "splatconv.render",
-                 "splatconv.cli", "splatconv.report", "splatconv.stats")
+                 "splatconv.cli", "splatconv.text", "splatconv.stats")
     found = [(module, target) for module, targets in graph.items() if module.startswith("splatconv.ops")
              for target in targets if target.startswith(forbidden)]
     assert not found, found

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from splatconv.render.fidelity import DEFAULT_EVERY, fidelity, fidelity_summary
 from splatconv import clips, io, viewer
 from splatconv.clips import SEGMENTS_SCHEMA, segments_data
-from splatconv.report import to_json
+from splatconv.text import to_json
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import segments as sg

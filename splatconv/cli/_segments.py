@@ -7,7 +7,7 @@ import click
 from .. import clips
 from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
 from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY
-from ..report import segments_text, to_json
+from ..text import segments_text, to_json
 from ..wording import plural
 from ._base import Failure, notes, progress
 

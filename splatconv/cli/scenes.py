@@ -9,8 +9,8 @@ import click
 from .. import clips, io
 from ..formats import format_for, plays_segments
 from ..ops.sequence import SAME_SPLATS_MODES
-from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
-from ..stats import describe, stats_report
+from ..text import info_text, sequence_text, stats_markdown, stats_text, to_json
+from ..stats import describe, stats_findings
 from ..zstd import DEFAULT_LEVEL
 from ..web.publish import publish
 from ..wording import plural
@@ -185,5 +185,5 @@ def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
     """
     if as_json and markdown:
         raise Failure("--json and --markdown cannot be used together", 2)
-    data = stats_report(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
+    data = stats_findings(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
     click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))

@@ -7,7 +7,7 @@ texture as the viewer gets it; other files' attributes), with the same cameras,
 times and splat order, and compares the frames. ``diff`` draws two scene files
 the same way (both as the viewer would get them, or both unquantized) and
 compares the frames. Both return an :class:`Outcome` (data; text and JSON are
-:mod:`splatconv.report`'s).
+:mod:`splatconv.text`'s).
 """
 
 from __future__ import annotations
