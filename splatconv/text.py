@@ -371,7 +371,7 @@ def _db(v) -> str:
 
 
 def segments_text(data: dict) -> str:
-    """``merge --segments``'s findings (:func:`splatconv.clips.segments_data`) as text."""
+    """``merge --segments``'s findings (:func:`splatconv.jobs.segments.segments_findings`) as text."""
     lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
              f"{data['splats_out']:,} ("
              + (f"{data['ratio']:.2f}x; " if data["ratio"] is not None else "")

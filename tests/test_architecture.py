@@ -168,3 +168,35 @@ def test_every_format_module_declares_what_it_supports():
         missing += [name for name in ("splat_count", "most_splats")
                     if module.CAN_READ and not callable(getattr(module, name, None))]
         assert not missing, (module.__name__, missing)
+
+
+#: The file-level steps of a job (:mod:`splatconv.jobs`): the CLI calls a job, never these.
+_FILE_WORK = {"write", "io.write", "write_each", "write_sequence", "check_output", "check_write_options", "refuse_empty",
+              "atomic_writer", "atomic_group", "check_job"}
+
+
+def test_the_cli_leaves_the_work_on_files_to_jobs():
+    """A command body calls one job (splatconv.jobs) and echoes: it checks, writes and replaces no file itself."""
+    found = []
+    for module, path in _modules().items():
+        if module == "splatconv.cli" or module.startswith("splatconv.cli."):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Call):
+                    name = getattr(node.func, "id", None) or getattr(node.func, "attr", None)
+                    if name == "write" and getattr(node.func, "value", None) is not None:
+                        name = f"{getattr(node.func.value, 'id', '')}.write"  # io.write, not a stream's write
+                    if name in _FILE_WORK:
+                        found.append(f"{module}:{node.lineno} {name}")
+    assert not found, found
+
+
+def test_importing_splatconv_loads_no_operation_and_no_renderer():
+    """``splatconv.convert`` is a job of its own module: the other jobs' operations load with their commands."""
+    import subprocess
+    import sys
+
+    code = ("import sys, splatconv; print(sorted(m for m in sys.modules if m.startswith(('splatconv.ops', "
+            "'splatconv.render', 'splatconv.jobs.'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=PACKAGE.parent).stdout
+    assert out.strip() == "['splatconv.jobs._steps', 'splatconv.jobs.convert']", out

@@ -11,8 +11,8 @@ import pytest
 from click.testing import CliRunner
 
 from splatconv.render.fidelity import DEFAULT_EVERY, fidelity, fidelity_summary
-from splatconv import clips, io, viewer
-from splatconv.clips import SEGMENTS_SCHEMA, segments_data
+from splatconv import io, viewer
+from splatconv.jobs.segments import SEGMENTS_SCHEMA, merge_segments, segments_findings
 from splatconv.text import to_json
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
@@ -176,10 +176,10 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
         assert sum(seg["pieces_per_long_lived"].values()) == seg["long_lived"]
         assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
     assert io.read(out).count == data["splats_out"]
-    # The CLI prints what the library assembles (clips.segments_data), schema included.
-    merged, report, written, frames = clips.merge_segment_files([tmp_path / "a.ply", tmp_path / "b.ply"], out,
-                                                                durations=[per, per], check_every=3, force=True)
-    assert json.loads(to_json(segments_data(report, written, out, frames))) == data
+    # The CLI prints what the library assembles (jobs.segments.segments_findings), schema included.
+    merged, report, written, frames = merge_segments([tmp_path / "a.ply", tmp_path / "b.ply"], out,
+                                                     durations=[per, per], check_every=3, force=True)
+    assert json.loads(to_json(segments_findings(report, written, out, frames))) == data
     assert data["schema"] == SEGMENTS_SCHEMA
     help_text = run("merge", "--help").stdout
     assert f"[default: {DEFAULT_EVERY}; x>=1]" in " ".join(help_text.split())

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .. import clips
+from ..jobs.segments import merge_segments, segments_findings
 from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
 from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY
 from ..text import segments_text, to_json
@@ -65,11 +65,9 @@ def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, le
     """The body of ``merge --segments``."""
     if durations is not None and len(durations) != len(inputs):
         raise Failure(f"--durations gives {plural(len(durations), 'value')} for {plural(len(inputs), 'segment')}", 2)
-    merged, report, written, rows = clips.merge_segment_files(
+    _merged, report, written, rows = merge_segments(
         inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout, color=color,
-        force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet))
-    notes(merged.notes)
-    notes(report.notes)
-    notes(written.notes)
-    data = clips.segments_data(report, written, output_path, rows)
+        force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet),
+        tell=notes)
+    data = segments_findings(report, written, output_path, rows)
     click.echo(to_json(data) if as_json else segments_text(data))

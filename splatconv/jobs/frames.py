@@ -1,10 +1,8 @@
-"""Long clips on disk: frame sequences become one 4D scene; segment files join on one timeline.
+"""``convert`` of a frame sequence: a directory, a glob or a list of files fitted into one 4D scene.
 
-The fitting and the merging are :mod:`splatconv.ops.sequence` and
-:mod:`splatconv.ops.segments` (no I/O); this module resolves a directory, a glob
-or a list of files into frame paths and feeds the frames to the fit one at a
-time through :func:`splatconv.io.read`, so any format that can be read can be a
-frame; and reads, merges, checks and writes segment files.
+The fitting is :mod:`splatconv.ops.sequence` (no I/O); this module resolves the
+inputs into frame paths and feeds the frames to the fit one at a time through
+:func:`splatconv.io.read`, so any format that can be read can be a frame.
 """
 
 from __future__ import annotations
@@ -15,22 +13,17 @@ import re
 
 import numpy as np
 
-from .cameras import load_cameras
-from .errors import UsageError
-from .formats import REGISTRY, format_for
-from .files.output import check_output
-from .io import check_write_options, read, refuse_empty, splat_count, write
-from .model import COLUMNS, Scene
-from .ops.segments import (DEFAULT_BUDGET, DEFAULT_LEAK, check_budget, check_durations, check_segment_count,
-                           merge_segments)
-from .render.fidelity import DEFAULT_CAMERA, DEFAULT_EVERY, fidelity, fidelity_summary
-from .ops.sequence import fit_sequence
-from .progress import SILENT
-from .zstd import inner_name
+from ..cameras import load_cameras
+from ..errors import UsageError
+from ..formats import REGISTRY
+from ..io import read, refuse_empty, splat_count, write
+from ..model import COLUMNS, Scene
+from ..ops.sequence import fit_sequence
+from ..progress import SILENT
+from ..zstd import inner_name
+from ._steps import check_job, silent
 
 _GLOB_CHARS = re.compile(r"[*?[]")
-#: The first key of ``merge --segments --json`` (specs/json.md).
-SEGMENTS_SCHEMA = "splatconv.merge-segments/2"
 
 
 def natural_key(path: str):
@@ -91,7 +84,7 @@ def frame_paths(inputs) -> list:
 
 def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto", max_error=None,
                    compat=None, sort=None, cameras=None, color: str = "auto", force: bool = False,
-                   zstd_level=None, layout=None, progress=SILENT):
+                   zstd_level=None, layout=None, progress=SILENT, tell=silent):
     """Read a frame sequence and write it as one 4D scene (see :func:`splatconv.ops.sequence.fit_sequence`).
 
     Parameters
@@ -102,6 +95,8 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
         One time per frame (default frame k of N at k / (N - 1)).
     cameras : path or list of dict, optional
         Replaces the cameras of the first frame that has some.
+    tell : callable
+        ``tell(lines)``: the scene's notes, the fit's, then the writer's, once written.
 
     Returns
     -------
@@ -109,10 +104,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
         The scene written, what the fit did, what the writer did, the frame paths in order.
     """
     paths = frame_paths(inputs)
-    for p in paths:
-        format_for(p, purpose="read")
-    module = check_write_options(output, compat=compat, sort=sort, layout=layout)
-    check_output(output, paths, force)
+    module = check_job(paths, output, force=force, compat=compat, sort=sort, layout=layout)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     found = {}
 
@@ -133,57 +125,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
                    layout=layout, progress=progress)
+    tell(scene.notes)
+    tell(fit.notes)
+    tell(report.notes)
     return scene, fit, report, paths
-
-
-def merge_segment_files(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
-                        sort=None, layout=None, color: str = "auto", force: bool = False, zstd_level=None,
-                        check: bool = True,
-                        check_every: int = DEFAULT_EVERY, camera: int = DEFAULT_CAMERA, progress=SILENT):
-    """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
-
-    Parameters
-    ----------
-    check : bool
-        Measure each output frame against its segment (:func:`splatconv.render.fidelity.fidelity`).
-
-    Returns
-    -------
-    (Scene, SegmentReport, WriteReport, list of dict)
-        The merged scene, what merging did, what the writer did, the per-frame fidelity ([] unless ``check``).
-    """
-    inputs = [os.fspath(p) for p in inputs]
-    # Before any reading.
-    check_budget(budget)
-    if durations is not None:
-        check_durations(durations)
-    else:
-        check_segment_count(len(inputs))
-    for p in inputs:
-        format_for(p, purpose="read")
-    check_write_options(output, sort=sort, layout=layout)
-    check_output(output, inputs, force)
-    scenes = [read(p, color=color) for p in inputs]
-    merged, report = merge_segments(scenes, durations, leak=leak, budget=budget, progress=progress)
-    rows = fidelity(merged, scenes, report, camera=camera, every=check_every, progress=progress) if check else []
-    written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level, layout=layout,
-                    progress=progress)
-    return merged, report, written, rows
-
-
-def segments_data(report, written, output, rows: list) -> dict:
-    """``merge --segments``'s report as data, the keys of specs/json.md in order.
-
-    Parameters
-    ----------
-    report : splatconv.ops.segments.SegmentReport
-    written : splatconv.formats.base.WriteReport
-    output : path
-    rows : list of dict
-        Per-frame fidelity (:func:`splatconv.render.fidelity.fidelity`; [] when not measured).
-    """
-    data = {"schema": SEGMENTS_SCHEMA, **report.as_dict()}
-    data["output"] = {"path": str(output), "splats": written.count, "bytes": os.path.getsize(output)}
-    data["frames"] = list(rows)
-    data["fidelity"] = fidelity_summary(rows)
-    return data
