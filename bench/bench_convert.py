@@ -59,7 +59,7 @@ SPLATV_HEADER_BYTES = 400
 CHILD = """\
 import sys, time, splatconv
 t = time.perf_counter()
-import splatconv.formats, splatconv.formats.splatv_engine, splatconv.fsutil, splatconv.transport
+import splatconv.formats, splatconv.formats.splatv_engine, splatconv.files, splatconv.zstd
 print("BENCH_LOAD", time.perf_counter() - t)
 compat = None if sys.argv[3] == "-" else sys.argv[3]
 level = None if sys.argv[4] == "-" else int(sys.argv[4])

@@ -23,7 +23,7 @@ import zstandard
 from _harness import CLI, machine_line, row, run_fresh, work_folder
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from splatconv.transport import parse_byte_size  # noqa: E402
+from splatconv.zstd import parse_byte_size  # noqa: E402
 
 TEXEL_ROW = 4096 * 16  # bytes of one .splatv texture row (1,024 splats)
 #: One drawable splat, repeated: a bomb of real splats, not of padding.

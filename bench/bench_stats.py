@@ -30,7 +30,7 @@ import os
 from pathlib import Path
 
 import splatconv
-from splatconv.transport import DEFAULT_LEVEL
+from splatconv.zstd import DEFAULT_LEVEL
 
 from _harness import CLI, machine_line, medians, run_fresh, work_folder
 

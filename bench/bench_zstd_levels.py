@@ -2,7 +2,7 @@
 
 For each scene (1,000,000 splats by default) it writes the lite PLY and its
 ``.splatv`` (``splatconv.convert``), then compresses each file at zstd levels
-1, 3, 6, 9, 12, 15 and 19 exactly as splatconv does (``transport.compressor``:
+1, 3, 6, 9, 12, 15 and 19 exactly as splatconv does (``splatconv.zstd.compressor``:
 one worker per core, streamed), each in a fresh child process, and prints the
 compressed size, how much larger it is than at the highest level, the seconds
 of the compression (file read included, interpreter start not) and the
@@ -40,7 +40,7 @@ LEVELS = (1, 3, 6, 9, 12, 15, 19)
 #: Child: compress argv[1] at level argv[2] as splatconv does; print the compressed bytes.
 CHILD = """\
 import os, sys, time
-from splatconv.transport import compressor
+from splatconv.zstd import compressor
 class Sink:
     count = 0
     def write(self, data):

@@ -11,7 +11,8 @@ The library API::
 from __future__ import annotations
 
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
-from .io import COLOR_MODES, COMPAT_MODES, SORT_MODES, convert, read, write
+from .io import COLOR_MODES, COMPAT_MODES, SORT_MODES, read, write
+from .jobs.convert import convert
 from .model import Scene
 
 __version__ = "0.1.0"

@@ -15,7 +15,7 @@ import os
 import numpy as np
 
 from .errors import FormatError
-from .fsutil import open_input
+from .files.inputs import open_input
 from .jsonutil import is_finite_number, loads_strict
 
 CAMERA_KEYS = ("id", "img_name", "width", "height", "position", "rotation", "fy", "fx")

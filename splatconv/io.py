@@ -1,7 +1,7 @@
 """Reading and writing scene files: the format by suffix, ``.zst`` transparently, atomically.
 
-:func:`read`, :func:`write` and :func:`convert` are re-exported by
-:mod:`splatconv`. Nothing here knows a format by name: each format declares
+:func:`read` and :func:`write` are re-exported by :mod:`splatconv`; a command's whole job
+(check, read, operate, write) is :mod:`splatconv.jobs`'s. Nothing here knows a format by name: each format declares
 what it supports (see :mod:`splatconv.formats`).
 """
 
@@ -12,15 +12,14 @@ import contextvars
 import os
 
 from . import viewer
-from .cameras import load_cameras
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
+from .files.output import atomic_group, atomic_writer, check_output
 from .formats import REGISTRY, compat_modes, format_for, layouts
-from .fsutil import atomic_group, atomic_writer, check_output
 from .model import COLUMNS, Scene
 from .progress import SILENT
-from .transport import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, is_compressed, max_decompressed,
-                        output_stream, plain_input)
 from .wording import kinds_text, plural
+from .zstd import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, is_compressed, max_decompressed,
+                   output_stream, plain_input)
 
 #: Record orders a writer takes.
 SORT_MODES = ("importance", "none")
@@ -121,7 +120,7 @@ def check_memory(fmt, plain, path) -> None:
     A few hundred kilobytes of zstd expand to gigabytes, and a scene takes up
     to :data:`SPLAT_MEMORY_BYTES` a splat in memory (columns a format does not
     store are held once), 2 to 4 times what a file stores it in: a scene read from a ``.zst`` file may take at most
-    :func:`splatconv.transport.max_decompressed` bytes (``--max-decompressed``),
+    :func:`splatconv.zstd.max_decompressed` bytes (``--max-decompressed``),
     so that ``info`` or ``convert`` takes about 1.3 times that at its peak
     (``bench/bench_memory.py``).
 
@@ -236,7 +235,7 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     inputs : iterable of path
         Files the scene came from; writing onto them is refused.
     zstd_level : int, optional
-        Level for a ``.zst`` output (default :data:`splatconv.transport.DEFAULT_LEVEL`);
+        Level for a ``.zst`` output (default :data:`splatconv.zstd.DEFAULT_LEVEL`);
         the data is compressed as it is written, never held twice.
     layout : str, optional
         A record layout the output's format offers (``layouts``; ``.ply``:
@@ -253,12 +252,21 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     fmt = check_write_options(path, compat=compat, sort=sort, layout=layout)
     refuse_empty(fmt, scene.count, path)
     check_output(path, inputs, force)
+    with atomic_writer(path, replace=force) as stream:
+        return _write_file(stream, fmt, scene, path, compat=compat, sort=sort, layout=layout,
+                           zstd_level=zstd_level, progress=progress)
+
+
+def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, sort: str | None = None,
+                layout: str | None = None, zstd_level: int | None = None, progress=SILENT):
+    """Write ``scene`` in format ``fmt`` to the binary ``stream`` that becomes ``path`` (``.zst``: compressed
+    as it is written): what :func:`write` and :func:`write_each` do for each file. Errors name ``path``."""
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     extra = {"layout": layout} if layout is not None else {}
     try:
-        with atomic_writer(path, replace=force) as stream, output_stream(stream, path, level, progress) as out:
+        with output_stream(stream, path, level, progress) as out:
             return fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,
-                                name=os.path.basename(path), **extra)
+                             name=os.path.basename(path), **extra)
     except SplatconvError as e:
         if e.path is not None:
             raise
@@ -291,20 +299,13 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     formats = [check_write_options(p, sort=sort, layout=layout) for p in paths]
     for path in paths:
         check_output(path, inputs, force)
-    level = DEFAULT_LEVEL if zstd_level is None else zstd_level
-    extra = {"layout": layout} if layout is not None else {}
     reports = []
     with atomic_group(replace=force) as group, progress.stage("files", len(paths), "file") as advance:
         for fmt, path, scene in zip(formats, paths, scenes):
             refuse_empty(fmt, scene.count, path)
-            try:
-                with group.open(path) as stream, output_stream(stream, path, level) as out:
-                    reports.append(fmt.write(scene, out, sort=sort or fmt.default_sort,
-                                                name=os.path.basename(path), **extra))
-            except SplatconvError as e:
-                if e.path is not None:
-                    raise
-                raise type(e)(e.message, path, e.where) from None
+            with group.open(path) as stream:
+                reports.append(_write_file(stream, fmt, scene, path, sort=sort, layout=layout,
+                                           zstd_level=zstd_level))
             advance()
         if len(reports) != len(paths):
             raise ValueError(f"{len(reports)} scenes for {len(paths)} paths")
@@ -343,44 +344,3 @@ def write_sequence(scenes, folder: str | os.PathLike, names, **options) -> list:
                 os.rmdir(folder)
         raise
 
-
-def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
-            sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
-            zstd_level: int | None = None, layout: str | None = None, progress=SILENT, edit=None):
-    """Read ``source`` and write it to ``output``; formats by suffix.
-
-    Parameters
-    ----------
-    cameras : path or list of dict, optional
-        A ``cameras.json`` file (or its decoded list) replacing the source's cameras.
-    edit : callable, optional
-        ``edit(scene) -> scene``, applied after reading (and after ``cameras``)
-        and before writing, e.g. :func:`splatconv.ops.apply_edits` with a plan.
-    layout : str, optional
-        As for :func:`write`.
-    progress : splatconv.progress.Progress
-        Told the reading (a "reading" stage, and the bytes of a ``.zst`` input
-        decompressed) and the writing (as :func:`write`).
-
-    Returns
-    -------
-    (Scene, WriteReport)
-        The scene written (its ``notes`` say what reading dropped, and what
-        ``edit`` did when it says so) and the write report.
-    """
-    format_for(source, purpose="read")
-    fmt = check_write_options(output, compat=compat, sort=sort, layout=layout)
-    # Check the output before the (possibly long) read: fail fast, touch nothing.
-    check_output(output, [source], force)
-    camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
-    with progress.stage("reading", 1, "file") as advance:
-        scene = read(source, color=color, progress=progress)
-        advance()
-    refuse_empty(fmt, scene.count, source, "holds no splats")
-    if camera_list is not None:
-        scene.cameras = camera_list
-    if edit is not None:
-        scene = edit(scene)
-    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
-                   layout=layout, progress=progress)
-    return scene, report

@@ -15,9 +15,10 @@ from urllib.parse import quote
 
 from .errors import UnsupportedError, UsageError
 from .formats import format_for, page_format, texture_format
-from .fsutil import atomic_group, check_output, open_input
+from .files.inputs import open_input
+from .files.output import atomic_group, check_output
 from .io import read as read_scene
-from .transport import is_compressed, plain_input
+from .zstd import is_compressed, plain_input
 from .web.page import SceneRef, build_page, parse_durations
 
 

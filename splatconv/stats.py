@@ -1,5 +1,5 @@
-"""Reports as data: what a scene file holds (``info``), what a conversion costs and loses
-(``stats``). Never prints."""
+"""Findings as data: what a scene file holds (``info``), what a conversion costs and loses
+(``stats``). Never prints (:mod:`splatconv.text` does)."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ from .io import reading
 from .model import COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
-from .transport import DEFAULT_LEVEL, compressed_bytes
+from .zstd import DEFAULT_LEVEL, compressed_bytes
 
 
 def _finite_range(values: np.ndarray):
@@ -134,7 +134,7 @@ def _texture(scene: Scene) -> dict:
 STATS_SCHEMA = "splatconv.stats/2"
 #: Time steps at which the number of drawn splats is counted.
 TIME_STEPS = 20
-#: GPU texture size limits the report checks the texture height against.
+#: GPU texture size limits the findings check the texture height against.
 MAX_TEXTURE_SIZES = (8192, 16384)
 #: Groups stored as halves (colour and opacity are bytes, positions float32).
 HALF_GROUPS = ("rotation", "scale", "motion", "omega", "trbf")
@@ -351,7 +351,7 @@ def _rows(cols: dict, index) -> dict:
 
 
 class _Tally:
-    """What the ``stats`` report adds up over blocks of rows."""
+    """What the ``stats`` findings add up over blocks of rows."""
 
     def __init__(self, n: int, compare: bool, damage: bool, storage: dict):
         self.times = _times()
@@ -407,9 +407,9 @@ def _finite(v: float):
     return v if math.isfinite(v) else None
 
 
-def stats_report(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
+def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
                  color: str = "auto", progress=SILENT) -> dict:
-    """The ``stats`` report as JSON-able data (keys documented in ``specs/json.md``).
+    """The ``stats`` findings: JSON-able data (keys documented in ``specs/json.md``).
 
     With one file, the conversion it would get (default writer) is simulated in
     memory and reported as ``converted``, with ``path`` null; a file the viewer
@@ -423,7 +423,7 @@ def stats_report(source_path: str, converted_path: str | None = None, *, zstd_le
     ----------
     source_path, converted_path : str
     zstd_level : int, optional
-        Level of the transport sizes (default :data:`splatconv.transport.DEFAULT_LEVEL`).
+        Level of the transport sizes (default :data:`splatconv.zstd.DEFAULT_LEVEL`).
     color : {"auto", "rgb", "sh"}
     progress : splatconv.progress.Progress
         Receives a stage per file compressed and one for the comparison.

@@ -97,9 +97,9 @@ def sample_splatv(tmp_path_factory):
     """The bundled sample scene converted to .splatv with its cameras (made once per run)."""
     from pathlib import Path
 
-    from splatconv import io
+    import splatconv
 
     root = Path(__file__).resolve().parent.parent
     out = tmp_path_factory.mktemp("sample") / "dancers.splatv"
-    io.convert(root / "sample_data/dancers.ply", out, cameras=root / "sample_data/cameras.json")
+    splatconv.convert(root / "sample_data/dancers.ply", out, cameras=root / "sample_data/cameras.json")
     return out

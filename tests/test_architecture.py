@@ -131,10 +131,10 @@ def test_the_library_never_imports_click_and_the_cli_holds_no_numpy():
 
 
 def test_operations_do_no_io_and_draw_nothing():
-    """ops/ works on the model: no files, no formats, no renderer, no reports."""
+    """ops/ works on the model: no files, no formats, no renderer, no findings or text."""
     graph = _imports(_modules())
-    forbidden = ("splatconv.io", "splatconv.fsutil", "splatconv.transport", "splatconv.formats", "splatconv.render",
-                 "splatconv.cli", "splatconv.report", "splatconv.stats")
+    forbidden = ("splatconv.io", "splatconv.files", "splatconv.zstd", "splatconv.formats", "splatconv.render",
+                 "splatconv.cli", "splatconv.text", "splatconv.stats")
     found = [(module, target) for module, targets in graph.items() if module.startswith("splatconv.ops")
              for target in targets if target.startswith(forbidden)]
     assert not found, found
@@ -327,3 +327,35 @@ def test_a_format_declaration_that_leaves_out_what_it_implies_is_refused():
                    dict(check_playable=splatv.FORMAT.check_playable), dict(suffixes=(".X",)), dict(write=None)):
         with pytest.raises(TypeError):
             Format(**{**base, **broken})
+
+
+#: The file-level steps of a job (:mod:`splatconv.jobs`): the CLI calls a job, never these.
+_FILE_WORK = {"write", "io.write", "write_each", "write_sequence", "check_output", "check_write_options", "refuse_empty",
+              "atomic_writer", "atomic_group", "check_job"}
+
+
+def test_the_cli_leaves_the_work_on_files_to_jobs():
+    """A command body calls one job (splatconv.jobs) and echoes: it checks, writes and replaces no file itself."""
+    found = []
+    for module, path in _modules().items():
+        if module == "splatconv.cli" or module.startswith("splatconv.cli."):
+            for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+                if isinstance(node, ast.Call):
+                    name = getattr(node.func, "id", None) or getattr(node.func, "attr", None)
+                    if name == "write" and getattr(node.func, "value", None) is not None:
+                        name = f"{getattr(node.func.value, 'id', '')}.write"  # io.write, not a stream's write
+                    if name in _FILE_WORK:
+                        found.append(f"{module}:{node.lineno} {name}")
+    assert not found, found
+
+
+def test_importing_splatconv_loads_no_operation_and_no_renderer():
+    """``splatconv.convert`` is a job of its own module: the other jobs' operations load with their commands."""
+    import subprocess
+    import sys
+
+    code = ("import sys, splatconv; print(sorted(m for m in sys.modules if m.startswith(('splatconv.ops', "
+            "'splatconv.render', 'splatconv.jobs.'))))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
+                         cwd=PACKAGE.parent).stdout
+    assert out.strip() == "['splatconv.jobs._steps', 'splatconv.jobs.convert']", out

@@ -315,10 +315,10 @@ class _FailingWrites:
 
 def fail_writes_after(monkeypatch, budget: int, code: int, message: str) -> None:
     """Make files opened by the atomic writer fail with ``OSError(code)`` after ``budget`` bytes."""
-    from splatconv import fsutil
+    from splatconv.files import output as atomic_output
 
     real = os.fdopen
-    monkeypatch.setattr(fsutil.os, "fdopen", lambda fd, *a, **kw: _FailingWrites(real(fd, *a, **kw), budget,
+    monkeypatch.setattr(atomic_output.os, "fdopen", lambda fd, *a, **kw: _FailingWrites(real(fd, *a, **kw), budget,
                                                                                   code, message))
 
 

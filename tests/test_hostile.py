@@ -27,11 +27,11 @@ from click.testing import CliRunner
 
 import splatconv
 from splatconv import cameras as camera_module
-from splatconv import transport
+from splatconv import zstd
 from splatconv.cli import main
 from splatconv.errors import FormatError, OutputError
 from splatconv.formats import REGISTRY, ply, splatv
-from splatconv.fsutil import atomic_writer, remove_stale_parts
+from splatconv.files.output import atomic_writer, remove_stale_parts
 from splatconv.render import camera as cam
 
 from .conftest import lite_columns_with_normals, random_columns, splatv_bytes, write_ply
@@ -446,11 +446,11 @@ def test_scene_taking_more_memory_than_the_ceiling_is_refused_before_reading(tmp
 
 
 def test_parse_byte_size():
-    assert [transport.parse_byte_size(t) for t in ("10", "2G", "512m", "64KiB", "1TB")] == [
+    assert [zstd.parse_byte_size(t) for t in ("10", "2G", "512m", "64KiB", "1TB")] == [
         10, 2 << 30, 512 << 20, 64 << 10, 1 << 40]
     for bad in ("", "G", "1.5G", "-1", "1Q"):
         with pytest.raises(ValueError):
-            transport.parse_byte_size(bad)
+            zstd.parse_byte_size(bad)
 
 
 # --------------------------------------------------------------------------

@@ -11,9 +11,9 @@ import pytest
 from click.testing import CliRunner
 
 from splatconv.render.fidelity import DEFAULT_SAMPLE, checked_frames, fidelity, fidelity_summary
-from splatconv import clips, io, viewer
-from splatconv.clips import SEGMENTS_SCHEMA, segments_data
-from splatconv.report import segments_text, to_json
+from splatconv import io, viewer
+from splatconv.jobs.segments import SEGMENTS_SCHEMA, merge_segments, segments_findings
+from splatconv.text import segments_text, to_json
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import segments as sg
@@ -177,10 +177,10 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
         assert sum(seg["pieces_per_long_lived"].values()) == seg["long_lived"]
         assert seg["splats_in"] - seg["long_lived"] - seg["dropped"] + pieces == seg["splats_out"]
     assert io.read(out).count == data["splats_out"]
-    # The CLI prints what the library assembles (clips.segments_data), schema included.
-    merged, report, written, checked = clips.merge_segment_files([tmp_path / "a.ply", tmp_path / "b.ply"], out,
-                                                                 durations=[per, per], check_every=3, force=True)
-    assert json.loads(to_json(segments_data(report, written, out, checked))) == data
+    # The CLI prints what the library assembles (jobs.segments.segments_findings), schema included.
+    merged, report, written, checked = merge_segments([tmp_path / "a.ply", tmp_path / "b.ply"], out,
+                                                      durations=[per, per], check_every=3, force=True)
+    assert json.loads(to_json(segments_findings(report, written, out, checked))) == data
     assert data["schema"] == SEGMENTS_SCHEMA
     help_text = " ".join(run("merge", "--help").stdout.split()).replace("hand- over", "hand-over")  # wrapped
     assert (f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of every hand-over between "

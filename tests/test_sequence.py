@@ -17,7 +17,7 @@ from splatconv.model import MOTION, OMEGA, STATIC_TRBF_CENTER, STATIC_TRBF_SCALE
 from splatconv.ops import sequence
 from splatconv.render.diff import compare
 from splatconv.render.frames import render_scene
-from splatconv.clips import frame_paths, natural_key
+from splatconv.jobs.frames import frame_paths, natural_key
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data/dancers.ply"
@@ -304,13 +304,13 @@ def test_each_format_counts_splats_from_its_header_as_read_would(tmp_path, gs_pl
 
 
 def test_convert_reads_each_frame_once_when_the_counts_come_from_headers(tmp_path, monkeypatch):
-    from splatconv import clips
+    from splatconv.jobs import frames as frame_jobs
     source = io.read(SAMPLE)
     frames = [snapshot({name: np.asarray(v)[: 1000 + 10 * k] for name, v in source.columns.items()}, k / 3)
               for k in range(4)]
     write_frames(tmp_path / "f", frames)
     reads = []
-    real = clips.read
-    monkeypatch.setattr(clips, "read", lambda path, **kw: reads.append(path) or real(path, **kw))
-    clips.convert_frames([tmp_path / "f"], tmp_path / "out.splatv")
+    real = frame_jobs.read
+    monkeypatch.setattr(frame_jobs, "read", lambda path, **kw: reads.append(path) or real(path, **kw))
+    frame_jobs.convert_frames([tmp_path / "f"], tmp_path / "out.splatv")
     assert len(reads) == len(frames)

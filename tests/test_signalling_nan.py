@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+import splatconv
 from splatconv import io
 from splatconv.cli import main
 from splatconv.formats.splatv_layout import COLOR_WORD
@@ -34,7 +35,7 @@ def snan_files(tmp_path_factory):
         bits[16 + 5 * i:19 + 5 * i] = 0x7F800001
         bits[19 + 5 * i:21 + 5 * i] = 0xFF800123
     io.write(Scene(columns=cols), folder / "s.ply")
-    io.convert(folder / "s.ply", folder / "s.splatv")
+    splatconv.convert(folder / "s.ply", folder / "s.splatv")
     # Signalling half floats (0x7C01, 0xFC01) in every half slot of some records: a
     # .splatv keeps NaN payloads when read, so they reach the maths as signalling float32s.
     rec = rng.integers(0, 2**32, (n, 16), dtype=np.uint64).astype("<u4")
@@ -43,7 +44,7 @@ def snan_files(tmp_path_factory):
     rec[8:16, 3:] = 0xFC01FC01
     rec[:, COLOR_WORD] = 0xFF808080
     (folder / "h.splatv").write_bytes(splatv_bytes(rec))
-    io.convert(folder / "h.splatv", folder / "hb.ply")
+    splatconv.convert(folder / "h.splatv", folder / "hb.ply")
     # Static files with signalling NaNs: a 3DGS PLY and a .splat of the scene's rest state.
     rest = {c: v.copy() for c, v in cols.items()}
     for c in MOTION + OMEGA:

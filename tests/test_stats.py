@@ -397,10 +397,10 @@ def test_long_paths_are_elided_in_text_only(tmp_path, lite_ply, length):
 
 
 def test_text_fits_100_columns_with_huge_counts(lite_ply):
-    from splatconv.report import stats_text
-    from splatconv.stats import stats_report
+    from splatconv.text import stats_text
+    from splatconv.stats import stats_findings
 
-    data = stats_report(str(lite_ply), zstd_level=1)
+    data = stats_findings(str(lite_ply), zstd_level=1)
     for a in data["attributes"].values():  # as many as a 67-million-splat texture could hold
         a.update(nonfinite=268_435_456, overflow=268_435_456, underflow=268_435_456, subnormal=99_999_999,
                  clamped=201_326_592, max_abs_error=3.402e38, max_rel_error=1.0, rmse=1.234e-30)
@@ -700,10 +700,10 @@ def test_blocks_merge_to_the_whole(monkeypatch, tmp_path):
     src = write_ply(tmp_path / "s.ply", cols)
     conv = tmp_path / "s.splatv"
     assert run("convert", src, conv).exit_code == 0
-    whole = stats.stats_report(str(src), str(conv), zstd_level=1)
+    whole = stats.stats_findings(str(src), str(conv), zstd_level=1)
     monkeypatch.setattr(stats, "BLOCK", 7)
     monkeypatch.setattr(stats, "_GATHER", 3)
-    parts = stats.stats_report(str(src), str(conv), zstd_level=1)
+    parts = stats.stats_findings(str(src), str(conv), zstd_level=1)
     for group, a in whole["attributes"].items():
         for key, value in a.items():
             assert parts["attributes"][group][key] == pytest.approx(value, rel=1e-12), (group, key)
@@ -738,12 +738,12 @@ def test_a_faithful_conversion_of_a_nasty_scene_is_all_explained(nasty_files):
 
 
 def test_progress_stages_cover_the_work(tmp_path, lite_ply):
-    # stats_report reports a stage per file read, one per file compressed and one for the comparison,
+    # stats_findings reports a stage per file read, one per file compressed and one for the comparison,
     # each advanced to its total.
     import contextlib
 
     from splatconv.progress import Progress
-    from splatconv.stats import stats_report
+    from splatconv.stats import stats_findings
 
     class Recorder(Progress):
         def __init__(self):
@@ -766,7 +766,7 @@ def test_progress_stages_cover_the_work(tmp_path, lite_ply):
                            ((lite_ply,), ["reading", "zstd-1 scene.ply", "zstd-1 (as converted)", "comparing"]),
                            ((conv,), ["reading", "zstd-1 s.splatv", "reading values"])):
         recorder = Recorder()
-        stats_report(*map(str, args), zstd_level=1, progress=recorder)
+        stats_findings(*map(str, args), zstd_level=1, progress=recorder)
         assert [s[0] for s in recorder.stages] == expected
         for label, total, unit, done in recorder.stages:
             units = {"comparing": "splat", "reading values": "splat", "reading": "file"}

@@ -20,7 +20,7 @@ from click.testing import CliRunner
 import splatconv
 from splatconv.cli import main
 from splatconv.formats.splatv_layout import COUNT_KEY
-from splatconv.transport import plain_input
+from splatconv.zstd import plain_input
 from splatconv.web.page import SHADERS, SceneRef, build_page
 from splatconv.server import HOST, IDLE_TIMEOUT, ViewServer
 

@@ -83,14 +83,14 @@ def test_stats_of_zst_inputs_are_of_the_content(tmp_path, lite_ply):
 
 
 def test_stats_decompresses_each_zst_input_once(tmp_path, lite_ply, monkeypatch):
-    from splatconv import transport
+    from splatconv import zstd
 
     packed_ply, packed = tmp_path / "s.ply.zst", tmp_path / "s.splatv.zst"
     assert run("convert", lite_ply, packed_ply, "--zstd-level", "1").exit_code == 0
     assert run("convert", lite_ply, packed, "--zstd-level", "1").exit_code == 0
     seen = []
-    real = transport._decompress
-    monkeypatch.setattr(transport, "_decompress", lambda f, out, path, *rest: (seen.append(path), real(f, out, path, *rest))[1])
+    real = zstd._decompress
+    monkeypatch.setattr(zstd, "_decompress", lambda f, out, path, *rest: (seen.append(path), real(f, out, path, *rest))[1])
     assert run("stats", packed_ply, packed, "--json").exit_code == 0
     assert sorted(seen) == sorted([str(packed_ply), str(packed)])
 
@@ -118,10 +118,10 @@ class _SpyWriter:
 
 @pytest.fixture
 def compressor_writes(monkeypatch):
-    """Sizes of the writes every zstd stream writer made by splatconv.transport receives."""
-    from splatconv import transport
+    """Sizes of the writes every zstd stream writer made by splatconv.zstd receives."""
+    from splatconv import zstd
 
-    sizes, real = [], transport.compressor
+    sizes, real = [], zstd.compressor
 
     class Spy:
         def __init__(self, level):
@@ -133,7 +133,7 @@ def compressor_writes(monkeypatch):
         def frame_progression(self):
             return self.real.frame_progression()
 
-    monkeypatch.setattr(transport, "compressor", Spy)
+    monkeypatch.setattr(zstd, "compressor", Spy)
     return sizes
 
 
@@ -165,7 +165,7 @@ def test_zst_output_is_compressed_as_it_is_written(tmp_path, compressor_writes):
 
 
 def test_sizes_are_measured_piece_by_piece(compressor_writes):
-    from splatconv.transport import compressed_bytes
+    from splatconv.zstd import compressed_bytes
 
     data = np.arange(STREAM_SPLATS * 16, dtype="<u4").tobytes()
     pieces = [data[i:i + MAX_WRITE] for i in range(0, len(data), MAX_WRITE)]

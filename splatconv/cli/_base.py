@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import functools
 import math
+import os
 
 import click
 
 from .. import __version__
 from ..errors import SplatconvError, UsageError
-from ..fsutil import exit_on_signals
+from ..files.signals import exit_on_signals
 from ..io import COLOR_MODES, noting_undrawable
-from ..transport import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
+from ..wording import plural
+from ..zstd import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
 from ._progress import progress_for
 
 
@@ -101,6 +103,11 @@ def notes(lines) -> None:
     """Echo lossy or noteworthy steps to stderr as ``note:`` lines."""
     for line in lines:
         click.echo(f"note: {line}", err=True)
+
+
+def wrote(path, report) -> None:
+    """Echo ``wrote PATH: N splats, B bytes`` for a file written."""
+    click.echo(f"wrote {path}: {plural(report.count, 'splat')}, {os.path.getsize(path):,} bytes")
 
 
 def progress(quiet: bool):

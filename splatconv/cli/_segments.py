@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import click
 
-from .. import clips
+from ..jobs.segments import merge_segments, segments_findings
 from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
 from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_SAMPLE
-from ..report import segments_text, to_json
+from ..text import segments_text, to_json
 from ..wording import plural
 from ._base import Failure, notes, progress
 
@@ -71,11 +71,9 @@ def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, le
         raise Failure(f"--durations gives {plural(len(durations), 'value')} for {plural(len(inputs), 'segment')}", 2)
     if no_check and check_every is not None:
         raise Failure("--check-every and --no-check exclude each other", 2)
-    merged, report, written, checked = clips.merge_segment_files(
+    _merged, report, written, checked = merge_segments(
         inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout, color=color,
-        force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet))
-    notes(merged.notes)
-    notes(report.notes)
-    notes(written.notes)
-    data = clips.segments_data(report, written, output_path, checked)
+        force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet),
+        tell=notes)
+    data = segments_findings(report, written, output_path, checked)
     click.echo(to_json(data) if as_json else segments_text(data))

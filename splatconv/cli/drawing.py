@@ -8,7 +8,7 @@ from ..render.camera import MAX_DEFAULT_WIDTH
 from ..render.commands import DEFAULT_TIME, MAX_FRAMES, diff_files, render_file
 from ..render.verify import DEFAULT_CAMERAS, DEFAULT_MIN_PSNR, DEFAULT_TIMES, DIFF_TIMES, VERIFY_MAX_WIDTH
 from ..render.verify import verify as run_verify
-from ..report import attributes_text, frames_text, images_text, images_verdict_text, to_json, verdict_text
+from ..text import attributes_text, frames_text, images_text, images_verdict_text, to_json, verdict_text
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, quiet_option)
 

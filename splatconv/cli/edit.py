@@ -2,20 +2,17 @@
 
 from __future__ import annotations
 
-import os
-
 import click
 
 from .. import io
 from ..formats import FRAME_SUFFIX, REGISTRY
-from ..fsutil import check_output
-from ..ops import apply_transform, make_transform
-from ..ops import drop_nonfinite as ops_drop_nonfinite
-from ..ops import bake as bake_ops
-from ..ops import merge as merge_ops
+from ..jobs.bake import bake as bake_job
+from ..jobs.bake import bake_frames
+from ..jobs.merge import merge as merge_job
+from ..ops import make_transform
 from ..wording import plural
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
-                    quiet_option)
+                    quiet_option, wrote)
 from ._edit import FloatList, Rotation
 from ._segments import given as segments_given
 from ._segments import run as run_segments
@@ -76,17 +73,6 @@ def _placements(count: int, values: dict) -> dict:
     return {index: make_transform(**args) for index, args in given.items()}
 
 
-def _read(path, color: str, drop_nonfinite: bool, quiet: bool):
-    """Read a scene, and with ``drop_nonfinite`` remove its non-finite splats (its notes say so)."""
-    bar = progress(quiet)
-    with bar.stage("reading", 1, "file") as advance:
-        scene = io.read(path, color=color, progress=bar)
-        advance()
-    if drop_nonfinite:
-        scene, _report = ops_drop_nonfinite(scene)
-    return scene
-
-
 def _drop_option(what: str):
     return click.option("--drop-nonfinite", is_flag=True,
                         help=f"Remove splats with a NaN or infinite position, rotation, motion, omega or trbf "
@@ -103,10 +89,6 @@ def _sort_option():
     return click.option("--sort", type=click.Choice(io.SORT_MODES),
                         help="Record order: importance (largest, most opaque first) or none (input order). "
                              "Default: the output format's (importance for .splat and .splatv, none for .ply).")
-
-
-def _wrote(path, report) -> None:
-    click.echo(f"wrote {path}: {plural(report.count, 'splat')}, {os.path.getsize(path):,} bytes")
 
 
 @main.command()
@@ -149,41 +131,16 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     if (time is None) == (frames is None):
         raise Failure("give either --time T (one moment) or --frames N (a folder of moments)", 2)
     if frames is None:
-        io.check_write_options(output_path, sort=sort, layout=layout)
-        check_output(output_path, [input_path], force)
-        scene = _read(input_path, color, False, quiet)
-        notes(scene.notes)
-        baked, report = bake_ops.bake(scene, time, drop_nonfinite=drop_nonfinite)
-        notes(report.notes)
-        written = io.write(baked, output_path, sort=sort, layout=layout, force=force, inputs=[input_path],
-                           progress=progress(quiet))
-        notes(written.notes)
-        _wrote(output_path, written)
+        _report, written = bake_job(input_path, output_path, time=time, sort=sort, layout=layout, color=color,
+                                    drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet), tell=notes)
+        wrote(output_path, written)
         return
-    scene = _read(input_path, color, False, quiet)
-    notes(scene.notes)
-    names = bake_ops.frame_names(frames, frame_suffix)
-    moments = list(bake_ops.frame_times(frames))
-    baked = (b for _t, b, _r in _report_each(bake_ops.bake_frames(scene, frames, drop_nonfinite=drop_nonfinite),
-                                             names))
-    reports = io.write_sequence(baked, output_path, names, sort=sort, layout=layout, force=force,
-                                inputs=[input_path], progress=progress(quiet))
-    for name, report in zip(names, reports):
-        notes(f"{name}: {line}" for line in report.notes)
-    stale = bake_ops.other_frames(os.listdir(output_path), names, frame_suffix)
-    if stale:
-        notes([f"{output_path} also holds {len(stale)} other frame files from before ({stale[0]}, ...): "
-               "a flipbook player would show them too"])
+    names, moments, reports = bake_frames(input_path, output_path, frames=frames, suffix=frame_suffix, sort=sort,
+                                          layout=layout, color=color, drop_nonfinite=drop_nonfinite, force=force,
+                                          progress=progress(quiet), tell=notes)
     counts = [r.count for r in reports]
     click.echo(f"wrote {frames} frames to {output_path}: {names[0]} .. {names[-1]} (t = {moments[0]:g} .. "
                f"{moments[-1]:g}), {min(counts):,} to {plural(max(counts), 'splat')} a frame")
-
-
-def _report_each(frames, names):
-    """Pass baked frames on, echoing each one's notes as it is made."""
-    for name, (t, baked, report) in zip(names, frames):
-        notes(f"{name}: {line}" for line in report.notes)
-        yield t, baked, report
 
 
 @main.command()
@@ -243,18 +200,6 @@ def merge(paths, translate, rotate, scale, layout, sort, color, drop_nonfinite, 
         raise Failure("--durations, --leak, --budget, --check-every, --no-check, --camera and --json apply to "
                       "--segments only", 2)
     placements = _placements(len(inputs), {"translate": translate, "rotate": rotate, "scale": scale})
-    io.check_write_options(output_path, sort=sort, layout=layout)
-    check_output(output_path, inputs, force)
-    scenes = []
-    for number, path in enumerate(inputs, 1):
-        scene = _read(path, color, drop_nonfinite, quiet)
-        if number in placements:
-            scene, _report = apply_transform(scene, placements[number])
-        notes(f"input {number} ({path}): {line}" for line in scene.notes)
-        scenes.append(scene)
-    merged, report = merge_ops.overlay(scenes)
-    notes(report.notes)
-    written = io.write(merged, output_path, sort=sort, layout=layout, force=force, inputs=inputs,
-                       progress=progress(quiet))
-    notes(written.notes)
-    _wrote(output_path, written)
+    _report, written = merge_job(inputs, output_path, placements=placements, sort=sort, layout=layout, color=color,
+                                 drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet), tell=notes)
+    wrote(output_path, written)

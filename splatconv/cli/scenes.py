@@ -2,20 +2,19 @@
 
 from __future__ import annotations
 
-import os
-
 import click
 
-from .. import clips, io
+from .. import io
 from ..formats import format_for, plays_segments
+from ..jobs.convert import convert as convert_scene
+from ..jobs.frames import convert_frames, is_sequence
 from ..ops.sequence import SAME_SPLATS_MODES
-from ..report import info_text, sequence_text, stats_markdown, stats_text, to_json
-from ..stats import describe, stats_report
-from ..transport import DEFAULT_LEVEL
+from ..text import info_text, sequence_text, stats_markdown, stats_text, to_json
+from ..stats import describe, stats_findings
+from ..zstd import DEFAULT_LEVEL
 from ..publish import publish
-from ..wording import plural
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
-                    progress, quiet_option)
+                    progress, quiet_option, wrote)
 from ._edit import edit_options, scene_editor
 
 
@@ -54,13 +53,9 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
     """``convert`` of a frame sequence: fit or stack the frames, then write."""
     if any(v not in (None, False, ()) for v in edits.values()):
         raise Failure("edit options apply to one INPUT, not to a frame sequence (convert it first)", 2)
-    scene, fit, report, _ = clips.convert_frames(inputs, output_path, progress=progress(quiet), **options)
-    notes(scene.notes)
-    notes(fit.notes)
-    notes(report.notes)
+    _scene, fit, report, _ = convert_frames(inputs, output_path, progress=progress(quiet), tell=notes, **options)
     click.echo(sequence_text(fit.as_dict()))
-    size = os.path.getsize(output_path)
-    click.echo(f"wrote {output_path}: {plural(report.count, 'splat')}, {size:,} bytes")
+    wrote(output_path, report)
 
 
 @main.command()
@@ -118,7 +113,7 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
         for path, size in report.written:
             click.echo(f"wrote {path}: {size:,} bytes")
         return
-    if clips.is_sequence(input_paths):
+    if is_sequence(input_paths):
         _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
                         color=color, zstd_level=zstd_level, frame_times=frame_times, same_splats=same_splats,
                         max_error=max_error, force=force, quiet=quiet, edits=edits)
@@ -126,13 +121,10 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     if frame_times is not None or same_splats != "auto" or max_error is not None:
         raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
     input_path = input_paths[0]
-    scene, report = io.convert(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                               force=force, zstd_level=zstd_level, layout=layout, progress=progress(quiet),
-                               edit=scene_editor(edits))
-    notes(scene.notes)
-    notes(report.notes)
-    size = os.path.getsize(output_path)
-    click.echo(f"wrote {output_path}: {plural(report.count, 'splat')}, {size:,} bytes")
+    _scene, report = convert_scene(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
+                                   force=force, zstd_level=zstd_level, layout=layout, progress=progress(quiet),
+                                   edit=scene_editor(edits), tell=notes)
+    wrote(output_path, report)
 
 
 @main.command()
@@ -185,5 +177,5 @@ def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
     """
     if as_json and markdown:
         raise Failure("--json and --markdown cannot be used together", 2)
-    data = stats_report(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
+    data = stats_findings(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
     click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))

@@ -7,7 +7,7 @@ with :func:`format_for` (or, for the viewer's texture, :func:`texture_format`)
 and read its fields; none of them names a format. Adding a format is adding a
 module that ends with ``FORMAT = Format(...)`` and one line to ``FORMATS``. A
 ``.zst`` suffix after a format's suffix means the same format, zstd-compressed
-(see :mod:`splatconv.transport`).
+(see :mod:`splatconv.zstd`).
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 
 from ..errors import UsageError
-from ..transport import inner_name
+from ..zstd import inner_name
 from . import html, ply, splat, splatv
 from .base import Format
 

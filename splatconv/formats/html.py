@@ -13,7 +13,7 @@ import io
 import os
 
 from ..model import Scene
-from ..transport import inner_name
+from ..zstd import inner_name
 from ..web.page import SceneRef, build_page
 from . import splatv
 from .base import Format

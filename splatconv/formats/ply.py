@@ -23,7 +23,8 @@ import plyfile
 from .. import model
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError, UsageError
-from ..fsutil import open_input, populate
+from ..files.inputs import open_input
+from ..files.paging import populate
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, GROUPS, Scene, constant_column
 from ..progress import SILENT

@@ -30,7 +30,8 @@ import numpy as np
 
 from .. import model
 from ..errors import FormatError
-from ..fsutil import open_input, populate
+from ..files.inputs import open_input
+from ..files.paging import populate
 from ..model import Scene, constant_column
 from ..packing import F32_EXP_MASK, F32_MANT_MASK, F32_QUIET_BIT
 from ..progress import SILENT

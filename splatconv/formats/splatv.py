@@ -15,7 +15,7 @@ import numpy as np
 from .. import packing
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError
-from ..fsutil import open_input
+from ..files.inputs import open_input
 from ..jsonutil import decode as decode_json
 from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows

@@ -20,5 +20,5 @@ The layers, from the GL up:
 * :mod:`~splatconv.render.verify` (``verify``, ``diff`` of scene files) and
   :mod:`~splatconv.render.commands` (``render``, ``diff`` of files) return data;
   :mod:`~splatconv.render.diff` measures two images (PSNR, errors, heatmap);
-  :mod:`~splatconv.render.images` writes frames. Text is :mod:`splatconv.report`'s.
+  :mod:`~splatconv.render.images` writes frames. Text is :mod:`splatconv.text`'s.
 """

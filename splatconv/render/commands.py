@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from ..errors import UsageError
-from ..fsutil import atomic_writer, check_output
+from ..files.output import atomic_writer, check_output
 from ..progress import SILENT, Progress
 from . import camera as cam
 from . import diff as imgdiff

@@ -2,7 +2,7 @@
 
 The float reference renderer (unquantized attributes, the viewer's shader
 maths) draws both from one stored camera; the result is a PSNR per frame.
-Used by ``merge --segments`` (:mod:`splatconv.clips`).
+Used by ``merge --segments`` (:mod:`splatconv.jobs.segments`).
 """
 
 from __future__ import annotations

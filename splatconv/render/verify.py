@@ -7,7 +7,7 @@ texture as the viewer gets it; other files' attributes), with the same cameras,
 times and splat order, and compares the frames. ``diff`` draws two scene files
 the same way (both as the viewer would get them, or both unquantized) and
 compares the frames. Both return an :class:`Outcome` (data; text and JSON are
-:mod:`splatconv.report`'s).
+:mod:`splatconv.text`'s).
 """
 
 from __future__ import annotations
@@ -19,8 +19,8 @@ from dataclasses import dataclass, field
 
 from ..compare import align, compare_scenes
 from ..errors import OutputError, UsageError
+from ..files.output import atomic_group, check_output
 from ..formats import format_for, texture_format
-from ..fsutil import atomic_group, check_output
 from ..progress import SILENT, Progress
 from ..wording import plural
 from . import camera as cam
@@ -340,7 +340,7 @@ def check_report_dir(directory, frames, inputs=(), force: bool = False) -> None:
 def save_report_frame(directory, frame: Frame, a, b, inputs=(), force: bool = False, *, group) -> list:
     """Save one frame's two images, heatmap and side-by-side picture through ``group``; returns the paths.
 
-    ``group`` (:func:`splatconv.fsutil.atomic_group`) puts them in place when it
+    ``group`` (:func:`splatconv.files.atomic_group`) puts them in place when it
     ends; an existing file is replaced only with ``force``.
     """
     heat = imgdiff.heatmap(a, b)

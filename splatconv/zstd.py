@@ -1,7 +1,9 @@
-"""zstd transport: the size a web server sends with ``Content-Encoding: zstd``.
+"""zstd: ``.zst`` files read and written as a stream, and the transport size (what a web server
+sends with ``Content-Encoding: zstd``).
 
-Compression and decompression stream through fixed-size buffers, so a large file
-never sits in memory twice.
+Compression (:func:`output_stream`, :func:`compressed_bytes`) and decompression
+(:func:`plain_input`, with the ceiling of ``--max-decompressed``) stream through
+fixed-size buffers, so a large file never sits in memory twice.
 """
 
 from __future__ import annotations
@@ -12,7 +14,8 @@ import os
 import zstandard
 
 from .errors import FormatError, SplatconvError, UsageError
-from .fsutil import locked_temporary, open_input
+from .files.stale import locked_temporary
+from .files.inputs import open_input
 from .progress import SILENT
 
 #: Default zstd level for reports and ``.zst`` output: 3, zstd's own default.

@@ -1,4 +1,11 @@
-"""Turn report data (from :mod:`splatconv.stats`) into text or JSON."""
+"""What a command prints: findings (the data of ``info``, ``stats``, ``verify``, ``diff``, a frame sequence's fit,
+``merge --segments``; keys in specs/json.md) as text, Markdown or JSON.
+
+Words used across the package: a *report* is what one step did to a scene
+(:class:`splatconv.ops.report.OpReport`, ``WriteReport``: counts and ``notes``);
+*findings* are what a command found, as JSON-able data (:func:`splatconv.stats.stats_findings`,
+:func:`splatconv.stats.describe`); this module gives findings their *text*.
+"""
 
 from __future__ import annotations
 
@@ -199,7 +206,7 @@ def _elide(text: str, width: int) -> str:
 
 
 def _stats_tables(data: dict) -> list:
-    """(title, headers, rows, left-aligned columns) tables of a stats report; paths in full."""
+    """(title, headers, rows, left-aligned columns) tables of ``stats`` findings; paths in full."""
     tables = []
     level = data["files"][0]["zstd_level"]
     rows = []
@@ -285,7 +292,7 @@ def _aligned(heads: list, rows: list, left: int, elide: int | None = None) -> li
 
 
 def stats_text(data: dict) -> str:
-    """Compact aligned tables of a stats report, every line within :data:`TEXT_WIDTH` columns.
+    """Compact aligned tables of ``stats`` findings, every line within :data:`TEXT_WIDTH` columns.
 
     Paths too long for the files table lose their middle (``--json`` keeps them
     whole); summary lines wrap.
@@ -301,7 +308,7 @@ def stats_text(data: dict) -> str:
 
 
 def stats_markdown(data: dict) -> str:
-    """The report as Markdown tables, for a pull request."""
+    """``stats`` findings as Markdown tables, for a pull request."""
     out = []
     for title, heads, rows, left in _stats_tables(data):
         out.append(f"**{title}**\n")
@@ -372,7 +379,7 @@ def _nth(k: int) -> str:
 
 
 def segments_text(data: dict) -> str:
-    """``merge --segments``'s report (:func:`splatconv.clips.segments_data`) as text."""
+    """``merge --segments``'s findings (:func:`splatconv.jobs.segments.segments_findings`) as text."""
     lines = [f"{len(data['segments'])} segments on one timeline: {plural(data['splats_in'], 'splat')} -> "
              f"{data['splats_out']:,} ("
              + (f"{data['ratio']:.2f}x; " if data["ratio"] is not None else "")

@@ -1,0 +1,52 @@
+"""``convert`` of one scene file: read, optionally edit, write in another format."""
+
+from __future__ import annotations
+
+import os
+
+from ..cameras import load_cameras
+from ..io import refuse_empty, write
+from ..progress import SILENT
+from ._steps import check_job, read_input, silent
+
+
+def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
+            sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
+            zstd_level: int | None = None, layout: str | None = None, progress=SILENT, edit=None, tell=silent):
+    """Read ``source`` and write it to ``output``; formats by suffix.
+
+    Parameters
+    ----------
+    cameras : path or list of dict, optional
+        A ``cameras.json`` file (or its decoded list) replacing the source's cameras.
+    edit : callable, optional
+        ``edit(scene) -> scene``, applied after reading (and after ``cameras``)
+        and before writing, e.g. :func:`splatconv.ops.apply_edits` with a plan.
+    compat, sort, force, zstd_level, layout
+        As for :func:`splatconv.io.write`.
+    progress : splatconv.progress.Progress
+        Told the reading (a "reading" stage, and the bytes of a ``.zst`` input
+        decompressed) and the writing (as :func:`splatconv.io.write`).
+    tell : callable
+        ``tell(lines)``: the scene's notes, then the writer's, once written.
+
+    Returns
+    -------
+    (Scene, WriteReport)
+        The scene written (its ``notes`` say what reading dropped, and what
+        ``edit`` did when it says so) and the write report.
+    """
+    # The output is checked before the (possibly long) read: fail fast, touch nothing.
+    fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout)
+    camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
+    scene = read_input(source, color=color, progress=progress)
+    refuse_empty(fmt, scene.count, source, "holds no splats")
+    if camera_list is not None:
+        scene.cameras = camera_list
+    if edit is not None:
+        scene = edit(scene)
+    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
+                   layout=layout, progress=progress)
+    tell(scene.notes)
+    tell(report.notes)
+    return scene, report

@@ -1,0 +1,52 @@
+"""``merge``: several scene files in one, on the same timeline, each moved first by its own transform."""
+
+from __future__ import annotations
+
+from ..io import write
+from ..ops import apply_transform
+from ..ops import drop_nonfinite as drop_nonfinite_splats
+from ..ops.merge import overlay
+from ..progress import SILENT
+from ._steps import check_job, read_input, silent
+
+
+def merge(inputs, output, *, placements=None, sort=None, layout=None, color: str = "auto",
+          drop_nonfinite: bool = False, force: bool = False, progress=SILENT, tell=silent):
+    """Read ``inputs``, place each (:func:`splatconv.ops.apply_transform`), overlay them
+    (:func:`splatconv.ops.merge.overlay`) and write the result to ``output``.
+
+    Parameters
+    ----------
+    inputs : sequence of path
+    output : path
+    placements : dict of int to Transform, optional
+        Input number (1 for the first) -> the transform that moves it.
+    drop_nonfinite : bool
+        Remove every input's non-finite splats first (:func:`splatconv.ops.drop_nonfinite`).
+    sort, layout, force
+        As for :func:`splatconv.io.write`.
+    tell : callable
+        ``tell(lines)``: each input's notes once read and placed (``input N (PATH): ...``), the merge's, then
+        the writer's once written.
+
+    Returns
+    -------
+    (MergeReport, WriteReport)
+    """
+    inputs = list(inputs)
+    placements = placements or {}
+    check_job(inputs, output, force=force, sort=sort, layout=layout)
+    scenes = []
+    for number, path in enumerate(inputs, 1):
+        scene = read_input(path, color=color, progress=progress)
+        if drop_nonfinite:
+            scene, _report = drop_nonfinite_splats(scene)
+        if number in placements:
+            scene, _report = apply_transform(scene, placements[number])
+        tell(f"input {number} ({path}): {line}" for line in scene.notes)
+        scenes.append(scene)
+    merged, report = overlay(scenes)
+    tell(report.notes)
+    written = write(merged, output, sort=sort, layout=layout, force=force, inputs=inputs, progress=progress)
+    tell(written.notes)
+    return report, written
