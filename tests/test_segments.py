@@ -69,7 +69,7 @@ def test_placements_keep_every_frame_at_a_frame_time():
     assert [(round(p.start / step), round(p.end / step)) for p in places] == [(0, 2), (3, 7), (8, 9)]
     assert places[0].cut_before == -np.inf and places[-1].cut_after == np.inf
     assert places[1].cut_before == pytest.approx(1 * step) and places[1].cut_after == pytest.approx(9 * step)
-    rows = sg.SegmentReport(places, [], [], [], [], [], 1, 2.0).frame_times()
+    rows = sg.SegmentReport(places, [], 1, 2.0).frame_times()
     assert [r[0] for r in rows] == list(range(10))
     assert all(abs(t - f * step) < 1e-12 for f, t, _, _ in rows)
     assert [round(local, 3) for f, t, i, local in rows if i == 1] == [0, 0.25, 0.5, 0.75, 1]
