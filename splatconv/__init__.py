@@ -10,12 +10,28 @@ The library API::
 
 from __future__ import annotations
 
+import importlib
+
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
-from .io import COLOR_MODES, COMPAT_MODES, SORT_MODES, read, write
-from .jobs.convert import convert
-from .model import Scene
 
 __version__ = "0.1.0"
+
+#: Names loaded on first use, and the module each comes from: ``import splatconv`` (which
+#: every ``splatconv`` command runs first) loads neither numpy nor the formats.
+_LAZY = {**dict.fromkeys(("read", "write", "COLOR_MODES", "COMPAT_MODES", "SORT_MODES"), "io"),
+         "convert": "jobs.convert", "Scene": "model"}
+
+
+def __getattr__(name: str):
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f".{_LAZY[name]}", __name__), name)
+    globals()[name] = value  # found directly from now on
+    return value
+
+
+def __dir__():
+    return sorted(set(globals()) | set(_LAZY))
 
 __all__ = ["read", "write", "convert", "Scene", "SplatconvError", "FormatError", "UnsupportedError",
            "OutputError", "UsageError", "COLOR_MODES", "COMPAT_MODES", "SORT_MODES", "__version__"]

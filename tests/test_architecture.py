@@ -354,8 +354,77 @@ def test_importing_splatconv_loads_no_operation_and_no_renderer():
     import subprocess
     import sys
 
-    code = ("import sys, splatconv; print(sorted(m for m in sys.modules if m.startswith(('splatconv.ops', "
-            "'splatconv.render', 'splatconv.jobs.'))))")
+    code = ("import sys, splatconv; splatconv.convert; print(sorted(m for m in sys.modules if m.startswith(("
+            "'splatconv.ops', 'splatconv.render', 'splatconv.jobs.'))))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True,
                          cwd=PACKAGE.parent).stdout
     assert out.strip() == "['splatconv.jobs._steps', 'splatconv.jobs.convert']", out
+
+
+# A command loads only what it uses. These run the CLI in a fresh interpreter and read its
+# sys.modules (what was imported, not how long it took).
+_SAMPLE = PACKAGE.parent / "sample_data" / "dancers.ply"
+#: Loaded only by the commands that draw, serve or edit.
+_HEAVY = ("moderngl", "http.server", "ssl", "splatconv.render", "splatconv.web", "splatconv.ops", "splatconv.jobs.segments",
+          "splatconv.cli.scenes", "splatconv.cli.edit", "splatconv.cli.drawing", "splatconv.cli.web")
+#: What reading any scene still loads: the format registry holds formats/html.py, which builds
+#: the player page with web/page.py (a light module: strings and the page's template).
+_READING_LOADS = {"splatconv.web", "splatconv.web.page"}
+
+
+def _modules_loaded_by(*args: str) -> set:
+    import subprocess
+    import sys
+
+    code = ("import sys\nfrom splatconv.cli import main\ntry:\n    main(sys.argv[1:])\nexcept SystemExit as e:\n"
+            "    assert not e.code, e.code\nsys.stderr.write('\\n'.join(sys.modules))")
+    done = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, cwd=PACKAGE.parent)
+    assert done.returncode == 0, done.stderr
+    return set(done.stderr.splitlines())
+
+
+def _loaded_of(loaded: set, prefixes) -> list:
+    return sorted(m for m in loaded for p in prefixes if m == p or m.startswith(p + "."))
+
+
+def test_the_groups_help_loads_no_command_and_no_library():
+    loaded = _modules_loaded_by("--help")
+    assert not _loaded_of(loaded, _HEAVY + ("splatconv.io", "splatconv.formats", "splatconv.stats",
+                                            "splatconv.cli.facts", "splatconv.cli._base")), loaded
+
+
+def test_info_loads_no_renderer_server_or_operation():
+    loaded = _modules_loaded_by("info", str(_SAMPLE))
+    assert "splatconv.cli.facts" in loaded  # the check can fail: the command did run
+    assert set(_loaded_of(loaded, _HEAVY)) <= _READING_LOADS, _loaded_of(loaded, _HEAVY)
+
+
+def test_the_groups_help_lists_each_commands_own_summary():
+    """``--help`` lists the summaries declared with the lazy map: each is its command's own, at any width."""
+    import click
+
+    from splatconv.cli import commands
+    from splatconv.cli._group import COMMANDS
+
+    loaded = commands()
+    assert set(loaded) == set(COMMANDS)
+    for name, (module, summary) in COMMANDS.items():
+        assert loaded[name].callback.__module__ == f"splatconv.cli.{module}", name
+        for limit in range(20, 140):
+            assert click.Command(name, help=summary).get_short_help_str(limit) == loaded[name].get_short_help_str(limit)
+
+
+#: The only modules that load others late, by name, each from the table named here.
+_LAZY_LOADERS = {"splatconv": "_LAZY", "splatconv.cli._group": "COMMANDS"}
+
+
+def test_modules_are_loaded_late_only_through_the_declared_tables():
+    """``importlib.import_module`` (which the import-graph checks above cannot follow) is called only by
+    the package's ``__getattr__`` (its ``_LAZY`` names) and the CLI group (its ``COMMANDS``)."""
+    found = set()
+    for module, path in _modules().items():
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Attribute) and node.attr == "import_module" or (
+                    isinstance(node, ast.Name) and node.id == "__import__"):
+                found.add(module)
+    assert found == set(_LAZY_LOADERS), found

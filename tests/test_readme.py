@@ -9,7 +9,7 @@ from pathlib import Path
 
 from click.testing import CliRunner
 
-from splatconv.cli import main
+from splatconv.cli import commands, main
 
 ROOT = Path(__file__).resolve().parent.parent
 README = (ROOT / "README.md").read_text()
@@ -149,10 +149,10 @@ def test_commands_summary_names_every_command_and_only_real_options():
     for line in block.splitlines():
         words = line.split()
         if words and words[0] == "splatconv":
-            command = next((w for w in words[1:] if not w.startswith("-") and w in main.commands), None)
+            command = next((w for w in words[1:] if not w.startswith("-") and w in commands()), None)
             seen.add(command)
         options = set(re.findall(r"(?<![\w-])(--?[a-z][a-z-]*)", line))
-        params = main.commands[command].params + main.params if command else main.params
+        params = commands()[command].params + main.params if command else main.params
         known = {o for p in params for o in p.opts + p.secondary_opts}
         assert options <= known, f"{line.strip()}: not options of {command}: {sorted(options - known)}"
-    assert seen - {None} == set(main.commands), sorted(set(main.commands) - seen)
+    assert seen - {None} == set(commands()), sorted(set(commands()) - seen)

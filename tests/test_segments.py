@@ -69,7 +69,7 @@ def test_placements_keep_every_frame_at_a_frame_time():
     assert [(round(p.start / step), round(p.end / step)) for p in places] == [(0, 2), (3, 7), (8, 9)]
     assert places[0].cut_before == -np.inf and places[-1].cut_after == np.inf
     assert places[1].cut_before == pytest.approx(1 * step) and places[1].cut_after == pytest.approx(9 * step)
-    rows = sg.SegmentReport(places, [], [], [], [], [], 1, 2.0).frame_times()
+    rows = sg.SegmentReport(places, [], 1, 2.0).frame_times()
     assert [r[0] for r in rows] == list(range(10))
     assert all(abs(t - f * step) < 1e-12 for f, t, _, _ in rows)
     assert [round(local, 3) for f, t, i, local in rows if i == 1] == [0, 0.25, 0.5, 0.75, 1]
@@ -257,7 +257,7 @@ def test_the_default_check_is_a_bounded_sample_with_every_hand_over_and_all_is_o
     # The README's sample of its six 50-frame segments is this one.
     readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
     listed = re.search(r"The default sample of this merge \(frames ([\d, ]+)\)", readme).group(1)
-    six = sg.SegmentReport(sg.placements([50] * 6), *[[]] * 5, leak=sg.DEFAULT_LEAK, budget=sg.DEFAULT_BUDGET)
+    six = sg.SegmentReport(sg.placements([50] * 6), [], leak=sg.DEFAULT_LEAK, budget=sg.DEFAULT_BUDGET)
     assert checked_frames(six) == [int(f) for f in listed.split(", ")]
     # Many segments: the hand-overs are all there, the spread stays at the sample.
     _, report = sg.merge_segments([io.read(p) for p in paths] * 4, [per] * 12)

@@ -115,9 +115,9 @@ def _json_section(heading: str) -> str:
 
 
 def _commands_with_json() -> list:
-    from splatconv.cli import main
+    from splatconv.cli import commands
 
-    return sorted(name for name, command in main.commands.items()
+    return sorted(name for name, command in commands().items()
                   if any("--json" in getattr(p, "opts", ()) for p in command.params))
 
 

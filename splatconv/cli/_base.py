@@ -1,4 +1,4 @@
-"""The ``splatconv`` group and what every command shares: error mapping, option types, option stacks."""
+"""What every command shares: error mapping, option types, option stacks (the group is in :mod:`._group`)."""
 
 from __future__ import annotations
 
@@ -8,30 +8,25 @@ import os
 
 import click
 
-from .. import __version__
 from ..errors import SplatconvError, UsageError
-from ..files.signals import exit_on_signals
 from ..io import COLOR_MODES, noting_undrawable
 from ..wording import plural
-from ..zstd import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_size, set_max_decompressed
+from ..zstd import DEFAULT_LEVEL
+from ._group import Failure, main  # noqa: F401  (command modules import both from here)
 from ._progress import progress_for
 
 
-class Failure(click.ClickException):
-    """One ``Error: ...`` line with a chosen exit code."""
-
-    def __init__(self, message: str, exit_code: int = 1):
-        super().__init__(message)
-        self.exit_code = exit_code
-
-
 def library_errors(fn):
-    """Map library and OS errors to one-line click errors (usage errors exit 2)."""
+    """Map library and OS errors to one-line click errors (usage errors exit 2), and echo the
+    library's note on a scene read with many undrawable splats (:class:`_UndrawableNote`).
+
+    Every command body is wrapped in this; the group is not, so that it loads no library."""
 
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
-            return fn(*args, **kwargs)
+            with noting_undrawable(_UndrawableNote()):
+                return fn(*args, **kwargs)
         except UsageError as e:
             raise Failure(str(e), 2) from None
         except SplatconvError as e:
@@ -99,6 +94,11 @@ def force_option(what: str = "OUTPUT"):
     return click.option("--force", is_flag=True, help=f"Replace {what} if it exists (never an input).")
 
 
+def zstd_option(what: str):
+    return click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
+                        help=f"zstd level for {what} [default: {DEFAULT_LEVEL}].")
+
+
 def notes(lines) -> None:
     """Echo lossy or noteworthy steps to stderr as ``note:`` lines."""
     for line in lines:
@@ -115,21 +115,6 @@ def progress(quiet: bool):
     return progress_for(quiet)
 
 
-def _max_decompressed(ctx, param, value):
-    try:
-        set_max_decompressed(None if value is None else parse_byte_size(value))
-    except ValueError as e:
-        raise click.BadParameter(str(e), ctx, param) from None
-
-
-def _one_line(error: click.UsageError) -> Failure:
-    """A click usage error as one ``Error: ...`` line (exit 2) that says where help is."""
-    message = error.format_message().rstrip()
-    if error.ctx is not None:
-        message += ("" if message.endswith((".", "?", "!")) else ".") + f" See '{error.ctx.command_path} --help'."
-    return Failure(message, error.exit_code)
-
-
 class _UndrawableNote:
     """Echoes the library's note on a scene read with many undrawable splats: once a command (the
     first such scene), and not when the command was asked to ``--drop-undrawable`` them."""
@@ -143,48 +128,3 @@ class _UndrawableNote:
             return
         self.shown = True
         notes([line])
-
-
-#: ``splatconv`` alone shows the help (click 8.2 and later raise this for it).
-_HELP_WITHOUT_ARGUMENTS = getattr(click.exceptions, "NoArgsIsHelpError", ())
-
-
-class _Commands(click.Group):
-    """The ``splatconv`` group: click's own usage errors (a bad option value, a missing
-    argument, an unknown command) print one ``Error:`` line like every other error,
-    not the usage block before it."""
-
-    def make_context(self, info_name, args, parent=None, **extra):
-        try:
-            return super().make_context(info_name, args, parent, **extra)
-        except _HELP_WITHOUT_ARGUMENTS:
-            raise
-        except click.UsageError as e:
-            raise _one_line(e) from None
-
-    def invoke(self, ctx):
-        try:
-            with noting_undrawable(_UndrawableNote()):
-                return super().invoke(ctx)
-        except _HELP_WITHOUT_ARGUMENTS:
-            raise
-        except click.UsageError as e:
-            raise _one_line(e) from None
-
-
-@click.group(cls=_Commands, context_settings={"help_option_names": ["-h", "--help"], "max_content_width": 100})
-@click.version_option(__version__, prog_name="splatconv")
-@click.option("--max-decompressed", metavar="SIZE", callback=_max_decompressed, expose_value=False,
-              help=f"Largest size a .zst input may decompress to, and the memory the scene read from it may "
-                   f"take, e.g. 8G (or set {MAX_DECOMPRESSED_ENV}) "
-                   f"[default: {DEFAULT_MAX_DECOMPRESSED >> 30}G].")
-def main():
-    """Convert, check and preview 4D Gaussian-splatting scenes: Spacetime Gaussians and 3DGS PLY,
-    splaTV's .splatv.
-
-    \b
-    Example:
-      splatconv convert scene.ply scene.splatv
-      splatconv info scene.splatv
-    """
-    exit_on_signals()  # SIGTERM, SIGHUP: clean up part and temporary files as Ctrl-C does

@@ -1,26 +1,19 @@
-"""Commands on scene files: ``convert``, ``info``, ``stats``."""
+"""``convert``: scene files, frame sequences and player pages (``info`` and ``stats`` are in :mod:`.facts`)."""
 
 from __future__ import annotations
 
 import click
 
 from .. import io
-from ..formats import format_for, plays_segments
+from ..formats import plays_segments
 from ..jobs.convert import convert as convert_scene
 from ..jobs.frames import convert_frames, is_sequence
 from ..ops.sequence import SAME_SPLATS_MODES
-from ..text import info_text, sequence_text, stats_markdown, stats_text, to_json
-from ..stats import describe, stats_findings
-from ..zstd import DEFAULT_LEVEL
+from ..text import sequence_text
 from ..publish import publish
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
-                    progress, quiet_option, wrote)
+                    progress, quiet_option, wrote, zstd_option)
 from ._edit import edit_options, scene_editor
-
-
-def _zstd_option(what: str):
-    return click.option("--zstd-level", type=click.IntRange(1, 22), default=None,
-                        help=f"zstd level for {what} [default: {DEFAULT_LEVEL}].")
 
 
 class _Times(click.ParamType):
@@ -81,7 +74,7 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
                  help="PLY output: lite (Spacetime Gaussians, keeps motion and time) or 3dgs (plain 3DGS, "
                       "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
     color_option(),
-    _zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
+    zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
     *sequence_options(),
     force_option(),
     quiet_option(),
@@ -126,56 +119,3 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
                                    edit=scene_editor(edits), tell=notes)
     wrote(output_path, report)
 
-
-@main.command()
-@click.argument("paths", metavar="FILE...", nargs=-1, required=True, type=click.Path(dir_okay=False))
-@options(
-    click.option("--json", "as_json", is_flag=True,
-                 help="Print the facts as JSON (keys in specs/json.md): one object per file, in a list when "
-                      "there are several."),
-    color_option(),
-)
-@library_errors
-def info(paths, as_json, color):
-    """Describe scene files: format, variant, count, texture, cameras, time range,
-    bounds, non-finite values and what is ignored.
-
-    \b
-    Example:
-      splatconv info scene.splatv
-      splatconv info --json segments/*.splatv
-    """
-    facts = [describe(io.read(path, color=color), path, format_for(path)) for path in paths]
-    if as_json:
-        click.echo(to_json(facts[0] if len(facts) == 1 else facts))
-    else:
-        click.echo("\n\n".join(info_text(f) for f in facts))
-
-
-@main.command()
-@click.argument("source", type=click.Path(dir_okay=False))
-@click.argument("converted", required=False, type=click.Path(dir_okay=False))
-@options(
-    click.option("--json", "as_json", is_flag=True, help="Print the report as JSON (keys in specs/json.md)."),
-    click.option("--markdown", is_flag=True, help="Print the report as Markdown tables."),
-    _zstd_option("the transport sizes"),
-    color_option(),
-    quiet_option(),
-)
-@library_errors
-def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
-    """Report sizes, zstd transport size and what a conversion loses.
-
-    With CONVERTED, compares it against SOURCE attribute by attribute. With SOURCE
-    alone, reports what converting it to .splatv would give; a file the viewer
-    loads as it is (.splatv) is reported as stored, with nothing compared.
-
-    \b
-    Example:
-      splatconv stats scene.ply scene.splatv
-      splatconv stats scene.ply --markdown
-    """
-    if as_json and markdown:
-        raise Failure("--json and --markdown cannot be used together", 2)
-    data = stats_findings(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
-    click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))

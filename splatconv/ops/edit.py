@@ -12,10 +12,11 @@ clip; max-splats comes last of the filters because it ranks what the others
 leave; the transform comes last so that the crop box is in the input's
 coordinates (those ``info`` prints).
 
-The filters' masks are computed in one pass over blocks of rows (a block stays
-in cache while every mask reads it), combined, and the survivors copied once,
-each block transformed as it is copied. A trim adds a pass: its time map has to
-come before the crop's mask.
+Each filter is a :class:`~splatconv.ops.step.Step` (made by :data:`_FILTERS`).
+Their values are computed in one pass over blocks of rows (a block stays in
+cache while every filter reads it), each filter then keeps its rows, and the
+survivors are copied once, each block transformed as it is copied. A trim adds
+a pass: its time map has to come before the crop's mask.
 """
 
 from __future__ import annotations
@@ -24,13 +25,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import viewer
 from ..model import Scene
 from . import filters
 from . import time as time_ops
 from ._table import compact, copy_rows, derive, run_blocks
 from .report import OpReport
-from .transform import Transform, _block_transformer, transform_cameras, transform_columns, transform_report
+from .step import Rows
+from .transform import Transform, block_transformer, transform_cameras, transform_columns, transform_report
 
 #: The order the edits apply in, named as their options.
 ORDER = ("drop-undrawable", "drop-nonfinite", "trim", "crop", "min-opacity", "max-splats", "transform")
@@ -68,9 +69,9 @@ class EditPlan:
         if self.crop is not None:
             object.__setattr__(self, "crop", filters.check_box(*self.crop))
         if self.min_opacity is not None:
-            object.__setattr__(self, "min_opacity", filters._check_minimum(self.min_opacity))
+            object.__setattr__(self, "min_opacity", filters.check_minimum(self.min_opacity))
         if self.max_splats is not None:
-            object.__setattr__(self, "max_splats", filters._check_count(self.max_splats))
+            object.__setattr__(self, "max_splats", filters.check_count(self.max_splats))
 
     @property
     def empty(self) -> bool:
@@ -80,23 +81,56 @@ class EditPlan:
                 and (self.transform is None or self.transform.is_identity))
 
 
-def _masks(columns: dict, wanted: dict) -> dict:
-    """Masks (or keys) of several filters in one pass over blocks of rows.
+#: The filters of a plan, in :data:`ORDER`: the :class:`EditPlan` field that asks for each, and
+#: how its value (validated) makes the step.
+_FILTERS = (
+    ("drop_undrawable", lambda _: filters.DropUndrawable()),
+    ("drop_nonfinite", lambda _: filters.DropNonfinite()),
+    ("trim", lambda interval: time_ops.Trim(*interval)),
+    ("crop", lambda box: filters.Crop(*box)),
+    ("min_opacity", filters.MinOpacity),
+    ("max_splats", filters.MaxSplats),
+)
 
-    ``wanted`` maps a name to ``(fn, dtype)``; ``fn(part, block)`` gives the values of
-    rows ``part`` (a slice), ``block`` their columns.
-    """
+
+def _steps(plan: EditPlan) -> list:
+    """The filter steps ``plan`` asks for, in order (None or False: not asked; 0 is a value)."""
+    values = [(getattr(plan, field), make) for field, make in _FILTERS]
+    return [make(value) for value, make in values if value is not None and value is not False]
+
+
+def _values(columns: dict, steps: list) -> dict:
+    """Each step's values (:meth:`~splatconv.ops.step.Step.tester`) of every row, in one pass over
+    blocks of rows: step name -> ``(N,) step.dtype``."""
     n = len(columns["x"])
-    out = {name: np.empty(n, dtype=dtype) for name, (_fn, dtype) in wanted.items()}
+    tests = {step.name: step.tester(columns) for step in steps}
+    out = {step.name: np.empty(n, dtype=step.dtype) for step in steps}
     base = {name: columns[name].view(np.ndarray) for name in columns}
 
     def job(part):
         block = {name: base[name][part] for name in base}
-        for name, (fn, _dtype) in wanted.items():
-            out[name][part] = fn(part, block)
+        for name, test in tests.items():
+            out[name][part] = test(part, block)
 
     run_blocks(n, job)
     return out
+
+
+def _copy_survivors(rows: Rows, transform: Transform | None, cameras, reports: list) -> tuple:
+    """The columns and cameras of the rows kept, transformed by ``transform`` (None: none), copied
+    once (block by block, transformed as copied); the transform's report goes to ``reports``."""
+    columns = rows.columns
+    removed = rows.alive is not None and not rows.alive.all()
+    if transform is not None and rows.owned and not removed:
+        grown = transform_columns(columns, transform)
+    elif transform is not None or removed:
+        index = np.flatnonzero(rows.alive) if removed else None
+        each = block_transformer(transform) if transform is not None else None
+        columns, grown = (compact if rows.owned and removed else copy_rows)(columns, index, each=each)
+    if transform is not None:
+        cameras = transform_cameras(cameras, transform)
+        reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
+    return columns, cameras
 
 
 def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
@@ -116,85 +150,17 @@ def apply_edits(scene: Scene, plan: EditPlan) -> tuple[Scene, list]:
         The edited scene (its ``notes``: the input's, then every report's) and a
         report per edit applied, in order.
     """
-    reports = []
-    columns = scene.columns
-    alive = None  # rows of `columns` still kept; None: all
-    owned = False  # whether `columns` is a copy made here (may be changed in place)
-
-    def keep(mask, report):
-        nonlocal alive
-        reports.append(report)
-        alive = mask if alive is None else alive & mask
-
-    # Pass 1 (before the time map): drop-undrawable, drop-nonfinite and the trim's
-    # visibility; without a trim, the masks of pass 2 too.
-    first = {}
-    if plan.drop_undrawable:
-        first["undrawable"] = (lambda part, block: viewer.undrawable_kinds(block), np.int8)
-    if plan.drop_nonfinite:
-        first["nonfinite"] = (filters.nonfinite_tester(columns), bool)
-    if plan.trim is not None:
-        t0, t1 = plan.trim
-        first["trim"] = (lambda part, block: time_ops.visible_in_mask(block, t0, t1), bool)
-    second = {}
-    if plan.crop is not None:
-        lo, hi = plan.crop
-        inside = filters.crop_tester(lo, hi)
-        second["crop"] = (lambda part, block: inside(block), bool)
-    if plan.min_opacity is not None:
-        opaque = filters.opacity_tester(plan.min_opacity)
-        second["opacity"] = (lambda part, block: opaque(block), bool)
-    if plan.max_splats is not None:
-        second["importance"] = (lambda part, block: filters.importance_key(block), np.float64)
-    if plan.trim is None:
-        first.update(second)
-    masks = _masks(columns, first) if first else {}
-    if plan.drop_undrawable:
-        kinds = masks["undrawable"]
-        keep(kinds == viewer.DRAWABLE, filters.undrawable_report(kinds, alive))
-    if plan.drop_nonfinite:
-        keep(masks["nonfinite"], filters.nonfinite_report(columns, masks["nonfinite"], alive))
-    if plan.trim is not None:
-        mask = masks["trim"]
-        count_in = len(mask) if alive is None else int(alive.sum())
-        dropped = ~mask if alive is None else alive & ~mask
-        nan_time = time_ops._nan_time(columns, np.flatnonzero(dropped))
-        alive = mask if alive is None else alive & mask
-        columns, overflow = copy_rows(columns, np.flatnonzero(alive),
-                                      each=lambda block: time_ops._remap_block(block, t0, t1 - t0))
-        alive, owned = None, True
-        reports.append(time_ops.trim_report(count_in, len(columns["x"]), nan_time, t0, t1, overflow))
-
-        # Pass 2, after the time map: crop, min-opacity and the importance key of max-splats.
-        masks = _masks(columns, second) if second else {}
-    if plan.crop is not None:
-        keep(masks["crop"], filters.crop_report(masks["crop"], lo, hi, alive))
-    if plan.min_opacity is not None:
-        keep(masks["opacity"], filters.opacity_report(masks["opacity"], plan.min_opacity, alive))
-    if plan.max_splats is not None:
-        rows = None if alive is None else np.flatnonzero(alive)
-        count_in = len(columns["x"]) if rows is None else len(rows)
-        chosen = filters.most_important(columns, plan.max_splats, rows, key=masks["importance"])
-        reports.append(filters.max_splats_report(count_in, len(chosen), plan.max_splats))
-        if len(chosen) < len(columns["x"]):
-            alive = np.zeros(len(columns["x"]), dtype=bool)
-            alive[chosen] = True
-
-    # The copy of the survivors, transformed block by block as it is made.
-    cameras = scene.cameras
+    rows, reports, steps = Rows(scene.columns), [], _steps(plan)
+    while steps:
+        # One pass reads the rows for the steps up to the first that re-times them: those
+        # after it read its copy, in the next pass.
+        cut = next((i + 1 for i, step in enumerate(steps) if step.retimes), len(steps))
+        now, steps = steps[:cut], steps[cut:]
+        values = _values(rows.columns, now)
+        for step in now:
+            reports.append(step.apply(rows, values[step.name]))
     transform = plan.transform if plan.transform is not None and not plan.transform.is_identity else None
-    removed = alive is not None and not alive.all()
-    if transform is not None and owned and not removed:
-        grown = transform_columns(columns, transform)
-        cameras = transform_cameras(cameras, transform)
-        reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
-    elif transform is not None or removed:
-        index = np.flatnonzero(alive) if removed else None
-        each = _block_transformer(transform) if transform is not None else None
-        columns, grown = (compact if owned and removed else copy_rows)(columns, index, each=each)
-        if transform is not None:
-            cameras = transform_cameras(cameras, transform)
-            reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
+    columns, cameras = _copy_survivors(rows, transform, scene.cameras, reports)
     notes = [line for report in reports for line in report.notes]
     return derive(scene, columns, notes, cameras=cameras), reports
 

@@ -17,6 +17,7 @@ from ..model import COLUMNS, MOTION, POSITION, SCALE, Scene, row_fields
 from ..wording import kinds_text, plural
 from ._table import blockwise, derive, gather, keep_rows, run_blocks
 from .report import OpReport
+from .step import Rows, Step
 
 #: What removes a splat in :func:`drop_nonfinite`: a value the viewer gives no meaning
 #: (:data:`splatconv.viewer.MEANINGFUL_INFINITIES`, per group).
@@ -256,7 +257,8 @@ def opacity_threshold(minimum: float) -> np.float32:
     return value(hi)
 
 
-def _check_minimum(minimum: float) -> float:
+def check_minimum(minimum: float) -> float:
+    """``minimum`` as a float in [0, 1]; :class:`~splatconv.errors.UsageError` when it is not."""
     minimum = float(minimum)
     if not 0.0 <= minimum <= 1.0:
         raise UsageError(f"--min-opacity: {minimum:g} is outside [0, 1]")
@@ -290,7 +292,7 @@ def min_opacity(scene: Scene, minimum: float) -> tuple[Scene, OpReport]:
     UsageError
         When ``minimum`` is outside [0, 1].
     """
-    minimum = _check_minimum(minimum)
+    minimum = check_minimum(minimum)
     keep = opacity_mask(scene.columns, minimum)
     report = opacity_report(keep, minimum)
     return derive(scene, keep_rows(scene, keep), report.notes), report
@@ -440,7 +442,8 @@ def most_important(columns: dict, count: int, rows: np.ndarray | None = None, ke
     return rows[chosen]
 
 
-def _check_count(count: int) -> int:
+def check_count(count: int) -> int:
+    """``count`` as a whole number >= 0; :class:`~splatconv.errors.UsageError` when it is not."""
     if isinstance(count, bool) or int(count) != count or count < 0:
         raise UsageError(f"--max-splats: expected a count >= 0, got {count!r}")
     return int(count)
@@ -469,14 +472,108 @@ def max_splats(scene: Scene, count: int) -> tuple[Scene, OpReport]:
     count : int
         At least 0.
     """
-    count = _check_count(count)
+    count = check_count(count)
     rows = most_important(scene.columns, count)
     report = max_splats_report(scene.count, len(rows), count)
     columns = scene.columns if len(rows) == scene.count else gather(scene.columns, rows)
     return derive(scene, columns, report.notes), report
 
 
+# --------------------------------------------------------------------------
+# The filters as steps of a plan (splatconv.ops.edit.apply_edits)
+
+
+class DropUndrawable(Step):
+    """:func:`drop_undrawable` as a step; its values are the kinds (``int8``, -1: drawable)."""
+
+    name = "drop-undrawable"
+    dtype = np.int8
+
+    def tester(self, columns: dict):
+        return lambda part, block: viewer.undrawable_kinds(block)
+
+    def apply(self, rows: Rows, kinds: np.ndarray) -> OpReport:
+        report = undrawable_report(kinds, rows.alive)
+        rows.keep(kinds == viewer.DRAWABLE)
+        return report
+
+
+class DropNonfinite(Step):
+    """:func:`drop_nonfinite` as a step."""
+
+    name = "drop-nonfinite"
+
+    def tester(self, columns: dict):
+        return nonfinite_tester(columns)
+
+    def apply(self, rows: Rows, keep: np.ndarray) -> OpReport:
+        report = nonfinite_report(rows.columns, keep, rows.alive)
+        rows.keep(keep)
+        return report
+
+
+class Crop(Step):
+    """:func:`crop` to the box (``lo``, ``hi``) as a step (the box checked by :func:`check_box`)."""
+
+    name = "crop"
+
+    def __init__(self, lo, hi):
+        self.lo, self.hi = check_box(lo, hi)
+
+    def tester(self, columns: dict):
+        inside = crop_tester(self.lo, self.hi)
+        return lambda part, block: inside(block)
+
+    def apply(self, rows: Rows, keep: np.ndarray) -> OpReport:
+        report = crop_report(keep, self.lo, self.hi, rows.alive)
+        rows.keep(keep)
+        return report
+
+
+class MinOpacity(Step):
+    """:func:`min_opacity` as a step."""
+
+    name = "min-opacity"
+
+    def __init__(self, minimum: float):
+        self.minimum = check_minimum(minimum)
+
+    def tester(self, columns: dict):
+        opaque = opacity_tester(self.minimum)
+        return lambda part, block: opaque(block)
+
+    def apply(self, rows: Rows, keep: np.ndarray) -> OpReport:
+        report = opacity_report(keep, self.minimum, rows.alive)
+        rows.keep(keep)
+        return report
+
+
+class MaxSplats(Step):
+    """:func:`max_splats` as a step; its values are the importance key (``float64``)."""
+
+    name = "max-splats"
+    dtype = np.float64
+
+    def __init__(self, count: int):
+        self.count = check_count(count)
+
+    def tester(self, columns: dict):
+        return lambda part, block: importance_key(block)
+
+    def apply(self, rows: Rows, key: np.ndarray) -> OpReport:
+        n = len(rows.columns["x"])
+        alive = None if rows.alive is None else np.flatnonzero(rows.alive)
+        chosen = most_important(rows.columns, self.count, alive, key=key)
+        report = max_splats_report(rows.count, len(chosen), self.count)
+        if len(chosen) < n:
+            mask = np.zeros(n, dtype=bool)
+            mask[chosen] = True  # a subset of the rows kept so far
+            rows.keep(mask)
+        return report
+
+
 __all__ = ["NONFINITE_RULES", "FINITE_GROUPS", "NAN_GROUPS", "undrawable_kinds", "drop_undrawable",
            "nonfinite_mask", "drop_nonfinite", "opacity_mask", "min_opacity",
            "peak_time", "crop_mask", "check_box", "crop", "importance_key", "most_important",
-           "max_splats"]
+           "max_splats", "check_minimum", "check_count", "DropUndrawable", "DropNonfinite", "Crop", "MinOpacity",
+           "MaxSplats"]

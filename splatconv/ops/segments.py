@@ -78,18 +78,51 @@ class Placement:
 
 
 @dataclass
+class SegmentOutcome:
+    """What :func:`merge_segments` did to one segment."""
+
+    placement: Placement
+    count_in: int
+    count_out: int
+    long_lived: int        # long-lived splats split into pieces (those kept)
+    pieces: dict           # pieces (as text) -> long-lived splats cut into that many
+    nan_time: int          # dropped: a NaN temporal centre or scale
+    never: int             # dropped: an infinite temporal centre
+    faint: int             # dropped: long-lived with every piece too faint to draw
+    overflow: int          # finite values that became infinite as float32
+
+    @property
+    def dropped(self) -> int:
+        return self.nan_time + self.never + self.faint
+
+    def as_dict(self) -> dict:
+        p = self.placement
+        return {"frames": p.frames, "first_frame": p.first, "start": p.start, "end": p.end,
+                "splats_in": self.count_in, "splats_out": self.count_out, "long_lived": self.long_lived,
+                "pieces_per_long_lived": self.pieces, "dropped": self.dropped}
+
+
+@dataclass
 class SegmentReport:
-    """What :func:`merge_segments` did."""
+    """What :func:`merge_segments` did: a :class:`SegmentOutcome` per segment merged."""
 
     placements: list
-    counts_in: list
-    counts_out: list
-    long_lived: list
-    pieces: list
-    dropped: list
+    segments: list
     leak: int
     budget: float
     notes: list = field(default_factory=list)
+
+    @property
+    def counts_in(self) -> list:
+        return [s.count_in for s in self.segments]
+
+    @property
+    def counts_out(self) -> list:
+        return [s.count_out for s in self.segments]
+
+    @property
+    def long_lived(self) -> list:
+        return [s.long_lived for s in self.segments]
 
     @property
     def count_in(self) -> int:
@@ -111,11 +144,7 @@ class SegmentReport:
 
     def as_dict(self) -> dict:
         return {
-            "segments": [{"frames": p.frames, "first_frame": p.first, "start": p.start, "end": p.end,
-                          "splats_in": ci, "splats_out": co, "long_lived": ll, "pieces_per_long_lived": m,
-                          "dropped": d}
-                         for p, ci, co, ll, m, d in zip(self.placements, self.counts_in, self.counts_out,
-                                                         self.long_lived, self.pieces, self.dropped)],
+            "segments": [s.as_dict() for s in self.segments],
             "splats_in": self.count_in, "splats_out": self.count_out,
             "ratio": round(self.count_out / self.count_in, 4) if self.count_in else None,
             "leak_frames": self.leak, "budget": self.budget, "notes": list(self.notes),
@@ -532,58 +561,65 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         raise UsageError(f"--durations gives {plural(len(durations), 'value')} for {plural(len(scenes), 'segment')}")
     check_budget(budget)
     places = placements(durations, leak)
-    parts, report = [], SegmentReport(places, [], [], [], [], [], leak, budget)
-    overflow = 0
-    removed = {"nan": 0, "never": 0, "faint": 0}
+    report, parts = SegmentReport(places, [], leak, budget), []
     with progress.stage("placing segments", len(scenes), "segment") as advance:
         for i, (scene, p) in enumerate(zip(scenes, places)):
-            cols = place(scene.columns, p.start, p.end)
-            split, nan_time, never = _long_lived(cols, p)
-            keep = ~split & ~nan_time & ~never
-            n_long = int(split.sum())
-            faint = 0
-            kept = {name: v[keep] for name, v in cols.items()}
-            m = np.zeros(0, np.int64)
-            if n_long:
-                rows = np.flatnonzero(split)
-                sides = (i > 0, i < len(scenes) - 1)
-                if pieces is not None:
-                    m = np.full(n_long, _best_layout(p.frames, pieces, leak, sides), np.int64)
-                else:
-                    options = layout_options(p.frames, leak, sides)
-                    sizes = np.stack([_windowed(cols, rows, p, o[0], leak, sides)[3].sum(axis=1) for o in options],
-                                     axis=1)
-                    # Past what every splat's costliest layout takes, more budget buys
-                    # nothing: capped there, an infinite or 1e308 budget is an integer.
-                    base = int(keep.sum()) + int(sizes[:, 0].sum())
-                    most = base + int(np.maximum(np.diff(sizes, axis=1), 0).sum())
-                    extra = int(math.floor(min(budget * scene.count, most))) - base
-                    m = np.array([o[0] for o in options], np.int64)[allocate(impact(cols, rows), extra, options,
-                                                                             sizes)]
-                made = np.zeros(n_long, np.int64)
-                extra_cols = []
-                for k in np.unique(m):
-                    piece_cols, made[m == k] = _pieces(cols, rows[m == k], p, int(k), leak, sides)
-                    extra_cols.append(piece_cols)
-                kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
-                # A splat with no piece bright enough to draw is removed, and counted as such.
-                faint = int((made == 0).sum())
-                n_long -= faint
-                m = made[made > 0]
-            with np.errstate(over="ignore", invalid="ignore"):
-                parts.append({name: kept[name].astype(np.float32) for name in COLUMNS})
-            overflow += sum(int((np.isinf(parts[-1][name]) & np.isfinite(kept[name])).sum()) for name in COLUMNS)
-            report.counts_in.append(scene.count)
-            report.counts_out.append(len(parts[-1]["x"]))
-            report.long_lived.append(n_long)
-            report.pieces.append({str(int(k)): int((m == k).sum()) for k in np.unique(m)})
-            report.dropped.append(int(nan_time.sum()) + int(never.sum()) + faint)
-            removed["nan"] += int(nan_time.sum())
-            removed["never"] += int(never.sum())
-            removed["faint"] += faint
-            del kept, cols
+            sides = (i > 0, i < len(scenes) - 1)
+            part, outcome = _merge_one(scene, p, sides, leak=leak, budget=budget, pieces=pieces)
+            parts.append(part)
+            report.segments.append(outcome)
             advance()
-    total = sum(report.counts_out)
+    out = _end_to_end(parts, report.count_out)
+    report.notes += _notes(report.segments, durations)
+    cameras = next((s.cameras for s in scenes if s.cameras), None)
+    return Scene(columns=out, cameras=cameras, variant=VARIANT_LITE, meta={}), report
+
+
+def _merge_one(scene: Scene, p: Placement, sides: tuple, *, leak: int, budget: float, pieces: int | None) -> tuple:
+    """One segment of :func:`merge_segments` placed at ``p``, its long-lived splats cut into pieces:
+    (its float32 columns, its :class:`SegmentOutcome`). ``sides``: whether it has a segment before,
+    after it."""
+    cols = place(scene.columns, p.start, p.end)
+    split, nan_time, never = _long_lived(cols, p)
+    keep = ~split & ~nan_time & ~never
+    n_long = int(split.sum())
+    faint = 0
+    kept = {name: v[keep] for name, v in cols.items()}
+    m = np.zeros(0, np.int64)
+    if n_long:
+        rows = np.flatnonzero(split)
+        if pieces is not None:
+            m = np.full(n_long, _best_layout(p.frames, pieces, leak, sides), np.int64)
+        else:
+            options = layout_options(p.frames, leak, sides)
+            sizes = np.stack([_windowed(cols, rows, p, o[0], leak, sides)[3].sum(axis=1) for o in options],
+                             axis=1)
+            # Past what every splat's costliest layout takes, more budget buys
+            # nothing: capped there, an infinite or 1e308 budget is an integer.
+            base = int(keep.sum()) + int(sizes[:, 0].sum())
+            most = base + int(np.maximum(np.diff(sizes, axis=1), 0).sum())
+            extra = int(math.floor(min(budget * scene.count, most))) - base
+            m = np.array([o[0] for o in options], np.int64)[allocate(impact(cols, rows), extra, options, sizes)]
+        made = np.zeros(n_long, np.int64)
+        extra_cols = []
+        for k in np.unique(m):
+            piece_cols, made[m == k] = _pieces(cols, rows[m == k], p, int(k), leak, sides)
+            extra_cols.append(piece_cols)
+        kept = {name: np.concatenate([kept[name]] + [e[name] for e in extra_cols]) for name in COLUMNS}
+        # A splat with no piece bright enough to draw is removed, and counted as such.
+        faint = int((made == 0).sum())
+        n_long -= faint
+        m = made[made > 0]
+    with np.errstate(over="ignore", invalid="ignore"):
+        part = {name: kept[name].astype(np.float32) for name in COLUMNS}
+    overflow = sum(int((np.isinf(part[name]) & np.isfinite(kept[name])).sum()) for name in COLUMNS)
+    cut_into = {str(int(k)): int((m == k).sum()) for k in np.unique(m)}
+    return part, SegmentOutcome(p, scene.count, len(part["x"]), n_long, cut_into, int(nan_time.sum()),
+                                int(never.sum()), faint, overflow)
+
+
+def _end_to_end(parts: list, total: int) -> dict:
+    """The segments' columns one after another in one lite row table; ``parts`` is emptied as it goes."""
     _rows, out = lite_rows(total)
     at = 0
     while parts:
@@ -592,22 +628,29 @@ def merge_segments(scenes: list, durations=None, *, leak: int = DEFAULT_LEAK, bu
         for name in COLUMNS:
             out[name][at:at + k] = part[name]
         at += k
-    if removed["nan"]:
-        report.notes.append(f"{plural(removed['nan'], 'splat')} with a NaN temporal centre or scale dropped "
-                            "(they have no place in time)")
-    if removed["never"]:
-        report.notes.append(f"{plural(removed['never'], 'splat')} with an infinite temporal centre dropped "
-                            "(the viewer never shows them)")
-    if removed["faint"]:
-        report.notes.append(f"{plural(removed['faint'], 'long-lived splat')} dropped: every piece of each was "
-                            "fainter than half an 8-bit step in its segment's frames")
+    return out
+
+
+def _notes(segments: list, durations) -> list:
+    """What a merge of ``segments`` (:class:`SegmentOutcome`) dropped or lost, then what it did."""
+    notes = []
+    nan_time, never, faint = (sum(getattr(s, kind) for s in segments) for kind in ("nan_time", "never", "faint"))
+    overflow = sum(s.overflow for s in segments)
+    if nan_time:
+        notes.append(f"{plural(nan_time, 'splat')} with a NaN temporal centre or scale dropped "
+                     "(they have no place in time)")
+    if never:
+        notes.append(f"{plural(never, 'splat')} with an infinite temporal centre dropped "
+                     "(the viewer never shows them)")
+    if faint:
+        notes.append(f"{plural(faint, 'long-lived splat')} dropped: every piece of each was "
+                     "fainter than half an 8-bit step in its segment's frames")
     if overflow:
-        report.notes.append(f"{overflow:,} finite values grew beyond float32 and are now infinite")
-    long_total = sum(report.long_lived)
-    report.notes.append(
-        f"segments: {len(scenes)} on one timeline ({', '.join(str(d) for d in durations)} frames); "
-        f"{plural(long_total, 'long-lived splat')} split into time-windowed pieces; "
-        f"{report.count_in:,} -> {plural(report.count_out, 'splat')}"
-        + (f" ({report.count_out / report.count_in:.2f}x)" if report.count_in else ""))
-    cameras = next((s.cameras for s in scenes if s.cameras), None)
-    return Scene(columns=out, cameras=cameras, variant=VARIANT_LITE, meta={}), report
+        notes.append(f"{overflow:,} finite values grew beyond float32 and are now infinite")
+    count_in, count_out = sum(s.count_in for s in segments), sum(s.count_out for s in segments)
+    notes.append(
+        f"segments: {len(segments)} on one timeline ({', '.join(str(d) for d in durations)} frames); "
+        f"{plural(sum(s.long_lived for s in segments), 'long-lived splat')} split into time-windowed pieces; "
+        f"{count_in:,} -> {plural(count_out, 'splat')}"
+        + (f" ({count_out / count_in:.2f}x)" if count_in else ""))
+    return notes

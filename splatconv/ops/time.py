@@ -25,6 +25,7 @@ from ..model import MOTION, OMEGA, TRBF, Scene
 from ..wording import plural
 from ._table import blockwise, copy_rows, derive, run_blocks
 from .report import OpReport
+from .step import Rows, Step
 
 
 def _check_map(origin: float, duration: float) -> tuple:
@@ -216,4 +217,29 @@ def trim(scene: Scene, t0: float, t1: float) -> tuple[Scene, OpReport]:
     return derive(scene, columns, report.notes), report
 
 
-__all__ = ["remap_columns", "remap_time", "place_in", "check_interval", "visible_in_mask", "trim"]
+class Trim(Step):
+    """:func:`trim` to [``t0``, ``t1``] as a step of a plan: it keeps the splats visible in the
+    interval and copies them with the interval's time map (the steps after it read the copy)."""
+
+    name = "trim"
+    retimes = True
+
+    def __init__(self, t0: float, t1: float):
+        self.t0, self.t1 = check_interval(t0, t1)
+
+    def tester(self, columns: dict):
+        return lambda part, block: visible_in_mask(block, self.t0, self.t1)
+
+    def apply(self, rows: Rows, keep: np.ndarray) -> OpReport:
+        t0, t1 = self.t0, self.t1
+        count_in = rows.count
+        dropped = ~keep if rows.alive is None else rows.alive & ~keep
+        nan_time = _nan_time(rows.columns, np.flatnonzero(dropped))
+        rows.keep(keep)
+        columns, overflow = copy_rows(rows.columns, np.flatnonzero(rows.alive),
+                                      each=lambda block: _remap_block(block, t0, t1 - t0))
+        rows.columns, rows.alive, rows.owned = columns, None, True
+        return trim_report(count_in, len(columns["x"]), nan_time, t0, t1, overflow)
+
+
+__all__ = ["remap_columns", "remap_time", "place_in", "check_interval", "visible_in_mask", "trim", "Trim"]

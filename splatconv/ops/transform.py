@@ -287,7 +287,7 @@ def _affine_group(block: dict, vectors, matrix: np.ndarray, offset=None) -> int:
     size. Zero coefficients are left out (x:90 keeps x exactly, whatever y and z
     hold), and every value gets the same float64 operations, in the same order,
     as it would alone. Runs under ``np.errstate(over="raise")`` (see
-    :func:`_block_transformer`): a value that outgrows float32 (or float64)
+    :func:`block_transformer`): a value that outgrows float32 (or float64)
     raises, and only then is the component redone and the values that became
     infinite counted.
 
@@ -332,11 +332,11 @@ def transform_columns(columns: dict, transform: Transform) -> int:
     int
         Values that were finite and no longer fit float32 (now infinite).
     """
-    apply = _block_transformer(transform)
+    apply = block_transformer(transform)
     return sum(run_blocks(len(columns["x"]), lambda part: apply({name: columns[name][part] for name in columns})))
 
 
-def _block_transformer(transform: Transform):
+def block_transformer(transform: Transform):
     """A function that transforms one block of rows in place and returns its overflow count."""
     linear = transform.linear()
     rotates = not np.array_equal(np.asarray(transform.matrix), np.eye(3))
@@ -400,7 +400,7 @@ def apply_transform(scene: Scene, transform: Transform) -> tuple[Scene, OpReport
     (Scene, OpReport)
         A new scene (no splat removed).
     """
-    columns, grown = copy_rows(scene.columns, each=_block_transformer(transform))
+    columns, grown = copy_rows(scene.columns, each=block_transformer(transform))
     cameras = transform_cameras(scene.cameras, transform)
     report = transform_report(scene.count, len(cameras or []), transform, grown)
     return derive(scene, columns, report.notes, cameras=cameras), report
