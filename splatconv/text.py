@@ -394,7 +394,7 @@ def segments_text(data: dict) -> str:
                      + (f", {s['dropped']:,} dropped" if s["dropped"] else ""))
     check = data.get("check")
     if check and check["rule"] != "none":
-        how = ("a sample: evenly spread and both sides of every hand-over; --check-every 1 for all"
+        how = ("a sample: evenly spread and both sides of the hand-overs; --check-every 1 for all"
                if check["rule"] == "sample" else f"every {_nth(check['every'])}")
         lines.append(f"checked {len(check['frames']):,} of {plural(check['of'], 'output frame')} ({how})")
     frames = data.get("frames") or []

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from splatconv.render.fidelity import DEFAULT_SAMPLE, checked_frames, fidelity, fidelity_summary
+from splatconv.render.fidelity import DEFAULT_SAMPLE, SAMPLE_HAND_OVERS, checked_frames, fidelity, fidelity_summary
 from splatconv import io, viewer
 from splatconv.jobs.segments import SEGMENTS_SCHEMA, merge_segments, segments_findings
 from splatconv.text import segments_text, to_json
@@ -183,8 +183,8 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
     assert json.loads(to_json(segments_findings(report, written, out, checked))) == data
     assert data["schema"] == SEGMENTS_SCHEMA
     help_text = " ".join(run("merge", "--help").stdout.split()).replace("hand- over", "hand-over")  # wrapped
-    assert (f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of every hand-over between "
-            f"segments]") in help_text
+    assert (f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of the hand-overs between "
+            f"segments, at most {SAMPLE_HAND_OVERS} of them]") in help_text
     r = run("merge", tmp_path / "a.ply", tmp_path / "b.ply", tmp_path / "t.ply", "--segments", "--no-check")
     assert r.exit_code == 0 and "PSNR" not in r.stdout and "segment 1: frames 50..99" in r.stdout
     # The size written is said, as every write says it.
@@ -245,8 +245,8 @@ def test_the_default_check_is_a_bounded_sample_with_every_hand_over_and_all_is_o
     assert data["check"] == {"rule": "sample", "every": None, "frames": checked, "of": total}
     assert [f["frame"] for f in data["frames"]] == checked and data["fidelity"]["frames"] == len(checked)
     # The text report (what the CLI prints without --json) says so too.
-    assert (f"checked {len(checked)} of {total} output frames (a sample: evenly spread and both sides of every "
-            f"hand-over; --check-every 1 for all)") in segments_text(data)
+    assert (f"checked {len(checked)} of {total} output frames (a sample: evenly spread and both sides of the "
+            f"hand-overs; --check-every 1 for all)") in segments_text(data)
     # Every frame on request.
     r = run("merge", *paths, tmp_path / "all.splatv", "--segments", "--durations", f"{per},{per},{per}", "--json",
             "--check-every", "1")
@@ -259,11 +259,14 @@ def test_the_default_check_is_a_bounded_sample_with_every_hand_over_and_all_is_o
     listed = re.search(r"The default sample of this merge \(frames ([\d, ]+)\)", readme).group(1)
     six = sg.SegmentReport(sg.placements([50] * 6), [], leak=sg.DEFAULT_LEAK, budget=sg.DEFAULT_BUDGET)
     assert checked_frames(six) == [int(f) for f in listed.split(", ")]
-    # Many segments: the hand-overs are all there, the spread stays at the sample.
+    # Many segments: the sample stays bounded; SAMPLE_HAND_OVERS hand-overs spread evenly, first and last included.
     _, report = sg.merge_segments([io.read(p) for p in paths] * 4, [per] * 12)
     many = checked_frames(report)
-    assert {f for p in report.placements[1:] for f in (p.first - 1, p.first)} <= set(many)
-    assert len(many) <= DEFAULT_SAMPLE + 2 * 11
+    firsts = [p.first for p in report.placements[1:]]
+    taken = [f for f in firsts if {f - 1, f} <= set(many)]
+    assert len(taken) == SAMPLE_HAND_OVERS and taken[0] == firsts[0] and taken[-1] == firsts[-1]
+    assert max(np.diff([firsts.index(f) for f in taken])) <= 2 * (len(firsts) - 1) / (SAMPLE_HAND_OVERS - 1)
+    assert len(many) <= DEFAULT_SAMPLE + 2 * SAMPLE_HAND_OVERS
 
 
 def test_every_removed_splat_is_counted_and_said(tmp_path, source):

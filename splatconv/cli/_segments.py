@@ -6,7 +6,7 @@ import click
 
 from ..jobs.segments import merge_segments, segments_findings
 from ..ops.segments import DEFAULT_BUDGET, DEFAULT_FRAMES, DEFAULT_LEAK, MAX_FRAMES
-from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_SAMPLE
+from ..render.fidelity import DEFAULT_CAMERA, DEFAULT_SAMPLE, SAMPLE_HAND_OVERS
 from ..text import segments_text, to_json
 from ..wording import plural
 from ._base import Failure, notes, progress
@@ -47,8 +47,8 @@ def segment_options():
                      help=f"--segments: measure every K-th output frame against its segment (1: every frame) "
                           f"instead of the default sample. Each frame checked costs two renders: every frame can "
                           f"take several times as long as the merge (README, \"Joining segments\") "
-                          f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of every "
-                          f"hand-over between segments]"),
+                          f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of the "
+                          f"hand-overs between segments, at most {SAMPLE_HAND_OVERS} of them]"),
         click.option("--no-check", is_flag=True, help="--segments: skip the fidelity measurement."),
         click.option("--camera", type=click.IntRange(min=0), default=DEFAULT_CAMERA, show_default=True,
                      help="--segments: stored camera the fidelity is measured from."),

@@ -24,10 +24,14 @@ from .preview import Renderer, View
 
 
 #: Output frames the default check measures, spread evenly over the clip (its first and last
-#: frame included), besides both sides of every hand-over between segments (where merges go
+#: frame included), besides both sides of the hand-overs between segments (where merges go
 #: wrong). Bounded so that the check costs about as much as the merge: each frame is two float
 #: reference renders.
 DEFAULT_SAMPLE = 5
+#: Hand-overs the default check measures at most (both sides of each): all of them up to this
+#: many, else this many spread evenly over the boundaries, the first and last included. The
+#: sample is so at most DEFAULT_SAMPLE + 2 * SAMPLE_HAND_OVERS frames, however many segments.
+SAMPLE_HAND_OVERS = 6
 #: Stored camera the fidelity is measured from.
 DEFAULT_CAMERA = 0
 #: Width of the fidelity renders (the camera's size scaled down to it).
@@ -59,8 +63,9 @@ def checked_frames(report: SegmentReport, every: int | None = None, sample: int 
         Every ``every``-th output frame from frame 0 (1: all). None: the sample.
     sample : int
         With ``every`` None: this many frames spread evenly over the clip (the
-        first and the last included), and both sides of every hand-over (the
-        last frame of each segment but the last and the first of the next).
+        first and the last included), and both sides of each hand-over (the
+        last frame of a segment and the first of the next): every hand-over up to
+        :data:`SAMPLE_HAND_OVERS`, else that many spread evenly.
 
     Returns
     -------
@@ -71,7 +76,11 @@ def checked_frames(report: SegmentReport, every: int | None = None, sample: int 
     if every is not None:
         return list(range(0, total, max(1, int(every))))
     spread = np.round(np.linspace(0, total - 1, min(max(1, int(sample)), total))).astype(np.int64)
-    hand_overs = [f for p in report.placements[1:] for f in (p.first - 1, p.first)]
+    boundaries = report.placements[1:]
+    if len(boundaries) > SAMPLE_HAND_OVERS:
+        picks = np.round(np.linspace(0, len(boundaries) - 1, SAMPLE_HAND_OVERS)).astype(np.int64)
+        boundaries = [boundaries[i] for i in picks]
+    hand_overs = [f for p in boundaries for f in (p.first - 1, p.first)]
     return sorted(set(spread.tolist()) | set(hand_overs))
 
 
