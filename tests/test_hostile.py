@@ -579,7 +579,8 @@ KILLS = [(signal.SIGTERM, "read"), (signal.SIGTERM, "write"), (signal.SIGHUP, "r
 def test_killed_convert_cleans_up(tmp_path, big_inputs, signum, phase):
     # The output is compressed at zstd's slowest level: long enough to be caught
     # mid-write. "read": the signal goes as soon as the decompressed temporary
-    # file (or, if reading was quicker than the poll, the part file) appears.
+    # file (or, if reading was quicker than the poll, the part file) appears;
+    # "write": as soon as the part file appears.
     src, packed = big_inputs
     work = tmp_path / "work"
     work.mkdir()
@@ -592,9 +593,12 @@ def test_killed_convert_cleans_up(tmp_path, big_inputs, signum, phase):
     try:
         started = (lambda: os.listdir(tmp) or os.listdir(work)) if phase == "read" else (lambda: os.listdir(work))
         assert _wait_for(started), "nothing appeared"
-        if phase == "write":
-            time.sleep(0.3)
+        # Freeze the process the moment its file appears, then signal it and let it go on: the signal
+        # lands in the phase seen however slow or loaded the machine (a sleep here let a loaded
+        # machine finish the write first).
+        p.send_signal(signal.SIGSTOP)
         p.send_signal(signum)
+        p.send_signal(signal.SIGCONT)
         p.wait(timeout=120)
     finally:
         if p.poll() is None:
