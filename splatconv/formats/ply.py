@@ -136,20 +136,13 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
     parsed = container.read_rows(path)
     vertex = _vertex_element(parsed.header, path)
     variant = _variant_of(vertex, path)
-    data = parsed.vertex
-    populate(data)
-    notes = list(parsed.notes)
+    populate(parsed.vertex)
     used = _used_properties(variant)
     ignored = [p.name for p in vertex.properties if p.name not in used]
     doubles = [p.name for p in vertex.properties if p.name in used and p.val_dtype.endswith("8")]
-    if doubles:
-        notes.append(f"{len(doubles)} double properties narrowed to float32: {', '.join(doubles[:6])}"
-                     + (", ..." if len(doubles) > 6 else ""))
-    columns = _columns(data, variant, notes)
-    rest = [p for p in ignored if p.startswith("f_rest_")]
-    if variant == model.VARIANT_3DGS and rest:
-        notes.append(f"{len(rest)} higher-order SH coefficients (f_rest_*) dropped: the viewer draws "
-                     "view-independent colour")
+    notes = parsed.notes + _narrowing_notes(doubles)
+    columns = _columns(parsed.vertex, variant, notes)
+    notes += _dropped_sh_notes(ignored, variant)
     color_mode = color if color != "auto" else ("rgb" if variant == model.VARIANT_LITE else "sh")
     if color_mode == "sh":
         _rgb_from_sh(columns)
@@ -164,6 +157,23 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
     }
     cameras = _cameras_from_comments(parsed.header.comments, path)
     return Scene(columns=columns, cameras=cameras, variant=variant, meta=meta, notes=notes)
+
+
+def _narrowing_notes(doubles: list) -> list:
+    """The note that ``doubles``, used properties of type double, were narrowed to float32 (none: none)."""
+    if not doubles:
+        return []
+    return [f"{len(doubles)} double properties narrowed to float32: {', '.join(doubles[:6])}"
+            + (", ..." if len(doubles) > 6 else "")]
+
+
+def _dropped_sh_notes(ignored: list, variant: str) -> list:
+    """The note that a 3DGS file's higher-order SH coefficients (among ``ignored``) were dropped."""
+    rest = [p for p in ignored if p.startswith("f_rest_")]
+    if variant != model.VARIANT_3DGS or not rest:
+        return []
+    return [f"{len(rest)} higher-order SH coefficients (f_rest_*) dropped: the viewer draws "
+            "view-independent colour"]
 
 
 def _vertex_element(header, path: str):
