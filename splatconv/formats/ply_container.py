@@ -38,6 +38,8 @@ _TYPE_RELATION = (("int8", "i1"), ("char", "i1"), ("uint8", "u1"), ("uchar", "b1
 _CODE_NAME = dict((code, name) for name, code in _TYPE_RELATION)
 #: The numpy code of each type a header may name (a name, or a code itself).
 TYPE_CODES = {**{code: dict(_TYPE_RELATION)[name] for code, name in _CODE_NAME.items()}, **dict(_TYPE_RELATION)}
+#: Bytes a value of each type (an unknown type: 1, the least a value takes).
+_TYPE_BYTES = {word: np.dtype(code).itemsize for word, code in TYPE_CODES.items()}
 #: The types in the order plyfile lists them in its message.
 _TYPES_LISTED = list(dict.fromkeys(word for pair in _TYPE_RELATION for word in pair))
 #: Byte order of each PLY format ("=": text).
@@ -285,9 +287,9 @@ def _size_line(header: Header, line: bytes, path: str) -> None:
         sizes = header.sizes[-1]
         sizes[3] += 1
         if len(words) == 3:
-            sizes[2] += np.dtype(TYPE_CODES.get(words[1], "u1")).itemsize
+            sizes[2] += _TYPE_BYTES.get(words[1], 1)
         elif len(words) == 5 and words[1] == "list":
-            sizes[2] += np.dtype(TYPE_CODES.get(words[2], "u1")).itemsize
+            sizes[2] += _TYPE_BYTES.get(words[2], 1)
             sizes[4] = True
 
 
@@ -304,13 +306,15 @@ def _first_line_error(head: bytes) -> str | None:
     return None if _newline(head) else "unexpected characters after 'ply'"
 
 
-def parse_header(head: bytes, path: str) -> Header:
+def parse_header(head: bytes, path: str, sizes_only: bool = False) -> Header:
     """Parse the PLY header at the start of ``head`` (bytes up to its ``end_header`` line).
 
     One pass over the lines: each is read for sizes and, until the first error,
     by the grammar. Raises only for a row count that is not a non-negative
     integer (the sizes cannot be read past it); any other error is kept in
     ``error`` for :func:`check`, which first checks the sizes against the file.
+    ``sizes_only``: only the sizes are read (``elements`` stays empty, ``error``
+    None), for callers that bound a file before reading it.
 
     Raises
     ------
@@ -319,6 +323,10 @@ def parse_header(head: bytes, path: str) -> Header:
     header = Header()
     lines, header.header_bytes = _header_lines(head)
     complete = header.header_bytes is not None
+    if sizes_only:
+        for line in lines if complete else ():
+            _size_line(header, line, path)
+        return header
     grammar = _Grammar(Header())
     error = _first_line_error(head)
     bad = (error, 1) if error else None
@@ -425,7 +433,7 @@ def check(header: Header, path: str, file_size: int) -> None:
 def declared_size(head: bytes):
     """File size a binary PLY header at the start of ``head`` declares (None: ASCII, lists or unknown)."""
     try:
-        return parse_header(head, "").fixed_size()
+        return parse_header(head, "", sizes_only=True).fixed_size()
     except FormatError:
         return None
 
@@ -687,7 +695,7 @@ def vertex_count(path: str):
     try:
         with open_input(path) as f:
             size = os.fstat(f.fileno()).st_size
-            header = parse_header(read_header_bytes(f, size), path)
+            header = parse_header(read_header_bytes(f, size), path, sizes_only=True)
             check_sizes(header, path, size)
     except FormatError:
         return None
