@@ -323,61 +323,72 @@ def parse_header(head: bytes, path: str, sizes_only: bool = False) -> Header:
     header = Header()
     lines, header.header_bytes = _header_lines(head)
     complete = header.header_bytes is not None
+    for line in lines if complete else ():
+        _size_line(header, line, path)
     if sizes_only:
-        for line in lines if complete else ():
-            _size_line(header, line, path)
         return header
     grammar = _Grammar(Header())
+    bad = _grammar_error(head, lines, complete, grammar)
+    if not complete:
+        # Whatever the grammar met first, unless it was a byte that is not ASCII: then what is
+        # wrong is most likely that the header never ends (a binary file, or not a PLY at all).
+        if bad[0].startswith("cannot parse:"):
+            bad = (f"no end_header line in the first {len(head):,} bytes", None)
+        header.error = _header_error(bad, path)
+        return header
+    bad = bad or _duplicates(grammar.header.elements)
+    if bad is not None:
+        header.error = _header_error(bad, path)
+        return header
+    parsed = grammar.header
+    header.format, header.elements, header.comments, header.obj_info = (parsed.format, parsed.elements,
+                                                                        parsed.comments, parsed.obj_info)
+    header.error = _list_type_error(header.elements, path)
+    return header
+
+
+def _grammar_error(head: bytes, lines: list, complete: bool, grammar: _Grammar):
+    """The first thing plyfile would refuse in the header: ``(message, line number or None)``; None if nothing.
+
+    Lines are given to ``grammar`` in order, as plyfile reads them: a byte that
+    is not ASCII stops it where it is met; in an incomplete header the stream
+    ends inside the last line.
+    """
     error = _first_line_error(head)
-    bad = (error, 1) if error else None
+    if error:
+        return error, 1
     for i, line in enumerate(lines):
-        if complete:
-            _size_line(header, line, path)
-        if bad is not None:
-            continue
         decode = _decode_error(line)
         if decode:
-            bad = (decode, None)
-        elif not complete and i == len(lines) - 1:
-            bad = ("early end-of-file", i + 2)  # the stream ends inside this line
-        else:
-            try:
-                grammar.consume(line.decode("ascii"))
-            except _BadHeader as e:
-                bad = (e.message, e.line)
-    if complete and bad is None and lines[-1] != b"end_header":
+            return decode, None
+        if not complete and i == len(lines) - 1:
+            return "early end-of-file", i + 2
+        try:
+            grammar.consume(line.decode("ascii"))
+        except _BadHeader as e:
+            return e.message, e.line
+    if complete and lines[-1] != b"end_header":
         # plyfile ends a header at a line that is exactly "end_header"; at one that is so only
         # once stripped it reads on, past the header, and finds the end of what it was given.
-        bad = ("early end-of-file", grammar.line + 1)
-    if not complete:
-        if bad is None or bad[0].startswith("cannot parse:"):
-            bad = (f"no end_header line in the first {len(head):,} bytes", None)
-        header.error = FormatError(f"bad header: {bad[0]}", path, (f"line {bad[1]}",) if bad[1] else ())
-        return header
-    if bad is None:
-        header.format = grammar.header.format
-        header.elements, header.comments, header.obj_info = (grammar.header.elements, grammar.header.comments,
-                                                            grammar.header.obj_info)
-        bad = _duplicates(header.elements)
-        if bad is None:
-            header.error = _list_type_error(header.elements, path)
-            return header
-        header.elements = []
+        return "early end-of-file", grammar.line + 1
+    return None
+
+
+def _header_error(bad: tuple, path: str) -> FormatError:
+    """The error for a header plyfile refuses: its message, under "bad header" with the line where it has one."""
     message, line = bad
     if message.startswith("cannot parse:"):
-        header.error = FormatError(message, path)
-    else:
-        header.error = FormatError(f"bad header: {message}", path, (f"line {line}",) if line else ())
-    return header
+        return FormatError(message, path)
+    return FormatError(f"bad header: {message}", path, (f"line {line}",) if line else ())
 
 
 def _duplicates(elements):
     """plyfile refuses two properties of an element, or two elements, of the same name (as a ValueError)."""
     for element in elements:
         if len({p.name for p in element.properties}) != len(element.properties):
-            return ("cannot parse: two properties with same name", None)
+            return "cannot parse: two properties with same name", None
     if len({e.name for e in elements}) != len(elements):
-        return ("cannot parse: two elements with same name", None)
+        return "cannot parse: two elements with same name", None
     return None
 
 
