@@ -72,6 +72,8 @@ class Property:
 
 @dataclass
 class Element:
+    """One element of the header: its name, row count, properties (:class:`Property`) and comments."""
+
     name: str
     count: int
     properties: list = field(default_factory=list)
@@ -181,7 +183,7 @@ def read_header_bytes(f, file_size: int) -> bytes:
 
 
 class _BadHeader(Exception):
-    """A grammar error at a header line (plyfile's ``PlyHeaderParseError``), or another ``message``."""
+    """A grammar error at header line ``line``, worded as plyfile's ``PlyHeaderParseError`` words it."""
 
     def __init__(self, message: str, line: int | None):
         super().__init__(message)
@@ -193,10 +195,7 @@ def _decode_error(line: bytes) -> str | None:
     if line.isascii():
         return None
     byte = next(b for b in line if b > 127)
-    try:
-        bytes([byte]).decode("ascii")
-    except UnicodeDecodeError as e:
-        return f"cannot parse: {e}"
+    return f"cannot parse: {UnicodeDecodeError('ascii', bytes([byte]), 0, 1, 'ordinal not in range(128)')}"
 
 
 class _Grammar:
