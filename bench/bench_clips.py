@@ -39,32 +39,20 @@ import numpy as np
 
 import splatconv
 from splatconv import io, viewer
-from splatconv.model import COLUMNS, MOTION, OMEGA, STATIC_TRBF_CENTER, STATIC_TRBF_SCALE, Scene
+from splatconv.model import COLUMNS, Scene, static_columns
 from _harness import CLI, machine_line, row, run_fresh, work_folder
+
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from tests.scenes import clip_recipe, draw_columns  # noqa: E402  (the scene factory the tests use)
 
 #: Peak memory target, bytes.
 TARGET_RSS = 2 * 1024 ** 3
 
 
 def lite_columns(n: int, seed: int, long_share: float = 0.3) -> dict:
-    """A plausible lite scene: (n,) float32 per model column."""
-    rng = np.random.default_rng(seed)
-    c = {name: np.zeros(n) for name in COLUMNS}
-    for name in ("x", "y", "z"):
-        c[name] = rng.normal(0, 2, n)
-    c["trbf_center"] = rng.uniform(0, 1, n)
-    short = rng.uniform(0.05, 0.5, n)
-    c["trbf_scale"] = np.log(np.where(rng.uniform(size=n) < long_share, rng.uniform(1.5, 20, n), short))
-    c["opacity"] = rng.normal(1, 2, n)
-    for i in range(9):
-        c[f"motion_{i}"] = rng.normal(0, 0.2 / (1 + i // 3), n)
-    for i in range(3):
-        c[f"f_dc_{i}"] = rng.uniform(0, 1, n)
-        c[f"scale_{i}"] = np.log(rng.uniform(0.005, 0.1, n))
-    for i in range(4):
-        c[f"rot_{i}"] = rng.normal(0, 1, n)
-        c[f"omega_{i}"] = rng.normal(0, 0.2, n)
-    return {k: v.astype(np.float32) for k, v in c.items()}
+    """A plausible lite scene (:func:`tests.scenes.clip_recipe`): (n,) float32 per model column."""
+    cols = draw_columns(n, seed, clip_recipe(long_share))
+    return {name: cols[name] for name in COLUMNS}
 
 
 def snapshot(cols: dict, t: float, circles: np.ndarray) -> Scene:
@@ -82,11 +70,7 @@ def snapshot(cols: dict, t: float, circles: np.ndarray) -> Scene:
         out[f"rot_{i}"] = q[:, i].astype(np.float32)
     with np.errstate(divide="ignore"):
         out["opacity"] = np.maximum(viewer.logit(a), -30).astype(np.float32)
-    n = len(a)
-    for name in MOTION + OMEGA:
-        out[name] = np.zeros(n, np.float32)
-    out["trbf_center"] = np.full(n, STATIC_TRBF_CENTER, np.float32)
-    out["trbf_scale"] = np.full(n, STATIC_TRBF_SCALE, np.float32)
+    out.update(static_columns(len(a)))
     return Scene(columns=out)
 
 

@@ -45,6 +45,9 @@ from splatconv.formats.ply import LITE_DTYPE, header_bytes
 
 from _harness import CLI, PYTHON, bench_fields, machine_line, medians, row, run_fresh, work_folder
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from tests.scenes import CONVERT, draw_columns  # noqa: E402  (the scene factory the tests use)
+
 #: Conversion target: seconds of the default conversion over the I/O floor.
 TARGET_RATIO = 2.5
 #: Memory target: peak RSS of the converting process, MB (10^6 bytes).
@@ -70,25 +73,11 @@ print("BENCH_SECONDS", time.perf_counter() - t)
 
 
 def make_ply(path: str, n: int) -> int:
-    """Write a deterministic ``n``-splat lite PLY to ``path``; return its size in bytes."""
-    rng = np.random.default_rng(0)
-    arr = np.zeros(n, dtype=LITE_DTYPE)
-    for name in ("x", "y", "z"):
-        arr[name] = rng.normal(0.0, 2.0, n)
-    arr["trbf_center"] = rng.uniform(0.0, 1.0, n)
-    arr["trbf_scale"] = np.log(rng.uniform(0.05, 1.0, n))
-    for i in range(9):
-        arr[f"motion_{i}"] = rng.normal(0.0, 0.1, n)
-    for i in range(3):
-        arr[f"f_dc_{i}"] = rng.uniform(0.0, 1.0, n)
-    arr["opacity"] = rng.normal(0.0, 2.0, n)
-    for i in range(3):
-        arr[f"scale_{i}"] = np.log(rng.uniform(0.005, 0.1, n))
-    for i in range(4):
-        arr[f"rot_{i}"] = rng.normal(0.0, 1.0, n)
-    for i in range(4):
-        arr[f"omega_{i}"] = rng.normal(0.0, 0.1, n)
-    # nx, ny, nz stay 0.
+    """Write a deterministic ``n``-splat lite PLY (:data:`tests.scenes.CONVERT`) to ``path``; return its size."""
+    cols = draw_columns(n, 0, CONVERT)
+    arr = np.zeros(n, dtype=LITE_DTYPE)  # nx, ny, nz stay 0
+    for name, column in cols.items():
+        arr[name] = column
     with open(path, "wb") as f:
         f.write(header_bytes(n, None))
         arr.tofile(f)

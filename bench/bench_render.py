@@ -20,8 +20,10 @@ Run::
 from __future__ import annotations
 
 import argparse
+import os
 import platform
 import statistics
+import sys
 import time
 
 import numpy as np
@@ -31,6 +33,9 @@ from splatconv.model import COLUMNS, Scene
 from splatconv.render import camera as cam
 from splatconv.render.preview import FrameTimes, Renderer, View
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from tests.scenes import draw_columns, render_recipe  # noqa: E402  (the scene factory the tests use)
+
 
 #: Largest screen axis of a splat, pixels (splat_main.glsl's min(..., 1024.0)).
 AXIS_CAP = 1024
@@ -38,23 +43,8 @@ AXIS_CAP = 1024
 
 def make_scene(n: int, huge: bool = False) -> Scene:
     """A random but plausible lite scene: N splats in a 4-unit box, all visible at t=0.5 (``huge``: big splats)."""
-    rng = np.random.default_rng(0)
-    cols = {name: np.zeros(n, np.float32) for name in COLUMNS}
-    for i, c in enumerate("xyz"):
-        cols[c] = rng.normal(0, 1.2, n).astype(np.float32)
-    cols["trbf_center"] = rng.uniform(0, 1, n).astype(np.float32)
-    cols["trbf_scale"] = np.log(rng.uniform(0.2, 2, n)).astype(np.float32)
-    for i in range(9):
-        cols[f"motion_{i}"] = rng.normal(0, 0.05, n).astype(np.float32)
-    for i in range(3):
-        cols[f"f_dc_{i}"] = rng.uniform(0, 1, n).astype(np.float32)
-        low, high = (1.0, 3.0) if huge else (0.003, 0.03)
-        cols[f"scale_{i}"] = np.log(rng.uniform(low, high, n)).astype(np.float32)
-    for i in range(4):
-        cols[f"rot_{i}"] = rng.normal(0, 1, n).astype(np.float32)
-        cols[f"omega_{i}"] = rng.normal(0, 0.1, n).astype(np.float32)
-    cols["opacity"] = rng.normal(1, 2, n).astype(np.float32)
-    return Scene(columns=cols)
+    cols = draw_columns(n, 0, render_recipe(huge))
+    return Scene(columns={name: cols[name] for name in COLUMNS})
 
 
 def main() -> None:

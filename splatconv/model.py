@@ -114,6 +114,25 @@ def constant_column(value, count: int) -> np.ndarray:
     return np.broadcast_to(np.float32(value), (count,))
 
 
+def static_columns(count: int) -> dict:
+    """The time columns of ``count`` splats that neither move nor fade (a static 3DGS scene).
+
+    The temporal basis :data:`STATIC_TRBF_CENTER`, :data:`STATIC_TRBF_SCALE`
+    and zero motion and omega: the values the PLY and ``.splat`` readers give a
+    scene without time, and bake gives what it freezes.
+
+    Returns
+    -------
+    dict of str to (count,) float32 ndarray
+        ``trbf_center``, ``trbf_scale``, ``motion_*`` and ``omega_*``: read-only
+        constant columns (:func:`constant_column`), using no memory.
+    """
+    cols = {"trbf_center": constant_column(STATIC_TRBF_CENTER, count),
+            "trbf_scale": constant_column(STATIC_TRBF_SCALE, count)}
+    cols.update((name, constant_column(0.0, count)) for name in MOTION + OMEGA)
+    return cols
+
+
 def lite_rows(count: int) -> tuple[np.ndarray, dict]:
     """A table in the lite PLY row layout, and the model columns as views of it.
 

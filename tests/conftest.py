@@ -1,4 +1,4 @@
-"""Shared helpers: build small splat files of every flavour in tmp_path."""
+"""Shared helpers: build small splat files of every flavour in tmp_path (scenes from :mod:`tests.scenes`)."""
 
 from __future__ import annotations
 
@@ -9,28 +9,11 @@ import pytest
 from splatconv import model
 from splatconv.formats import ply
 
+from .scenes import gs_columns, random_columns
+
 GS_PROPS = ("x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2") + tuple(
     f"f_rest_{i}" for i in range(45)) + ("opacity", "scale_0", "scale_1", "scale_2",
                                          "rot_0", "rot_1", "rot_2", "rot_3")
-
-
-def random_columns(n: int, seed: int = 0) -> dict:
-    """Plausible lite attributes: (n,) float32 per model column."""
-    rng = np.random.default_rng(seed)
-    cols = {
-        "x": rng.normal(0, 2, n), "y": rng.normal(0, 2, n), "z": rng.normal(0, 2, n),
-        "trbf_center": rng.uniform(0, 1, n), "trbf_scale": np.log(rng.uniform(0.05, 1, n)),
-        "opacity": rng.normal(0, 2, n),
-    }
-    for i in range(9):
-        cols[f"motion_{i}"] = rng.normal(0, 0.1, n)
-    for i in range(3):
-        cols[f"f_dc_{i}"] = rng.uniform(0, 1, n)
-        cols[f"scale_{i}"] = np.log(rng.uniform(0.005, 0.1, n))
-    for i in range(4):
-        cols[f"rot_{i}"] = rng.normal(0, 1, n)
-        cols[f"omega_{i}"] = rng.normal(0, 0.1, n)
-    return {k: np.asarray(v, dtype=np.float32) for k, v in cols.items()}
 
 
 def write_ply(path, columns: dict, *, text=False, byte_order="<", dtype="f4", order=None,
@@ -67,9 +50,7 @@ def lite_ply(tmp_path):
 @pytest.fixture
 def gs_ply(tmp_path):
     """A 500-splat plain 3DGS PLY with f_rest_*."""
-    rng = np.random.default_rng(1)
-    cols = {name: rng.normal(0, 1, 500).astype(np.float32) for name in GS_PROPS}
-    return write_ply(tmp_path / "gs.ply", cols)
+    return write_ply(tmp_path / "gs.ply", gs_columns(500, GS_PROPS))
 
 
 def splatv_bytes(records: np.ndarray, cameras=None, *, pad=True, chunks=None) -> bytes:

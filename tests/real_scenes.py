@@ -11,7 +11,7 @@ The bundled sample has none of this; real scenes from the wild have all of it:
 * splats below the temporal cut over all of [0, 1],
 * ``.splatv`` files whose texture data is shorter than the header's ``texheight``.
 
-:func:`real_scene` builds such a scene in front of :data:`tests.ops_helpers.CAMERA`
+:func:`real_scene` builds such a scene in front of :data:`tests.scenes.CAMERA`
 and says which rows are which (:class:`Rows`); :func:`unpadded_splatv` writes it
 the way real files are written.
 """
@@ -26,7 +26,7 @@ from splatconv.formats import splatv
 from splatconv.model import Scene
 
 from .conftest import splatv_bytes
-from .ops_helpers import moving_scene
+from .scenes import moving_scene
 
 
 @dataclass

@@ -428,3 +428,30 @@ def test_modules_are_loaded_late_only_through_the_declared_tables():
                     isinstance(node, ast.Name) and node.id == "__import__"):
                 found.add(module)
     assert found == set(_LAZY_LOADERS), found
+
+
+def _all_imported_names(path: Path) -> set:
+    """Every name an import statement in ``path`` names (top-level packages included)."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+        if isinstance(node, ast.Import):
+            names.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and not node.level:
+            names.add(node.module or "")
+    return names
+
+
+def test_the_ply_container_knows_no_splats_and_is_the_only_plyfile_user():
+    """formats/ply_container.py is the PLY container (header, elements, rows); formats/ply.py maps splats.
+
+    The container imports nothing of the model or the viewer, and is the one
+    module of the package that imports plyfile (to name a bad ASCII row).
+    """
+    modules = _modules()
+    graph = _imports(modules)
+    container = "splatconv.formats.ply_container"
+    assert not {m for m in graph[container] if m.startswith(("splatconv.model", "splatconv.viewer", "splatconv.ops"))}
+    assert container in graph["splatconv.formats.ply"]
+    users = sorted(m for m, path in modules.items() if "plyfile" in _all_imported_names(path))
+    assert users == [container]
+

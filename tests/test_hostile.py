@@ -407,6 +407,19 @@ def test_zstd_stream_is_cut_at_the_ceiling(tmp_path, private_tmp, monkeypatch):
     assert r.exit_code == 2 and "Invalid value for '--max-decompressed'" in r.stderr
 
 
+def test_types_named_by_numpy_code_count_their_bytes(tmp_path):
+    """A header may name types as plyfile's numpy codes (``f4``): a .ply.zst of them is not cut at a quarter."""
+    n = 30000
+    rows = np.zeros((n, len(ply.GS_REQUIRED)), "<f4")
+    rows[:, ply.GS_REQUIRED.index("rot_0")] = 1
+    head = ("ply\nformat binary_little_endian 1.0\nelement vertex %d\n" % n
+            + "".join(f"property f4 {name}\n" for name in ply.GS_REQUIRED) + "end_header\n").encode()
+    assert ply.declared_size(head) == len(head) + rows.nbytes
+    path = tmp_path / "codes.ply.zst"
+    path.write_bytes(zstandard.ZstdCompressor().compress(head + rows.tobytes()))
+    assert splatconv.read(path).count == n
+
+
 def test_zstd_stream_is_cut_at_what_the_header_declares(tmp_path, private_tmp):
     head = sv([chunk(size=65536, texheight=1)])
     path = _bomb(tmp_path, head + bytes(65536), 100 << 20)

@@ -151,3 +151,53 @@ def test_list_property_named_like_an_attribute_is_refused(tmp_path):
     with pytest.raises(UnsupportedError) as e:
         splatconv.read(path)
     assert "property opacity is a list, not one number a splat" in str(e.value)
+
+
+#: Header lines, well and badly formed, that the grammar test below draws from.
+_HEADER_LINES = ("format binary_little_endian 1.0", "format ascii 1.0", "format binary_big_endian 2.0",
+                 "format foo 1.0", "format", "element vertex 0", "element face 0", "element vertex",
+                 "element vertex 0 1", "property float x", "property f4 y",
+                 "property list uchar float l", "property list uchar bogus l", "property bogus z", "property",
+                 "property float", "property list uchar", "comment hi", "obj_info x", "", " ", "\t",
+                 "end_header x", " end_header", "end_header ", "\x1c", "comment \xe9", "element v\xe9 0",
+                 "property float x", "element vertex 0\x1c")
+
+
+def _plyfile_verdict(head: bytes):
+    """What plyfile says of a header whose counts are 0 (its rows are none): the reference for ours."""
+    import io
+
+    try:
+        plyfile.PlyData.read(io.BytesIO(head))
+    except plyfile.PlyHeaderParseError as e:
+        return f"bad header: {e.message}", (f"line {e.line}",)
+    except ValueError as e:
+        return f"cannot parse: {e}", ()
+    return None
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_header_grammar_is_plyfiles(seed):
+    """The header parser accepts what plyfile accepts and names an error as plyfile does.
+
+    plyfile is the reference here (the reader uses it only to name a bad ASCII
+    row): random headers of well and badly formed lines, counts 0 so that
+    plyfile reads no rows, every line ending plyfile knows.
+    """
+    import random
+
+    from splatconv.formats import ply_container
+
+    rng = random.Random(seed)
+    for _ in range(25):
+        lines = ["format binary_little_endian 1.0", "element vertex 0", "property float x", "end_header"]
+        for _ in range(rng.randint(0, 3)):
+            lines.insert(rng.randrange(len(lines) + 1), rng.choice(_HEADER_LINES))
+        nl = rng.choice(["\n", "\r\n", "\r"])
+        head = nl.join(["ply"] + lines).encode("latin-1") + nl.encode()
+        header = ply_container.parse_header(head, "h.ply")
+        if header.header_bytes is None:
+            continue  # no end_header line: plyfile would read on into the rows
+        ours = header.error and (header.error.message, header.error.where)
+        # The header ends at its first end_header line (the body follows): plyfile is given that much.
+        assert ours == _plyfile_verdict(head[:header.header_bytes]), head

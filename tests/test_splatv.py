@@ -17,7 +17,6 @@ from splatconv.formats import splatv
 from splatconv.model import COLUMNS, Scene
 from tests import reference
 from splatconv.formats.base import WriteReport
-from splatconv import viewer
 
 from .conftest import random_columns, splatv_bytes
 

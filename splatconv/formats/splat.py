@@ -32,7 +32,7 @@ from .. import model
 from ..errors import FormatError
 from ..files.inputs import open_input
 from ..files.paging import populate
-from ..model import Scene, constant_column
+from ..model import Scene
 from ..packing import F32_EXP_MASK, F32_MANT_MASK, F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales, wide
@@ -108,10 +108,7 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     for i, name in enumerate(model.ROTATION):
         cols[name] = rot[:, i]
     # A static scene: the same constants for every splat, held once.
-    cols["trbf_center"] = constant_column(model.STATIC_TRBF_CENTER, n)
-    cols["trbf_scale"] = constant_column(model.STATIC_TRBF_SCALE, n)
-    for name in model.MOTION + model.OMEGA:
-        cols[name] = constant_column(0.0, n)
+    cols.update(model.static_columns(n))
     meta = {"file_bytes": size, "records": n}
     return Scene(columns={name: cols[name] for name in model.COLUMNS}, cameras=None, variant=model.VARIANT_3DGS,
                  meta=meta, notes=notes)

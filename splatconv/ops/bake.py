@@ -151,10 +151,8 @@ def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Sc
         out["opacity"][:] = baked_opacity(part["opacity"], kept_temporal)
     for name in model.SCALE + model.COLOR:
         out[name][:] = part[name]
-    for name in model.MOTION + model.OMEGA:
-        out[name][:] = 0.0
-    out["trbf_center"][:] = model.STATIC_TRBF_CENTER
-    out["trbf_scale"][:] = model.STATIC_TRBF_SCALE
+    for name, column in model.static_columns(m).items():
+        out[name][:] = column
     counts = viewer.kind_counts(kinds)
     counts["faded"] = int(np.count_nonzero(kept_temporal < 1.0))
     counts.update(finite_stand_ins(out))
