@@ -339,8 +339,8 @@ def test_a_hostile_file_name_cannot_break_out_of_the_page():
 
 
 def test_readme_player_commands(sample, tmp_path, monkeypatch):
-    """The README's two player commands, as written, in a folder holding dancers.splatv."""
-    section = (ROOT / "README.md").read_text().split("### Play it in the browser", 1)[1]
+    """docs/player.md's first two commands (its first block), as written, in a folder holding dancers.splatv."""
+    section = (ROOT / "docs" / "player.md").read_text()
     view_line, convert_line = re.search(r"```\n(.*?)```", section, re.S).group(1).strip().splitlines()
     (tmp_path / "dancers.splatv").write_bytes(sample.read_bytes())
     monkeypatch.chdir(tmp_path)
