@@ -4,7 +4,8 @@ Each page runs in a folder of its own that holds ``sample_data/`` and what the p
 examples wrote, its examples in the order they appear. In a fenced block, a line that starts with
 ``$ splatconv`` is a command and the lines under it, up to the next ``$`` line, are what it prints
 (its stderr lines, then its stdout lines); a command shown without output must exit 0 and may print
-anything. A shown line ending in ``≈`` holds figures that depend on the GL driver (PSNR and pixel
+anything, one whose output ends in an ``Error: ...`` line must fail (exit 1, or 2 for usage), any
+other must exit 0. A shown line ending in ``≈`` holds figures that depend on the GL driver (PSNR and pixel
 errors of drawn frames): its words are compared, its numbers only as numbers. ````python`` blocks run
 in the same folder, in order with the commands. A picture a page shows (``![...](NAME)``) whose
 name an example wrote is compared with it by pixels (40 dB or better, every frame of an animation).
@@ -83,7 +84,8 @@ def run_page(page: Path, folder: Path) -> list:
         words = shlex.split(code)
         assert words[0] == "splatconv", f"{page.name}: only splatconv commands run: {code}"
         result = CliRunner().invoke(main, words[1:], prog_name="splatconv")
-        assert result.exit_code == 0, f"{page.name}: $ {code}\n{result.output}"
+        refused = bool(shown) and shown[-1].startswith("Error: ")
+        assert result.exit_code in ((1, 2) if refused else (0,)), f"{page.name}: $ {code}\n{result.output}"
         if shown:
             printed = result.stderr.splitlines() + result.stdout.splitlines()
             assert len(printed) == len(shown) and all(map(_matches, shown, printed)), (
@@ -122,7 +124,7 @@ def test_the_harness_reads_commands_output_and_driver_lines():
 
 def test_every_page_runs_something():
     for page in PAGES:
-        if page.name not in ("cli.md", "architecture.md", "development.md", "limits.md"):
+        if page.name not in ("cli.md", "architecture.md", "development.md"):
             assert examples(page.read_text(encoding="utf-8")), f"{page.name} shows no example that runs"
 
 
