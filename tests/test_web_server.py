@@ -261,7 +261,7 @@ def test_convert_external_plays_a_splatv_input_where_it_is(sample, tmp_path):
 
 
 def test_convert_html_refusals(sample, tmp_path):
-    # Several INPUTs to a scene file are a frame sequence (README "Frame sequences"), not a page.
+    # Several INPUTs to a scene file are a frame sequence (docs/long-clips.md), not a page.
     r = run("convert", sample, tmp_path / "one.splatv", "--external")
     assert r.exit_code == 2
     assert r.stderr == f"Error: {tmp_path / 'one.splatv'}: a player page must be written to an .html file\n"
