@@ -20,7 +20,7 @@ from .progress import SILENT
 
 #: Default zstd level for reports and ``.zst`` output: 3, zstd's own default.
 #: Measured on 1,000,000-splat scenes (``bench/bench_zstd_levels.py``, table in
-#: the README): a .splatv at level 3 is about 8% larger than at level 19 but is
+#: specs/zstd.md): a .splatv at level 3 is about 8% larger than at level 19 but is
 #: compressed some 90 times faster (level 19 took minutes, and ~300 MB); levels
 #: 6 and 9 save 4-6% more for two and four times the time. ``--zstd-level``
 #: chooses another.

@@ -254,8 +254,8 @@ def test_the_default_check_is_a_bounded_sample_with_every_hand_over_and_all_is_o
     data = json.loads(r.stdout)
     assert data["check"] == {"rule": "every", "every": 1, "frames": list(range(total)), "of": total}
     assert [f["frame"] for f in data["frames"]] == list(range(total))
-    # The README's sample of its six 50-frame segments is this one.
-    readme = " ".join((ROOT / "README.md").read_text(encoding="utf-8").split())
+    # The sample of six 50-frame segments that specs/segments.md lists is this one.
+    readme = " ".join((ROOT / "specs" / "segments.md").read_text(encoding="utf-8").split())
     listed = re.search(r"The default sample of this merge \(frames ([\d, ]+)\)", readme).group(1)
     six = sg.SegmentReport(sg.placements([50] * 6), [], leak=sg.DEFAULT_LEAK, budget=sg.DEFAULT_BUDGET)
     assert checked_frames(six) == [int(f) for f in listed.split(", ")]

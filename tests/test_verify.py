@@ -70,7 +70,7 @@ def test_faithful_conversion_passes(faithful):
 # Which check catches each damage at QUICK's two frames (t = 0.25 and 0.6, camera 0): the
 # attribute check always names the damaged attribute; the pixel check fails the frames
 # listed. Reordered quaternion components score 35.6 dB at t = 0.25 but 42.8 dB at 0.6
-# (see README): that frame passes the pixels and only the attribute check catches it.
+# (see docs/verify.md): that frame passes the pixels and only the attribute check catches it.
 DAMAGES = [
     ("colour channels swapped", "color", [0.25, 0.6]),
     ("scales halved", "scale", [0.25, 0.6]),

@@ -261,7 +261,7 @@ def test_convert_external_plays_a_splatv_input_where_it_is(sample, tmp_path):
 
 
 def test_convert_html_refusals(sample, tmp_path):
-    # Several INPUTs to a scene file are a frame sequence (README "Frame sequences"), not a page.
+    # Several INPUTs to a scene file are a frame sequence (docs/long-clips.md), not a page.
     r = run("convert", sample, tmp_path / "one.splatv", "--external")
     assert r.exit_code == 2
     assert r.stderr == f"Error: {tmp_path / 'one.splatv'}: a player page must be written to an .html file\n"
@@ -339,8 +339,8 @@ def test_a_hostile_file_name_cannot_break_out_of_the_page():
 
 
 def test_readme_player_commands(sample, tmp_path, monkeypatch):
-    """The README's two player commands, as written, in a folder holding dancers.splatv."""
-    section = (ROOT / "README.md").read_text().split("### Play it in the browser", 1)[1]
+    """docs/player.md's first two commands (its first block), as written, in a folder holding dancers.splatv."""
+    section = (ROOT / "docs" / "player.md").read_text()
     view_line, convert_line = re.search(r"```\n(.*?)```", section, re.S).group(1).strip().splitlines()
     (tmp_path / "dancers.splatv").write_bytes(sample.read_bytes())
     monkeypatch.chdir(tmp_path)

@@ -46,7 +46,7 @@ def segment_options():
         click.option("--check-every", type=click.IntRange(min=1), default=None, metavar="K",
                      help=f"--segments: measure every K-th output frame against its segment (1: every frame) "
                           f"instead of the default sample. Each frame checked costs two renders: every frame can "
-                          f"take several times as long as the merge (README, \"Joining segments\") "
+                          f"take several times as long as the merge (docs/long-clips.md) "
                           f"[default: a sample: {DEFAULT_SAMPLE} frames spread evenly and both sides of the "
                           f"hand-overs between segments, at most {SAMPLE_HAND_OVERS} of them]"),
         click.option("--no-check", is_flag=True, help="--segments: skip the fidelity measurement."),

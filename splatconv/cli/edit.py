@@ -178,7 +178,7 @@ def merge(paths, translate, rotate, scale, layout, sort, color, drop_nonfinite, 
     Gaussians segments of one long clip): segment i plays in its own interval
     of the timeline, its long-lived splats split into pieces that fade out at
     its ends, and a sample of output frames (every frame with --check-every 1)
-    is measured against its segment alone (see README "Joining segments" and
+    is measured against its segment alone (see docs/long-clips.md and
     specs/segments.md).
 
     \b

@@ -1,12 +1,12 @@
-"""The README's bake, .splat and merge commands run, and its bake picture is theirs.
+"""docs/bake_moment.png (docs/bake-and-merge.md) is what its commands draw, and the bake example's library calls.
 
-Run as ``python -m tests.test_bake_readme`` to regenerate ``docs/bake_moment.png``.
+The page's commands themselves run in tests/test_docs.py; the picture is two of their frames side by side.
+Run as ``python -m tests.test_bake_picture`` to regenerate ``docs/bake_moment.png``.
 """
 
 from __future__ import annotations
 
 import os
-import re
 import shlex
 import sys
 import tempfile
@@ -23,15 +23,12 @@ ROOT = Path(__file__).resolve().parent.parent
 PICTURE = ROOT / "docs" / "bake_moment.png"
 
 
-def section(title: str) -> str:
-    text = (ROOT / "README.md").read_text()
-    return text.split(title, 1)[1].split("\n### ", 1)[0].split("\n## ", 1)[0]
-
-
-def commands(text: str) -> list:
-    """The splatconv lines of a section's code blocks, in order."""
-    blocks = re.findall(r"```\n(.*?)```", text, re.S)
-    return [line for block in blocks for line in block.strip().splitlines() if line.startswith("splatconv ")]
+#: The commands of docs/bake-and-merge.md that make the two halves of the picture.
+PICTURE_COMMANDS = (
+    "splatconv bake dancers.splatv moment.ply --time 0.3",
+    "splatconv render dancers.splatv 4d.png --time 0.3 --size 480x270 --fx 375 --fy 375",
+    "splatconv render moment.ply baked.png --time 0.9 --size 480x270 --fx 375 --fy 375",
+)
 
 
 def run_line(line: str):
@@ -41,8 +38,8 @@ def run_line(line: str):
 
 
 def make_picture(workdir: Path) -> np.ndarray:
-    """Run the bake section's commands in ``workdir`` (which holds ``dancers.splatv``); the picture, RGB."""
-    for line in commands(section("### Bake a moment")):
+    """Run the picture's commands in ``workdir`` (which holds ``dancers.splatv``); the picture, RGB."""
+    for line in PICTURE_COMMANDS:
         run_line(line)
     left = np.asarray(Image.open(workdir / "4d.png").convert("RGB"))
     right = np.asarray(Image.open(workdir / "baked.png").convert("RGB"))
@@ -54,11 +51,10 @@ def _sample(workdir: Path) -> None:
     run_line("splatconv convert sample_data/dancers.ply dancers.splatv --cameras sample_data/cameras.json")
 
 
-def test_bake_section_commands_and_picture(monkeypatch, tmp_path):
+def test_bake_picture_is_what_its_commands_draw(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     _sample(tmp_path)
     made = make_picture(tmp_path)
-    assert sorted(p.name for p in (tmp_path / "flipbook").iterdir())[::29] == ["frame_0000.ply", "frame_0029.ply"]
     shown = np.asarray(Image.open(PICTURE).convert("RGB"))
     assert compare(made, shown).psnr >= 40
     # The two halves are the same moment: the baked scene drawn at another time matches the 4D scene.
@@ -66,23 +62,27 @@ def test_bake_section_commands_and_picture(monkeypatch, tmp_path):
     assert compare(made[:, :half], made[:, half + 4:]).psnr >= 40
 
 
-def test_bake_section_python_example(monkeypatch, tmp_path):
+def test_bake_and_overlay_from_python(monkeypatch, tmp_path):
+    """What the page's Python example says: a baked moment writes as a .splat, and overlay keeps every splat."""
+    import splatconv
+    from splatconv.ops.bake import bake
+    from splatconv.ops.merge import overlay
+
     monkeypatch.chdir(tmp_path)
     _sample(tmp_path)
-    code = re.search(r"```python\n(.*?)```", section("### Bake a moment"), re.S).group(1)
-    namespace = {}
-    exec(compile(code, "README.md", "exec"), namespace)  # noqa: S102  (the README's own example)
-    assert namespace["both"].count == 5_000 + namespace["moment"].count
-    assert (tmp_path / "moment.splat").stat().st_size == 32 * namespace["moment"].count
+    moment, report = bake(splatconv.read("dancers.splatv"), 0.3)
+    assert report.notes
+    splatconv.write(moment, "moment.splat")
+    both, _ = overlay([splatconv.read("dancers.splatv"), moment])
+    assert both.count == 5_000 + moment.count
+    assert (tmp_path / "moment.splat").stat().st_size == 32 * moment.count
 
 
-def test_merge_section_commands(monkeypatch, tmp_path):
+def test_a_flipbook_is_numbered_frames(monkeypatch, tmp_path):
     monkeypatch.chdir(tmp_path)
     _sample(tmp_path)
-    lines = commands(section("### Compose scenes: merge"))
-    assert lines and lines[-1].startswith("splatconv merge ")
-    for line in lines:
-        run_line(line)
+    run_line("splatconv bake dancers.splatv flipbook --frames 30")
+    assert sorted(p.name for p in (tmp_path / "flipbook").iterdir())[::29] == ["frame_0000.ply", "frame_0029.ply"]
 
 
 if __name__ == "__main__":
