@@ -227,3 +227,56 @@ def test_bad_input_gives_one_error_line_and_writes_nothing(tmp_path, name, mutat
 def test_an_unknown_quality_is_a_usage_error(real):
     with pytest.raises(UsageError, match=r"unknown .splatvq setting 'best' \(expected one of default, small\)"):
         splatvq.encode(real[0], quality="best")
+
+
+def test_verify_and_stats_compare_against_the_sources_drawable_splats(tmp_path, real):
+    """The writer leaves undrawable splats out: both commands pair the file with the source's drawable splats
+    (once, in compare.pair) and say so, instead of refusing for the difference in count."""
+    scene, _rows = real
+    source, converted = tmp_path / "rs.ply", tmp_path / "rs.splatvq"
+    io.write(scene, source)
+    io.write(scene, converted)
+    kept = int(np.count_nonzero(~undrawable(scene.columns)))
+    assert kept < scene.count
+    note = f"note: {converted} holds the {kept:,} drawable splats of {source}'s {scene.count:,} (the "
+    r = CliRunner().invoke(main, ["verify", str(source), str(converted), "--json", "--times", "0.2,0.8",
+                                  "--size", "160x120"])
+    assert r.exit_code == 0, r.output
+    verified = json.loads(r.stdout)
+    assert verified["passed"] and verified["count"] == kept
+    assert verified["notes"][0].startswith(note[len("note: "):]) and verified["notes"][0].endswith("compared against those")
+    assert note in r.stderr
+    r = CliRunner().invoke(main, ["stats", str(source), str(converted), "--json"])
+    assert r.exit_code == 0, r.output
+    stats = json.loads(r.stdout)
+    assert stats["notes"] == verified["notes"] and note in r.stderr
+    # Paired with the right splats: colour and opacity bytes are kept exactly, positions move by under a step.
+    assert stats["attributes"]["color"]["max_abs_error"] <= 0.5 / 255 + 1e-6
+    assert stats["attributes"]["opacity"]["max_abs_error"] <= 0.5 / 255 + 1e-6
+    assert stats["attributes"]["position"]["max_abs_error"] < 0.01
+
+
+def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path, real):
+    """compare.pair: the source's drawable splats, each paired with its own quantized copy (colour and opacity
+    bytes equal, position within a hundredth); a file that lost other splats is still refused."""
+    from splatconv.compare import _byte_key, pair
+    from splatconv.errors import UnsupportedError
+    from splatconv.model import Scene
+
+    scene, _rows = real
+    path, _report = written(tmp_path, scene)
+    converted = io.read(path)
+    order, notes = pair(scene, converted, storage=splatv.FORMAT.storage(converted))
+    keep = np.flatnonzero(~undrawable(scene.columns))
+    assert sorted(order.tolist()) == keep.tolist() and len(notes) == 1
+    assert (_byte_key(scene.take(order)) == _byte_key(converted.columns)).all()
+    moved = np.stack([np.abs(scene.columns[c][order] - converted.columns[c]) for c in "xyz"])
+    assert moved.max() < 0.01
+    # The same count: no note, as before.
+    drawable = Scene(columns=scene.take(keep), cameras=scene.cameras)
+    same, notes = pair(drawable, converted, storage=splatv.FORMAT.storage(converted))
+    assert np.array_equal(keep[same], order) and notes == []
+    # One splat fewer than the drawable ones: refused as before.
+    short = Scene(columns={k: np.asarray(v)[1:] for k, v in converted.columns.items()})
+    with pytest.raises(UnsupportedError, match=f"SOURCE has {scene.count:,} splats but CONVERTED has {len(keep) - 1:,}"):
+        pair(scene, short, storage=splatv.FORMAT.storage(converted))
