@@ -51,7 +51,8 @@ RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np
 #: (one step; NaN cannot be held and is stored as a number); ``unit_quaternion_byte``:
 #: normalised, each component in :data:`QUATERNION_STEP` steps, compared normalised
 #: (the viewer normalises) with two steps of room (rounding, then the length's change);
-#: ``none``: not stored at all (a static format's time and motion): nothing to compare,
+#: ``none``: not stored at all (a static format's time and motion), or quantized past a value
+#: check (a ``.splatvq``'s positions, rotations, scales, motion, omega and time): nothing to compare,
 #: the frames drawn at several times check what the viewer shows.
 STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "none")
 

@@ -244,7 +244,8 @@ def test_verify_and_stats_compare_against_the_sources_drawable_splats(tmp_path, 
     assert r.exit_code == 0, r.output
     verified = json.loads(r.stdout)
     assert verified["passed"] and verified["count"] == kept
-    assert verified["notes"][0].startswith(note[len("note: "):]) and verified["notes"][0].endswith("compared against those")
+    assert verified["notes"][0].startswith(note[len("note: "):])
+    assert verified["notes"][0].endswith("compared against those")
     assert note in r.stderr
     r = CliRunner().invoke(main, ["stats", str(source), str(converted), "--json"])
     assert r.exit_code == 0, r.output
@@ -278,5 +279,6 @@ def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path
     assert np.array_equal(keep[same], order) and notes == []
     # One splat fewer than the drawable ones: refused as before.
     short = Scene(columns={k: np.asarray(v)[1:] for k, v in converted.columns.items()})
-    with pytest.raises(UnsupportedError, match=f"SOURCE has {scene.count:,} splats but CONVERTED has {len(keep) - 1:,}"):
+    refused = f"SOURCE has {scene.count:,} splats but CONVERTED has {len(keep) - 1:,}"
+    with pytest.raises(UnsupportedError, match=refused):
         pair(scene, short, storage=splatv.FORMAT.storage(converted))
