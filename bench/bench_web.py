@@ -11,9 +11,18 @@ opens the page in headless Chromium (WebGL2 on SwiftShader, the CPU), then print
   unthrottled (a local server) and throttled to ``--mbps``;
 * the time until the whole scene is loaded and drawn sorted, and the frame time then.
 
+With ``--splatvq`` the scene is written as ``.splatvq`` (the default setting) and
+the page decodes it in its workers. It prints the decode time of the whole file
+held in memory, in the page's decode workers with nothing drawn (target: 1M
+splats within 1 s), and for each load the time from the first byte to the last
+block decoded while the page draws, after the last byte, and the blocks' summed
+inflate and decode time in the helper workers. On a shared machine the wall
+times stretch with the load: it also prints the CPU time the browser used for
+each decode (from ``/proc``), which stretches much less.
+
 Run::
 
-    python bench/bench_web.py [--splats N] [--loads K] [--mbps 100] [--size WxH]
+    python bench/bench_web.py [--splats N] [--loads K] [--mbps 100] [--size WxH] [--splatvq [--decode-only]]
 
 Needs Debian's ``chromium`` (or SPLATCONV_CHROMIUM) and the ``playwright`` package.
 """
@@ -38,6 +47,35 @@ from splatconv.server import ViewServer
 
 ARGS = ("--use-angle=swiftshader", "--enable-unsafe-swiftshader", "--no-sandbox",
         "--disable-background-networking", "--disable-component-update", "--disable-sync", "--no-first-run")
+
+
+def _browser_cpu_seconds() -> float | None:
+    """CPU seconds (user + system) used so far by this process's descendants (the browser), from /proc.
+
+    On a machine shared with other work, wall times stretch with the load; the CPU
+    time the browser spends on a task does much less. None where /proc is missing.
+    """
+    if not os.path.isdir("/proc/self"):
+        return None
+    parents, times = {}, {}
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        parents[int(entry)] = int(fields[1])
+        times[int(entry)] = int(fields[11]) + int(fields[12])
+    me, total = os.getpid(), 0
+    for pid in times:
+        p = pid
+        while p in parents and p != me and p > 1:
+            p = parents[p]
+        if p == me and pid != me:
+            total += times[pid]
+    return total / os.sysconf("SC_CLK_TCK")
 
 
 def views(k: int) -> list:
@@ -72,6 +110,11 @@ def load_once(browser, url, size, mbps):
     # The panel shows "– ms/frame" until two frames were drawn in a row (a page that draws
     # the whole scene at once and then rests, paused, measures none): no figure, not NaN.
     frame_ms = None if frame_ms is None or math.isnan(frame_ms) else frame_ms
+    seg = s["segments"][0]
+    if seg["format"] == "splatvq":
+        print(f"    decode: {seg['loadedAt'] - seg['firstByteAt']:.0f} ms from the first byte to the last block "
+              f"decoded ({seg['loadedAt'] - seg['lastByteAt']:.0f} ms after the last byte; blocks' inflate and "
+              f"decode {seg['decodeMs']:.0f} ms summed over the helper workers)")
     return (s["firstFrameAt"] - s["firstMegabyteAt"]) / 1000, (settled_at - s["firstMegabyteAt"]) / 1000, frame_ms
 
 
@@ -86,6 +129,8 @@ def main() -> None:
     ap.add_argument("--sorts", type=int, default=7, help="worker sorts to time")
     ap.add_argument("--mbps", type=float, default=100.0, help="throttled download speed (Mbit/s)")
     ap.add_argument("--size", default="1280x720")
+    ap.add_argument("--splatvq", action="store_true", help="write and play the scene as .splatvq")
+    ap.add_argument("--decode-only", action="store_true", help="with --splatvq: the decode figures alone")
     args = ap.parse_args()
     size = cam.parse_size(args.size)
     path = os.environ.get("SPLATCONV_CHROMIUM") or shutil.which("chromium")
@@ -94,11 +139,12 @@ def main() -> None:
     from playwright.sync_api import sync_playwright
 
     with work_folder(prefix="bench-web-") as folder:
-        scene_path = os.path.join(folder, "bench.splatv")
+        suffix = ".splatvq" if args.splatvq else ".splatv"
+        scene_path = os.path.join(folder, "bench" + suffix)
         t0 = time.perf_counter()
         splatconv.write(make_scene(args.splats), scene_path)
         mb = os.path.getsize(scene_path) / 1e6
-        print(f"scene: {args.splats:,} splats, {mb:.1f} MB .splatv, written in {time.perf_counter() - t0:.1f} s; "
+        print(f"scene: {args.splats:,} splats, {mb:.1f} MB {suffix}, written in {time.perf_counter() - t0:.1f} s; "
               f"page {size[0]}x{size[1]}")
         server = ViewServer([scene_path])
         threading.Thread(target=server.serve, kwargs={"open_browser": False}, daemon=True).start()
@@ -115,10 +161,29 @@ def main() -> None:
                 r = page.evaluate("([vp]) => window.splatconvPlayer.benchSort(0, vp)", [cam.multiply(proj, view)])
                 sorts.append(r["ms"])
                 print(f"worker sort {k}: {r['count']:,} records in {r['ms']:.1f} ms")
+            if args.splatvq:
+                decodes = []
+                for k in range(args.sorts):
+                    cpu0 = _browser_cpu_seconds()
+                    r = page.evaluate("(url) => window.splatconvPlayer.benchDecode(url)", server.url + "scene/0.splatvq")
+                    cpu1 = _browser_cpu_seconds()
+                    if r["error"]:
+                        raise SystemExit(f"decode failed: {r['error']}")
+                    decodes.append(r["ms"])
+                    cpu = "" if cpu0 is None else f"; the browser's CPU time, fetch included: {cpu1 - cpu0:.2f} s"
+                    print(f"decode {k}: {r['splats']:,} splats in {r['ms']:.0f} ms (blocks' work {r['blockMs']:.0f} ms "
+                          f"summed over the helper workers, of which inflate {r['inflateMs']:.0f} ms{cpu})")
+                med = statistics.median(decodes)
+                print(f"decode, median of {len(decodes)}: {med:.0f} ms (target <= 1000 ms: "
+                      f"{'met' if med <= 1000 else 'NOT MET'})")
             page.close()
             med = statistics.median(sorts)
             print(f"worker sort, median of {len(sorts)}: {med:.1f} ms (target <= 150 ms: "
                   f"{'met' if med <= 150 else 'NOT MET'})")
+            if args.decode_only:
+                browser.close()
+                server.stop()
+                return
 
             for label, mbps in (("unthrottled (local server)", 0), (f"throttled to {args.mbps:g} Mbit/s", args.mbps)):
                 rows = [load_once(browser, server.url + "#t=0.5&ui=0", size, mbps) for _ in range(args.loads)]

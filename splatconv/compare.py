@@ -1,7 +1,7 @@
 """Compare two scenes attribute by attribute, in the units the viewer uses.
 
 The one comparison behind ``verify`` (is every error explained by quantization?)
-and ``stats`` (how large are the errors?): both pair rows with :func:`align` and
+and ``stats`` (how large are the errors?): both pair rows with :func:`pair` and
 measure them with :class:`Comparison`, so they report the same figures. Values
 are compared as each file reads (the model's columns): a ``.splatv``'s halves and
 bytes as the float32 logarithms and logits its reader gives, which write back to
@@ -51,7 +51,8 @@ RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np
 #: (one step; NaN cannot be held and is stored as a number); ``unit_quaternion_byte``:
 #: normalised, each component in :data:`QUATERNION_STEP` steps, compared normalised
 #: (the viewer normalises) with two steps of room (rounding, then the length's change);
-#: ``none``: not stored at all (a static format's time and motion): nothing to compare,
+#: ``none``: not stored at all (a static format's time and motion), or quantized past a value
+#: check (a ``.splatvq``'s positions, rotations, scales, motion, omega and time): nothing to compare,
 #: the frames drawn at several times check what the viewer shows.
 STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "none")
 
@@ -93,6 +94,12 @@ def _byte_key(cols: dict) -> np.ndarray:
     return np.nan_to_num(np.round(v * 255.0), nan=0.0).astype(np.uint8)
 
 
+def _value_key(cols: dict) -> np.ndarray:
+    """Opacity and colour bytes, then the position's values: ``(N, 7) float64``."""
+    position = np.stack([np.asarray(cols[c], dtype=np.float64) for c in ("x", "y", "z")], axis=1)
+    return np.concatenate([_byte_key(cols).astype(np.float64), position], axis=1)
+
+
 def _matching_rows(a: np.ndarray, b: np.ndarray, order: np.ndarray) -> int:
     """Rows whose position keys agree when ``a`` is taken in ``order``."""
     return int(np.count_nonzero((a[order] == b).all(axis=1)))
@@ -107,10 +114,12 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     match is the writer's, unless splats share positions (or all are NaN): then
     several orders match, and the one whose other attributes agree wins (fewest
     values off by more than quantization explains; the first listed on a tie).
-    When none matches every row (a damaged file, another writer's order), rows
-    are also matched by sorting both sides by position, ties broken by opacity
-    and colour bytes, and the order whose positions agree on the most rows wins
-    (a writer's order on a tie, then as above). A damaged file keeps the
+    When none matches every row (a damaged file, another writer's order,
+    quantized positions), rows are also matched by sorting both sides by
+    position, ties broken by opacity and colour bytes, and by those bytes, ties
+    broken by position value (a quantizer moves positions but keeps the bytes),
+    and the order whose positions agree on the most rows wins (a writer's order
+    on a tie, then as above). A damaged file keeps the
     writer's order for its undamaged rows, so the damage is all that differs:
     sorting by position would shift every row between a changed position's old
     and new places onto another splat.
@@ -141,11 +150,50 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
         sb = np.lexsort(np.concatenate([b, _byte_key(converted.columns)], axis=1).T[::-1])
         by_position = np.empty(n, dtype=np.int64)
         by_position[sb] = sa
-        scored = _distinct_scored(candidates + [by_position], a, b)
+        # Positions quantized (a .splatvq): colour and opacity bytes are kept exactly, so rows
+        # sorted by them first, then by position value, pair a splat with itself however its
+        # position moved (in step with its neighbours'); the verbatim rows decide the score.
+        sa = np.lexsort(_value_key(source.columns).T[::-1])
+        sb = np.lexsort(_value_key(converted.columns).T[::-1])
+        by_bytes = np.empty(n, dtype=np.int64)
+        by_bytes[sb] = sa
+        scored = _distinct_scored(candidates + [by_position, by_bytes], a, b)
     best = [order for count, _, order in scored if count == scored[0][0]]
     if len(best) == 1:
         return best[0]
     return min(best, key=lambda order: sum(g.unexplained for g in compare_scenes(source, converted, order, storage).values()))
+
+
+def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED", *,
+         storage: dict) -> tuple:
+    """Row order of ``source`` matching ``converted`` (:func:`align`), also when only its drawable splats were kept.
+
+    A writer may leave out the splats the viewer never draws
+    (:func:`splatconv.viewer.undrawable`; ``.splatvq`` does): no frame changes.
+    When the counts differ by exactly ``source``'s undrawable splats,
+    ``converted`` is aligned against ``source``'s drawable splats and a note
+    says so; any other difference in count is refused by :func:`align`.
+
+    Returns
+    -------
+    order : (M,) int64 ndarray
+        ``source`` row for each of the M ``converted`` rows.
+    notes : list of str
+    """
+    n, m = source.count, converted.count
+    if n != m:
+        kinds = viewer.undrawable_kinds(source.columns)
+        keep = np.flatnonzero(kinds == -1)
+        if len(keep) == m:
+            drawable = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
+                             meta=source.meta)
+            order = keep[align(drawable, converted, source_name, converted_name, storage=storage)]
+            left = ", ".join(f"{count:,} {kind.replace('_', ' ')}"
+                             for kind, count in viewer.kind_counts(kinds).items() if count)
+            return order, [f"{converted_name} holds the {plural(m, 'drawable splat')} of {source_name}'s {n:,} "
+                           f"(the {n - m:,} undrawable ones, {left}, left out: no frame changes); "
+                           "compared against those"]
+    return align(source, converted, source_name, converted_name, storage=storage), []
 
 
 def _distinct_scored(orders: list, a: np.ndarray, b: np.ndarray) -> list:

@@ -98,12 +98,14 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
     output : path
         The page; must end in ``.html``.
     external : bool
-        Write each scene as ``.splatv`` beside the page (``OUT.splatv``, or
-        ``OUT.0.splatv``, ``OUT.1.splatv``, ... for segments) and have the page
-        fetch it, instead of embedding it: for scenes too large to embed. Such a
-        page must be served over HTTP (browsers refuse fetches from a page opened
-        from disk). A plain ``.splatv`` input that already has that name (``convert
-        scene.splatv scene.html --external``) is left as it is and played from there.
+        Write each scene beside the page as the file the page plays
+        (:func:`page_suffix`: ``OUT.splatv``, or ``OUT.0.splatv``, ``OUT.1.splatv``,
+        ... for segments; ``.splatvq`` for a ``.splatvq`` input, played as it is)
+        and have the page fetch it, instead of embedding it: for scenes too large
+        to embed. Such a page must be served over HTTP (browsers refuse fetches
+        from a page opened from disk). A plain input the page plays as it is that
+        already has that name (``convert scene.splatv scene.html --external``) is
+        left as it is and played from there.
     force : bool
         Replace existing outputs (never an input).
     durations : str, optional

@@ -43,8 +43,10 @@ class _Resource:
 def scene_resources(paths, durations=None) -> tuple[dict, list, list]:
     """The scene URLs for ``paths``: ``({url: _Resource}, [SceneRef], notes)``.
 
-    A plain ``.splatv`` is served from disk as it is; a PLY or ``.zst`` input is
-    converted in memory first (its notes returned).
+    A plain file the page plays as it is (``check_playable``: ``.splatv``,
+    ``.splatvq``) is served from disk, under its own suffix; a ``.zst`` of one is
+    decompressed, and any other input converted to the texture format in memory
+    first (its notes returned).
     """
     resources, refs, notes = {}, [], []
     shares = durations or [None] * len(paths)

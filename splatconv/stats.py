@@ -11,7 +11,7 @@ import numpy as np
 
 from . import viewer
 from .cameras import framing_camera
-from .compare import Comparison, align
+from .compare import Comparison, pair
 from .formats import format_for, texture_format
 from .io import reading
 from .model import COLUMNS, GROUPS, SCALE, Scene
@@ -437,15 +437,16 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         converted, conv_bytes, conv_zstd = _read_measured(converted_path, color, level, progress)
         conv_fmt = format_for(converted_path)
         # Ties between a writer's orders are broken as the viewer's texture would store the values.
-        order = align(source, converted, source_path, converted_path, storage=texture_format().storage(converted))
+        order, notes = pair(source, converted, source_path, converted_path,
+                            storage=texture_format().storage(converted))
         files.append(_file_entry("converted", converted_path, conv_fmt.name, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
     elif src_fmt.stores_texture or source.count == 0:
-        converted, conv_fmt, order, compare = source, src_fmt, None, False  # reported as stored
+        converted, conv_fmt, order, compare, notes = source, src_fmt, None, False, []  # reported as stored
     else:
         converted, size, zstd_bytes = _simulated_conversion(source, level, progress)
         conv_fmt = texture_format()
-        order = align(source, converted, storage=texture_format().storage(converted))
+        order, notes = pair(source, converted, storage=texture_format().storage(converted))
         files.append(_file_entry("converted", None, conv_fmt.name, size, source.count, zstd_bytes, level, src_bytes))
     n = converted.count
     tally = _Tally(n, compare, damage=not src_fmt.stores_texture, storage=conv_fmt.storage(converted))
@@ -468,4 +469,5 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         "motion": {term: _percentiles(v) for term, v in tally.magnitudes.items()},
         "attributes": tally.attributes(),
         "viewer": {**_viewer_limits(viewed), "splatv_js_damage": tally.damage},
+        "notes": notes,
     }

@@ -129,7 +129,8 @@ def attributes_text(data: dict) -> str:
     lines = [f"{'attribute':<10}  {'max abs err':>11}  {'max rel err':>11}  {'rmse':>10}  {'unexplained':>11}"]
     for name, g in data["attributes"].items():
         if g["storage"] == "none":
-            lines.append(f"{name:<10}  not stored by CONVERTED (a static format): the frames check what shows")
+            lines.append(f"{name:<10}  not stored by CONVERTED (a static format) or quantized past a value check: "
+                         "the frames check it")
             continue
         lines.append(f"{name:<10}  {g['max_abs_error']:>11.4g}  {g['max_rel_error']:>11.4g}  {g['rmse']:>10.4g}  "
                      f"{g['unexplained']:>11,}")

@@ -431,7 +431,7 @@ def test_a_broken_hash_is_ignored_not_fatal(browser, sample, fragment, time, pla
 
 
 @pytest.mark.parametrize("data, message", [
-    (b"not a scene at all", "not a .splatv file"),
+    (b"not a scene at all", "not a .splatv or .splatvq file"),
     (b"ply\nformat binary_little_endian 1.0\n", "this is a PLY file"),
     (b"\x4b\x67\x00\x00\x05\x00\x00\x00[{]}x", "header is damaged"),
     (b"\x4b\x67\x00\x00\x02\x00\x00\x00[]", "holds no splats"),
@@ -474,7 +474,7 @@ def test_drop_a_file(browser, sample, tmp_path):
     page_path = tmp_path / "empty.html"
     page_path.write_bytes(build_page([]))
     page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H, settle=False)
-    assert "Drop a .splatv file" in page.locator("#message").text_content()
+    assert "Drop a .splatv or .splatvq file" in page.locator("#message").text_content()
     data = base64.b64encode(sample.read_bytes()).decode("ascii")
     page.evaluate("""(text) => {
         const bytes = Uint8Array.from(atob(text), (c) => c.charCodeAt(0));

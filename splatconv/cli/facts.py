@@ -8,7 +8,8 @@ from .. import io
 from ..formats import format_for
 from ..stats import describe, stats_findings
 from ..text import info_text, stats_markdown, stats_text, to_json
-from ._base import Failure, color_option, library_errors, main, options, progress, quiet_option, zstd_option
+from ._base import (Failure, color_option, library_errors, main, notes, options, progress, quiet_option,
+                    zstd_option)
 
 
 @main.command()
@@ -62,4 +63,5 @@ def stats(source, converted, as_json, markdown, zstd_level, color, quiet):
     if as_json and markdown:
         raise Failure("--json and --markdown cannot be used together", 2)
     data = stats_findings(source, converted, zstd_level=zstd_level, color=color, progress=progress(quiet))
+    notes(data["notes"])
     click.echo(to_json(data) if as_json else stats_markdown(data) if markdown else stats_text(data))

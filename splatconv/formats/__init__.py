@@ -16,11 +16,11 @@ import os
 
 from ..errors import UsageError
 from ..zstd import inner_name
-from . import html, ply, splat, splatv
+from . import html, ply, splat, splatv, splatvq
 from .base import Format
 
 #: Every format, in the order suffixes are tried.
-FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splat.FORMAT, html.FORMAT)
+FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, html.FORMAT)
 REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
 #: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
 FRAME_SUFFIX = ply.FORMAT.suffixes[0]

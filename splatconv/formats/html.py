@@ -4,7 +4,10 @@ Write-only. The scene is packed as ``.splatv`` (the same writer and options) and
 embedded as base64 in the page built by :mod:`splatconv.web.page`, so the file
 plays opened from disk or from any static host. base64 makes the page 4/3 the
 size of the ``.splatv``; ``splatconv convert --external`` writes the scene beside
-the page instead (:func:`splatconv.publish.publish`).
+the page instead (:func:`splatconv.publish.publish`). A scene read from a
+``.splatvq`` is embedded as ``.splatvq`` (encoded again with its setting: the
+quantizers are projections, so its records come back unchanged), which the page
+decodes itself: about half the bytes.
 """
 
 from __future__ import annotations
@@ -15,7 +18,7 @@ import os
 from ..model import Scene
 from ..zstd import inner_name
 from ..web.page import SceneRef, build_page
-from . import splatv
+from . import splatv, splatvq
 from .base import Format
 
 
@@ -29,16 +32,25 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     stream : binary file object
     compat, sort
         As for ``.splatv`` (the embedded texture is exactly what a ``.splatv``
-        write would give).
+        write would give). A scene read from a ``.splatvq`` (and no ``compat``)
+        is embedded as ``.splatvq`` with the setting it was written with.
     name : str, optional
         The page's file name: its stem titles the page and names the scene.
 
     Returns
     -------
-    splatv.WriteReport
+    WriteReport
     """
     buffer = io.BytesIO()
-    report = splatv.write(scene, buffer, compat=compat, sort=sort or splatv.FORMAT.default_sort, **options)
+    if scene.variant == splatvq.FORMAT.name and compat is None:
+        setting = scene.meta.get("setting")
+        quality = setting if setting in splatvq.QUALITIES else None
+        report = splatvq.write(scene, buffer, sort=sort or splatv.FORMAT.default_sort, quality=quality, **options)
+        if setting != (quality or splatvq.codec.DEFAULT_SETTING):
+            report.notes.append(f"the source's .splatvq setting {setting!r} is not one this version writes; "
+                                f"embedded with the {splatvq.codec.DEFAULT_SETTING!r} setting")
+    else:
+        report = splatv.write(scene, buffer, compat=compat, sort=sort or splatv.FORMAT.default_sort, **options)
     stem = os.path.splitext(inner_name(name))[0] if name else ""
     title = {"title": stem} if stem else {}
     stream.write(build_page([SceneRef(name=stem or "scene", data=buffer.getvalue())], **title))

@@ -51,8 +51,9 @@ def float_attributes(scene, order: np.ndarray | None = None, records: int | None
     Parameters
     ----------
     scene : splatconv.model.Scene
-    order : (N,) int ndarray, optional
-        Row ``i`` holds splat ``order[i]`` (default: scene order).
+    order : (M,) int ndarray, optional
+        Row ``i`` holds splat ``order[i]`` (default: scene order); M rows, maybe
+        fewer than the scene's (the splats a converted file kept).
     records : int, optional
         Pad with zero rows to this many: the zero padding of the ``.splatv``
         texture, which the viewer sorts and draws too (so both paths see the same
@@ -64,7 +65,7 @@ def float_attributes(scene, order: np.ndarray | None = None, records: int | None
         Each row laid out as :data:`FLOAT_TEXELS`, values from
         :func:`splatconv.viewer.float_record` (float64) rounded once to float32.
     """
-    n = scene.count
+    n = scene.count if order is None else len(order)
     out = np.zeros((max(n, records or 0), FLOAT_WORDS), dtype=np.float32)
     for start in range(0, n, _CHUNK):
         rows = slice(start, min(start + _CHUNK, n))

@@ -17,7 +17,7 @@ import math
 import os
 from dataclasses import dataclass, field
 
-from ..compare import align, compare_scenes
+from ..compare import compare_scenes, pair
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_group, check_output
 from ..formats import format_for, texture_format
@@ -206,14 +206,15 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     source, converted = _load_pair(paths, color, progress)
     with progress.stage("checking attributes", 2, "step") as advance:
         # Ties between a writer's orders are broken as the viewer's texture would store the values.
-        order = align(source.scene, converted.scene, *paths, storage=texture_format().storage(converted.scene))
+        order, paired = pair(source.scene, converted.scene, *paths,
+                             storage=texture_format().storage(converted.scene))
         advance()
         storage = format_for(paths[1]).storage(converted.scene)
         attributes = compare_scenes(source.scene, converted.scene, order, storage)
         advance()
     available = cameras_of(source, converted)
     indices = pick_cameras(picked, len(available))
-    outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=source.scene.count)
+    outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=len(order), notes=paired)
     if cameras is None and len(available) > len(indices):
         outcome.notes.append(f"drew the first {len(indices)} of {plural(len(available), 'camera')} "
                              f"(--cameras all draws every one)")

@@ -1,7 +1,7 @@
 """Build the player page: one HTML file holding the player, its shaders and its scenes.
 
 The page is the same whether ``splatconv view`` serves it or ``convert OUT.html``
-writes it: the CSS, the player, the sort worker, the shader sources of
+writes it: the CSS, the player, the sort worker, the ``.splatvq`` decode worker, the shader sources of
 :mod:`splatconv.render` and a JSON configuration are inlined, so the page makes no
 request except for a scene that is not embedded.
 """
@@ -30,7 +30,8 @@ class SceneRef:
     """One segment of the clip the page plays.
 
     Exactly one of ``url`` (fetched, relative to the page) and ``data`` (the
-    ``.splatv`` bytes, embedded as base64) is set. ``duration`` (optional, any
+    ``.splatv`` or ``.splatvq`` bytes, embedded as base64; the page tells them
+    apart by their first bytes) is set. ``duration`` (optional, any
     positive unit, e.g. frames) sets the segment's share of the timeline: its
     duration over the sum of all. Without durations every segment gets an equal share.
     """
@@ -116,6 +117,7 @@ def build_page(scenes: list, title: str = "splatconv player") -> bytes:
     """
     blocks = [_text_block(name, _shader(name)) for name in SHADERS]
     blocks.append(_text_block("sort_worker.js", _asset("sort_worker.js")))
+    blocks.append(_text_block("splatvq_decode.js", _asset("splatvq_decode.js")))
     entries = []
     for i, scene in enumerate(scenes):
         entry = {"name": scene.name}

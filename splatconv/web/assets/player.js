@@ -1,7 +1,8 @@
-// splatconv's WebGL2 player for .splatv scenes: plain JavaScript, no build step,
+// splatconv's WebGL2 player for .splatv and .splatvq scenes: plain JavaScript, no build step,
 // no external requests. The page that embeds this script (built by
 // splatconv/web/page.py) also carries the shader sources splatconv/render runs,
-// the sort worker's source and a JSON configuration naming the scene segments.
+// the sort worker's and the .splatvq decode worker's sources and a JSON
+// configuration naming the scene segments.
 "use strict";
 (() => {
   const MAGIC = 0x674b;
@@ -188,6 +189,8 @@
     return {
       source, index, duration, generation: Math.random(), name: source.name,
       header: null, texheight: 0, total: 0, data: null, words: null,
+      // A .splatvq's inflate and decode time (summed over blocks), when its first and last bytes arrived.
+      format: "splatv", decodeMs: null, firstByteAt: null, lastByteAt: null, loadedAt: null,
       received: 0,   // texture bytes arrived
       uploaded: 0,   // records uploaded to the texture
       sortable: 0,   // records whose positions the worker holds
@@ -212,7 +215,7 @@
         throw new Error("this is a PLY file; the player reads .splatv (convert it with " +
                         "`splatconv convert scene.ply scene.splatv`, or open it with `splatconv view`).");
       }
-      throw new Error("this is not a .splatv file (it does not start with the splaTV signature).");
+      throw new Error("this is not a .splatv or .splatvq file (it starts with neither's signature).");
     }
     const jsonLength = dv.getUint32(4, true);
     if (jsonLength > 64 * 1024 * 1024) throw new Error("its header is damaged (it claims a header of " +
@@ -307,6 +310,10 @@
           joined.set(head);
           joined.set(value, head.length);
           head = joined;
+          if (isSplatvq(head)) {
+            await loadSplatvq(seg, reader, head);
+            return;
+          }
           const parsed = parseHeader(head);
           if (!parsed) continue;
           offset = parsed.offset;
@@ -352,6 +359,7 @@
     // A frame reports completeness with "done": redraw, in case the last records were already drawn
     // sorted before this line ran (a paused page otherwise never draws again: seen under load).
     state.version++;
+    seg.loadedAt = performance.now();
   }
 
   // Splats in a loaded segment of ``present`` records, as formats/splatv.py counts them: the header's count
@@ -364,6 +372,90 @@
     const used = Math.ceil(last / 16);
     if (Number.isInteger(count) && count >= 0 && count <= seg.total && used <= count) return Math.min(count, present);
     return used;
+  }
+
+  // A .splatvq file (specs/splatvq.md) starts with "SPVQ"; anything else is read as .splatv.
+  function isSplatvq(bytes) {
+    return bytes.length >= 4 && bytes[0] === 0x53 && bytes[1] === 0x50 && bytes[2] === 0x56 && bytes[3] === 0x51;
+  }
+
+  function startDecoder() {
+    const source = embedded("splatvq_decode.js");
+    const decoder = new Worker(URL.createObjectURL(new Blob([source], {type: "text/javascript"})));
+    decoder.postMessage({type: "init", source}); // it starts helpers from it, to decode blocks in parallel
+    return decoder;
+  }
+
+  // Stream a .splatvq into the decode worker (splatvq_decode.js): its blocks come back
+  // as .splatv texture records, in importance order, and land where a .splatv's bytes
+  // would, so uploading, sorting and drawing are the same from here on.
+  async function loadSplatvq(seg, reader, first) {
+    const decoder = startDecoder();
+    let failure = null;
+    const finished = new Promise((resolve) => {
+      const stop = (message) => { failure = failure || message; resolve(); };
+      decoder.onerror = (event) => { event.preventDefault(); stop(`the decoder failed (${event.message}).`); };
+      decoder.onmessage = (event) => {
+        const msg = event.data;
+        if (msg.type === "header") {
+          const texheight = Math.ceil(msg.count / SPLATS_PER_ROW), maxRows = gl.getParameter(gl.MAX_TEXTURE_SIZE);
+          if (texheight > maxRows) {
+            stop(`it holds ${msg.count} splats, more than this browser's GPU can hold in one texture ` +
+                 `(${maxRows * SPLATS_PER_ROW}).`);
+            return;
+          }
+          seg.format = "splatvq";
+          seg.decodeMs = 0;
+          startTexture(seg, {texheight, count: msg.count, cameras: msg.cameras});
+        } else if (msg.type === "block") {
+          // Blocks arrive in file order: every record before this block's end is in.
+          seg.data.set(new Uint8Array(msg.words.buffer), msg.start * RECORD_BYTES);
+          seg.received = (msg.start + msg.count) * RECORD_BYTES;
+          seg.decodeMs += msg.ms;
+        } else if (msg.type === "done") {
+          resolve();
+        } else if (msg.type === "error") {
+          stop(msg.message);
+        }
+      };
+    });
+    const send = (bytes) => {
+      // Hand the bytes over without a copy where they fill their buffer.
+      const whole = bytes.byteOffset === 0 && bytes.byteLength === bytes.buffer.byteLength;
+      const data = whole ? bytes.buffer : bytes.slice().buffer;
+      decoder.postMessage({type: "bytes", data}, [data]);
+    };
+    let got = first.length;
+    seg.firstByteAt = performance.now();
+    try {
+      send(first);
+      while (failure === null) {
+        const {done, value} = await reader.read();
+        if (done) break;
+        got += value.length;
+        if (state.firstMegabyteAt === null && got >= 1 << 20) state.firstMegabyteAt = performance.now();
+        send(value);
+      }
+    } catch (e) {
+      failure = failure || (e.message || String(e));
+    }
+    seg.lastByteAt = performance.now();
+    if (failure === null) {
+      decoder.postMessage({type: "end"});
+      await finished; // "done", or an error found in the last blocks
+    } else {
+      reader.cancel().catch(() => {});
+    }
+    decoder.terminate();
+    if (failure !== null) {
+      describeFailure(seg, failure);
+      return;
+    }
+    seg.received = seg.data.length;
+    seg.count = seg.header.count; // the block table's count: every splat decoded, none padding
+    seg.done = true;
+    seg.loadedAt = performance.now();
+    state.version++; // redraw once complete, as a .splatv's load does
   }
 
   // Upload whatever arrived since the last frame and hand the positions to the worker.
@@ -623,7 +715,7 @@
   $("camera").addEventListener("change", () => { useCamera(Number($("camera").value), true); state.userMoved = true; });
   window.addEventListener("hashchange", () => { readHash(); });
 
-  // Drag and drop a .splatv file onto the page.
+  // Drag and drop a .splatv or .splatvq file onto the page.
   window.addEventListener("dragover", (e) => { e.preventDefault(); document.body.classList.add("dropping"); });
   window.addEventListener("dragleave", () => document.body.classList.remove("dropping"));
   window.addEventListener("drop", (e) => {
@@ -775,7 +867,9 @@
       time: state.time, playing: state.playing, view: state.view, fx: state.fx, fy: state.fy,
       width: canvas.width, height: canvas.height, hash: location.hash,
       segments: state.segments.map((s) => ({name: s.name, total: s.total, received: s.received, done: s.done,
-                                            count: s.done ? s.count : null, note: s.note || null})),
+                                            count: s.done ? s.count : null, note: s.note || null,
+                                            format: s.format, decodeMs: s.decodeMs, firstByteAt: s.firstByteAt,
+                                            lastByteAt: s.lastByteAt, loadedAt: s.loadedAt})),
       firstMegabyteAt: state.firstMegabyteAt, firstFrameAt: state.firstFrameAt, sortMs: state.sortMs,
     };
   }
@@ -807,7 +901,50 @@
     });
   }
 
-  window.splatconvPlayer = {status, capture, benchSort, useCamera: (i) => useCamera(i, true)};
+  // The texture's words as the GPU holds them (tests compare them with splatconv's decoder):
+  // base64 of texheight rows of 4096 RGBA32UI texels, little endian.
+  function textureWords(segment) {
+    const seg = state.segments[segment];
+    if (!seg || !seg.texture) return null;
+    const fb = gl.createFramebuffer();
+    gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+    gl.framebufferTexture2D(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.TEXTURE_2D, seg.texture, 0);
+    const words = new Uint32Array(TEXWIDTH * seg.texheight * 4);
+    gl.readPixels(0, 0, TEXWIDTH, seg.texheight, gl.RGBA_INTEGER, gl.UNSIGNED_INT, words);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    gl.deleteFramebuffer(fb);
+    const bytes = new Uint8Array(words.buffer);
+    let text = "";
+    for (let i = 0; i < bytes.length; i += 0x8000) text += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+    return btoa(text);
+  }
+
+  // Decode the .splatvq at `url` in the decode workers, all its bytes in memory first and
+  // nothing drawn (bench): the wall milliseconds, the splats, the blocks' summed work.
+  async function benchDecode(url) {
+    const bytes = new Uint8Array(await (await fetch(url)).arrayBuffer());
+    const decoder = startDecoder();
+    return new Promise((resolve) => {
+      let splats = 0, blockMs = 0, inflateMs = 0;
+      const t0 = performance.now();
+      decoder.onmessage = (event) => {
+        const msg = event.data;
+        if (msg.type === "block") {
+          splats += msg.count;
+          blockMs += msg.ms;
+          inflateMs += msg.inflateMs;
+        } else if (msg.type === "done" || msg.type === "error") {
+          decoder.terminate();
+          resolve({ms: performance.now() - t0, splats, blockMs, inflateMs, error: msg.message || null});
+        }
+      };
+      decoder.postMessage({type: "bytes", data: bytes.buffer}, [bytes.buffer]);
+      decoder.postMessage({type: "end"});
+    });
+  }
+
+  window.splatconvPlayer = {status, capture, benchSort, benchDecode, textureWords,
+                            useCamera: (i) => useCamera(i, true)};
 
   // ---------------------------------------------------------------- start
 
@@ -835,5 +972,5 @@
     return {url: s.url, name: s.name, duration: s.duration};
   });
   if (sources.length) loadAll(sources);
-  else showMessage("Drop a .splatv file here to view it.");
+  else showMessage("Drop a .splatv or .splatvq file here to view it.");
 })();

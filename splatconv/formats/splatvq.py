@@ -1,0 +1,316 @@
+"""The ``.splatvq`` format: a quantized ``.splatv`` in independently decodable blocks.
+
+Layout (see ``specs/splatvq.md``): a fixed preamble (magic, version, coder and
+the quantizer's setting), a UTF-8 JSON object (count, cameras), a block table
+(per block: splats quantized, splats verbatim, stored bytes), then each block's
+raw-deflate stream. Blocks follow the importance order of a ``.splatv``, so a
+player draws the most important splats first. A block decodes to ``.splatv``
+texture records exactly (:mod:`splatconv.formats.splatvq_codec`); reading then
+decodes those records as a ``.splatv`` reader does, so every command reads it.
+
+Undrawable splats (:func:`splatconv.viewer.undrawable`) are left out when
+writing: every frame the viewer draws is unchanged by it; the notes say how many.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import struct
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+from ..cameras import camera_for_box, framing_box, validate_cameras
+from ..errors import FormatError, UnsupportedError, UsageError
+from ..files.inputs import open_input
+from ..jsonutil import loads_strict
+from ..model import Scene
+from ..progress import SILENT
+from ..viewer import UNDRAWABLE_KINDS, importance_order, undrawable_kinds
+from ..wording import plural
+from . import splatv
+from . import splatvq_codec as codec
+from .base import Format, WriteReport
+from .splatv_layout import SPLATS_PER_ROW, WORDS_PER_SPLAT
+
+#: Quality settings (best first; see :data:`splatvq_codec.SETTINGS`): the ``quality`` write option.
+QUALITIES = tuple(codec.SETTINGS)
+#: Colour and opacity keep the texture's bytes; every other group is quantized
+#: (error bounds in ``specs/splatvq.md``), judged by the frames drawn.
+STORAGE = {"position": "none", "rotation": "none", "scale": "none", "color": "byte", "opacity": "byte",
+           "motion": "none", "omega": "none", "trbf": "none"}
+
+MAGIC = b"SPVQ"
+VERSION = 1
+#: magic, version, coder, the setting's seven numbers, chunk size (log2), JSON length, block count.
+PREAMBLE = struct.Struct("<4sBBbBBBBBbBII")
+#: One block table entry: splats quantized, splats verbatim, stored (compressed) bytes.
+BLOCK_ENTRY = struct.Struct("<III")
+#: Largest JSON header read.
+MAX_JSON_BYTES = 64 << 20
+#: Most splats a file holds: as many as a ``.splatv`` texture (65536 rows of 1024).
+MAX_SPLATS = 65536 * SPLATS_PER_ROW
+#: The setting's fields in preamble order.
+SETTING_ORDER = ("position_shift", "rotation_bits", "scale_step", "trbf_scale_step", "time_shift", "omega_shift",
+                 "motion_shift")
+
+__all__ = ["FORMAT", "read", "write", "encode", "decode", "check", "info_fields", "splat_count", "most_splats",
+           "storage", "read_records", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
+
+
+# --------------------------------------------------------------------------
+# Writing
+
+
+def _setting_name(quality: str | None) -> str:
+    name = quality or codec.DEFAULT_SETTING
+    if name not in codec.SETTINGS:
+        raise UsageError(f"unknown .splatvq setting {name!r} (expected one of {', '.join(codec.SETTINGS)})")
+    return name
+
+
+def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, level: int = 9) -> tuple:
+    """A scene as ``.splatvq`` bytes, in memory.
+
+    Parameters
+    ----------
+    scene : Scene
+    sort : {None, "importance", "none"}
+        Blocks in importance order (default) or in the input order.
+    quality : {None, "default", "small"}
+        The quality setting (:data:`QUALITIES`).
+    level : int
+        Deflate level.
+
+    Returns
+    -------
+    data : bytes
+    report : WriteReport
+    """
+    name = _setting_name(quality)
+    setting = codec.SETTINGS[name]
+    kinds = undrawable_kinds(scene.columns)
+    keep = np.flatnonzero(kinds == -1)
+    dropped = np.bincount(kinds[kinds != -1].astype(np.intp), minlength=len(UNDRAWABLE_KINDS))
+    n = len(keep)
+    if n == 0:
+        raise UnsupportedError(f"none of the {plural(scene.count, 'splat')} can be drawn by the viewer; "
+                               "a .splatvq file holds drawable splats only")
+    # Every record packed once, in input order; the undrawable ones are skipped by index, not copied out.
+    records, packed = splatv.encode(scene, sort="none")
+    if (sort or FORMAT.default_sort) == "none":
+        order = keep
+    else:
+        order = keep[importance_order(codec.quantized_key(records, setting)[keep])]
+    starts = range(0, n, codec.BLOCK)
+
+    def job(start):
+        return codec.encode_block(records[order[start:start + codec.BLOCK]], setting, level)
+
+    if len(starts) > 1:
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            blocks = list(pool.map(job, starts))
+    else:
+        blocks = [job(s) for s in starts]
+    cameras = scene.cameras
+    report = WriteReport(count=n)
+    if not cameras:
+        cameras = [camera_for_box(*framing_box(*(np.asarray(scene.columns[a])[keep] for a in "xyz")))]
+        report.notes.append("no cameras given; wrote one camera that frames the scene")
+    text = json.dumps({"count": n, "setting": name, "cameras": cameras}, separators=(",", ":"),
+                      ensure_ascii=False, allow_nan=False).encode("utf-8")
+    values = [getattr(setting, f) for f in SETTING_ORDER]
+    head = PREAMBLE.pack(MAGIC, VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2, len(text), len(blocks))
+    table = b"".join(BLOCK_ENTRY.pack(coded, raw, len(stored)) for stored, coded, raw in blocks)
+    data = b"".join([head, text, table] + [stored for stored, _, _ in blocks])
+    if dropped.any():
+        what = ", ".join(f"{int(c):,} {kind.replace('_', ' ')}" for kind, c in zip(UNDRAWABLE_KINDS, dropped) if c)
+        report.notes.append(f"left out {plural(int(dropped.sum()), 'undrawable splat')} ({what}): "
+                            "no frame the viewer draws changes")
+    raw = sum(r for _, _, r in blocks)
+    report.notes.append(f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat); "
+                        f"{plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else
+                        f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat)")
+    # The records were packed before the undrawable splats were left out, so the
+    # packing's counts may include some of those.
+    report.notes.extend(packed.notes if not dropped.any() else
+                        [f"{note} (counted before undrawable splats were left out)" for note in packed.notes])
+    return data, report
+
+
+def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
+          quality: str | None = None, **_options) -> WriteReport:
+    """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`)."""
+    with progress.stage("writing", scene.count, "splat") as advance:
+        data, report = encode(scene, sort=sort, quality=quality)
+        stream.write(data)
+        advance(scene.count)
+    return report
+
+
+# --------------------------------------------------------------------------
+# Reading
+
+
+def _header(f, path: str, file_size: int):
+    """Read and check the preamble, JSON and block table; the blocks' (coded, raw, stored, offset)."""
+    if file_size < PREAMBLE.size:
+        raise FormatError(f"{file_size} bytes is too short for a .splatvq file ({PREAMBLE.size}-byte preamble)",
+                          path)
+    fields = PREAMBLE.unpack(f.read(PREAMBLE.size))
+    magic, version, coder = fields[:3]
+    values = dict(zip(SETTING_ORDER, fields[3:10]))
+    chunk_log2, json_len, block_count = fields[10:]
+    if magic != MAGIC:
+        raise FormatError(f"not a .splatvq file: magic {magic!r}, expected {MAGIC!r}", path)
+    if version != VERSION:
+        raise FormatError(f"version {version} is not one this reader knows ({VERSION})", path)
+    if coder != codec.CODER_DEFLATE_RAW:
+        raise FormatError(f"coder {coder} is not one this reader knows ({codec.CODER_DEFLATE_RAW}: raw deflate)",
+                          path)
+    if chunk_log2 != codec.CHUNK_LOG2:
+        raise FormatError(f"chunk size 2**{chunk_log2} is not 2**{codec.CHUNK_LOG2}", path)
+    for key, (lo, hi) in codec.SETTING_LIMITS.items():
+        if not lo <= values[key] <= hi:
+            raise FormatError(f"setting '{key}' is {values[key]}, outside [{lo}, {hi}]", path)
+    setting = codec.Setting(**values)
+    if json_len > MAX_JSON_BYTES or PREAMBLE.size + json_len > file_size:
+        raise FormatError(f"header declares {json_len} bytes of JSON but the file ends after "
+                          f"{file_size - PREAMBLE.size}", path)
+    meta = loads_strict(f.read(json_len), path, "header JSON")
+    if not isinstance(meta, dict):
+        raise FormatError("header JSON must be an object", path)
+    table_at = PREAMBLE.size + json_len
+    if table_at + block_count * BLOCK_ENTRY.size > file_size:
+        raise FormatError(f"header declares {block_count} blocks but the file ends before their table", path)
+    table = f.read(block_count * BLOCK_ENTRY.size)
+    offset = table_at + block_count * BLOCK_ENTRY.size
+    blocks = []
+    total = 0
+    for i, (coded, raw, stored) in enumerate(BLOCK_ENTRY.iter_unpack(table)):
+        where = (f"block {i}",)
+        if coded + raw > codec.BLOCK or coded + raw == 0:
+            raise FormatError(f"holds {coded + raw} splats; a block holds 1 to {codec.BLOCK}", path, where)
+        if offset + stored > file_size:
+            raise FormatError(f"declares {stored} bytes but the file ends {file_size - offset} bytes after its "
+                              "start: file truncated?", path, where)
+        expected = codec.payload_bytes(coded, raw)
+        if expected > codec.MAX_RATIO * stored + 64:
+            raise FormatError(f"declares {expected} decoded bytes from {stored} stored, more than deflate can give",
+                              path, where)
+        blocks.append((coded, raw, stored, offset))
+        offset += stored
+        total += coded + raw
+    if offset != file_size:
+        raise FormatError(f"the blocks end at byte {offset} but the file has {file_size}", path)
+    count = meta.get("count")
+    if count != total or isinstance(count, bool):
+        raise FormatError(f"header 'count' is {str(count)[:40]} but the blocks hold {total} splats", path)
+    if total > MAX_SPLATS:
+        raise FormatError(f"holds {total} splats, more than a .splatv texture takes ({MAX_SPLATS})", path)
+    cameras = meta.get("cameras", [])
+    try:
+        validate_cameras(cameras, path)
+    except FormatError as e:
+        raise FormatError(e.message, path, ("cameras",) + e.where) from None
+    return setting, meta, blocks
+
+
+def read_records(path: str | os.PathLike):
+    """Decode a ``.splatvq`` file to the records a ``.splatv`` holds.
+
+    Returns
+    -------
+    records : (N, 16) uint32 ndarray
+        Texture words, block after block.
+    meta : dict
+        The header JSON (count, setting, cameras) and sizes.
+    """
+    path = os.fspath(path)
+    with open_input(path) as f:
+        file_size = os.fstat(f.fileno()).st_size
+        setting, meta, blocks = _header(f, path, file_size)
+        records = np.empty((sum(c + r for c, r, _, _ in blocks), WORDS_PER_SPLAT), dtype="<u4")
+        at = 0
+        for i, (coded, raw, stored, offset) in enumerate(blocks):
+            f.seek(offset)
+            data = f.read(stored)
+            where = (f"block {i}",)
+            payload = codec.inflate(data, codec.payload_bytes(coded, raw), path, where)
+            records[at:at + coded + raw] = codec.decode_block(payload, coded, raw, setting, path, where)
+            at += coded + raw
+    info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
+            "records": int(len(records))}
+    return records, list(meta.get("cameras", [])), info
+
+
+def decode(path: str | os.PathLike) -> np.ndarray:
+    """The texture words of a ``.splatvq`` file: ``(N, 16) uint32`` (what the page decodes)."""
+    return read_records(path)[0]
+
+
+def read(path: str | os.PathLike, **_options) -> Scene:
+    """Read a ``.splatvq`` file into a :class:`Scene` (its records decoded as a ``.splatv`` reader does)."""
+    records, cameras, info = read_records(path)
+    columns, notes = splatv.decode_records(records)
+    return Scene(columns=columns, cameras=cameras, variant=FORMAT.name, meta=info, notes=notes)
+
+
+def splat_count(path: str | os.PathLike) -> int | None:
+    """The splats :func:`read` gives, from the block table; None for a header :func:`read` refuses."""
+    path = os.fspath(path)
+    try:
+        with open_input(path) as f:
+            _setting, _meta, blocks = _header(f, path, os.fstat(f.fileno()).st_size)
+    except FormatError:
+        return None
+    return sum(c + r for c, r, _, _ in blocks)
+
+
+def most_splats(path: str | os.PathLike) -> int:
+    """At most the splats :func:`read` gives for ``path``: its block table's count (0: a header it refuses).
+
+    The table is checked against the file's size before it is trusted, and no
+    file holds more than :data:`MAX_SPLATS`.
+    """
+    return splat_count(path) or 0
+
+
+def check(path: str | os.PathLike) -> None:
+    """Check a ``.splatvq`` file's preamble, header and block table without decoding its blocks.
+
+    Raises
+    ------
+    FormatError
+        As :func:`read` would for these parts.
+    """
+    path = os.fspath(path)
+    with open_input(path) as f:
+        _header(f, path, os.fstat(f.fileno()).st_size)
+
+
+def storage(scene: Scene) -> dict:
+    """How a ``.splatvq`` stores each attribute group: :data:`STORAGE`."""
+    return STORAGE
+
+
+def info_fields(scene: Scene) -> dict:
+    """What ``info`` shows of a ``.splatvq``: its setting and block count."""
+    return {"setting": scene.meta.get("setting"), "blocks": scene.meta.get("blocks")}
+
+
+FORMAT = Format(
+    name="splatvq",
+    suffixes=(".splatvq",),
+    default_sort="importance",  # blocks in importance order: the page draws the most important splats first
+    holds_empty=False,  # a file holds drawable splats only, at least one
+    dynamic=True,  # motion and a temporal basis, quantized
+    read=read, splat_count=splat_count, most_splats=most_splats,
+    write=write,
+    info_fields=info_fields, storage=storage,
+    # Decoded to the viewer's texture, but not the texture itself: the page decodes
+    # it in a worker, so it plays a .splatvq's bytes as they are, once its preamble,
+    # header and block table check out (the page checks each block as it decodes it).
+    check_playable=check,
+)

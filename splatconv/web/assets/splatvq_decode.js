@@ -1,0 +1,482 @@
+// .splatvq decoder for the splatconv player, run in a web worker (one per .splatvq segment).
+//
+// The page posts its source ({type: "init", source}), then the file's bytes as they
+// arrive ({type: "bytes", data}) and then
+// {type: "end"}; the worker answers {type: "header", count, cameras, blocks}, then
+// one {type: "block", start, count, words, ms} per block, in file order (words: the
+// block's .splatv texture records, 16 uint32 a splat), then {type: "done"} -- or
+// {type: "error", message} with a plain-language reason, and nothing more.
+//
+// Every byte is as specs/splatvq.md says, and the arithmetic is that of
+// splatconv/formats/splatvq_codec.py's decode_block, operation for operation, in
+// doubles (products with exact powers of two, one sum, one square root, one
+// division), rounded to float32 (Math.fround) and then to a half by round to nearest
+// even, saturating at +-65504: the words are Python's, bit for bit (tests check).
+// Each block is a raw deflate stream, inflated by the browser's own
+// DecompressionStream("deflate-raw"): native code, no decoder shipped in the page.
+"use strict";
+
+const MAGIC = "SPVQ";
+const VERSION = 1;
+const CODER_DEFLATE_RAW = 1;
+const CHUNK_LOG2 = 8;
+const CHUNK = 1 << CHUNK_LOG2;
+const BLOCK = 1 << 16;
+const PREAMBLE = 22;           // magic, version, coder, 7 setting bytes, chunk_log2, json_length, block_count
+const ENTRY = 12;              // coded, raw, stored: three uint32
+const MAX_JSON = 64 << 20;
+const MAX_RATIO = 1032;        // deflate gives at most this many bytes a stored byte
+const MAX_SPLATS = 65536 * 1024;
+const CHUNK_BYTES = 32, SPLAT_BYTES = 80, RAW_BYTES = 64, WORDS = 16;
+const WINDOW_BIAS = 128;
+const SCALE_ZERO = 0, SCALE_INF = 1, SCALE_FIRST = 2;
+const HALF_INF = 0x7c00;
+// Preamble bytes 6..12: name, signed, lowest, highest (SETTING_LIMITS in splatvq_codec.py).
+const SETTING = [
+  ["position_shift", true, -30, 30], ["rotation_bits", false, 2, 16], ["scale_step", false, 1, 255],
+  ["trbf_scale_step", false, 1, 255], ["time_shift", false, 0, 30], ["omega_shift", false, 0, 30],
+  ["motion_shift", true, -30, 30],
+];
+
+// 2^x for integer x, exactly (halving and doubling 1 are exact in doubles over this range).
+const POW2_BIAS = 400;
+const POW2 = new Float64Array(2 * POW2_BIAS + 1);
+POW2[POW2_BIAS] = 1;
+for (let i = 1; i <= POW2_BIAS; i++) {
+  POW2[POW2_BIAS + i] = POW2[POW2_BIAS + i - 1] * 2;
+  POW2[POW2_BIAS - i] = POW2[POW2_BIAS - i + 1] / 2;
+}
+
+// float64 -> float32 (nearest even) -> half (nearest even; finite values past 65504
+// saturate), as packing.float_to_half does on the float32 of the value.
+const f32 = new Float32Array(1), u32 = new Uint32Array(f32.buffer);
+function half(v) {
+  f32[0] = v;
+  const x = u32[0];
+  const sign = (x >>> 16) & 0x8000;
+  const a = x & 0x7fffffff;
+  if (a >= 0x7f800000) return sign | (a === 0x7f800000 ? HALF_INF : 0x7e00 | ((a >>> 13) & 0x3ff));
+  if (a > 0x477fe000) return sign | 0x7bff;
+  if (a >= 0x38800000) { // a normal half: drop 13 mantissa bits, ties to even (a carry moves the exponent)
+    let h = (a - 0x38000000) >>> 13;
+    const r = a & 0x1fff;
+    if (r > 0x1000 || (r === 0x1000 && (h & 1))) h++;
+    return sign | h;
+  }
+  // Zero or a subnormal half: the value in steps of 2^-24, ties to even (exact in doubles).
+  const t = Math.abs(f32[0]) * 16777216;
+  let f = Math.floor(t);
+  const d = t - f;
+  if (d > 0.5 || (d === 0.5 && (f & 1))) f++;
+  return sign | f;
+}
+
+class Refusal extends Error {}
+
+// ------------------------------------------------------------------ streaming input
+
+let pieces = [], available = 0, ended = false, failed = false, finished = false;
+
+function take(n) {
+  // Exactly n bytes off the front of what arrived (n <= available).
+  if (pieces.length && pieces[0].length >= n) {
+    const out = pieces[0].subarray(0, n);
+    pieces[0] = pieces[0].subarray(n);
+    if (!pieces[0].length) pieces.shift();
+    available -= n;
+    return out;
+  }
+  const out = new Uint8Array(n);
+  let at = 0;
+  while (at < n) {
+    const p = pieces[0], k = Math.min(p.length, n - at);
+    out.set(p.subarray(0, k), at);
+    at += k;
+    if (k === p.length) pieces.shift(); else pieces[0] = p.subarray(k);
+  }
+  available -= n;
+  return out;
+}
+
+const file = {stage: "preamble", setting: null, jsonLength: 0, blockCount: 0, blocks: [], next: 0, start: 0};
+// Blocks' results are posted in file order: each waits for the one before it.
+let posted = Promise.resolve();
+
+// Read what can be read. Blocks are handed to the helper workers (or decoded here,
+// one after another) as soon as their bytes are in; nothing here waits for them.
+function advance() {
+  if (failed || finished) return;
+  try {
+    for (;;) {
+      if (file.stage === "preamble") {
+        if (available < PREAMBLE) break;
+        readPreamble(take(PREAMBLE));
+      } else if (file.stage === "json") {
+        if (available < file.jsonLength) break;
+        file.meta = readJson(take(file.jsonLength));
+        file.stage = "table";
+      } else if (file.stage === "table") {
+        if (available < file.blockCount * ENTRY) break;
+        readTable(take(file.blockCount * ENTRY));
+      } else if (file.stage === "blocks") {
+        if (file.next === file.blocks.length) { file.stage = "after"; continue; }
+        const block = file.blocks[file.next];
+        if (available < block.stored) break;
+        schedule(block, take(block.stored), file.next);
+        file.next++;
+      } else { // "after": the file must end where its last block does
+        if (available) {
+          throw new Refusal("the file is damaged: it has bytes after its last block (its block table " +
+                            "does not describe it).");
+        }
+        break;
+      }
+    }
+  } catch (e) {
+    fail(e instanceof Refusal ? e.message : `the decoder failed (${e && e.message ? e.message : e}).`);
+    return;
+  }
+  if (ended) {
+    finished = true;
+    const complete = file.stage === "after";
+    const reason = complete ? null : truncated();
+    // The blocks that arrived are shown first; then the file is done, or said to be short.
+    posted = posted.then(() => {
+      if (failed) return;
+      if (complete) self.postMessage({type: "done"});
+      else fail(reason);
+    });
+  }
+}
+
+// ------------------------------------------------------------------ helpers: blocks decoded in parallel
+
+let source = null, helpers = null, nextHelper = 0, jobs = new Map(), jobId = 0;
+const MAX_HELPERS = 4;
+
+function startHelpers(blocks) {
+  const cores = (self.navigator && self.navigator.hardwareConcurrency) || 1;
+  const count = Math.min(MAX_HELPERS, cores, blocks);
+  if (count < 2 || !source || typeof Worker === "undefined") return;
+  try {
+    const url = URL.createObjectURL(new Blob([source], {type: "text/javascript"}));
+    helpers = [];
+    for (let i = 0; i < count; i++) {
+      const helper = new Worker(url);
+      helper.onmessage = (event) => {
+        const msg = event.data, job = jobs.get(msg.id);
+        jobs.delete(msg.id);
+        if (msg.error !== undefined) job.reject(new Refusal(msg.error));
+        else job.resolve({words: msg.words, ms: msg.ms, inflateMs: msg.inflateMs});
+      };
+      helper.onerror = (event) => {
+        event.preventDefault();
+        fail(`the decoder failed (${event.message}).`);
+      };
+      helper.postMessage({type: "helper"});
+      helpers.push(helper);
+    }
+  } catch (e) {
+    helpers = null; // no nested workers here: decode in this worker
+  }
+}
+
+function schedule(block, stored, i) {
+  const which = `block ${i + 1} of ${file.blocks.length}`;
+  let result;
+  if (helpers) {
+    const id = ++jobId;
+    const own = stored.byteOffset === 0 && stored.byteLength === stored.buffer.byteLength ? stored : stored.slice();
+    result = new Promise((resolve, reject) => jobs.set(id, {resolve, reject}));
+    helpers[nextHelper++ % helpers.length].postMessage(
+      {type: "decode", id, stored: own, coded: block.coded, raw: block.raw, expected: block.expected,
+       setting: file.setting, which}, [own.buffer]);
+    result.catch(() => {}); // reported in order below
+  }
+  posted = posted.then(async () => {
+    if (failed) return;
+    try {
+      const {words, ms, inflateMs} = await (result || decodeBlock(stored, block.coded, block.raw, block.expected,
+                                                       file.setting, which));
+      if (failed) return;
+      self.postMessage({type: "block", start: block.start, count: block.coded + block.raw, words, ms, inflateMs},
+                       [words.buffer]);
+    } catch (e) {
+      fail(e instanceof Refusal ? e.message : `the decoder failed (${e && e.message ? e.message : e}).`);
+    }
+  });
+}
+
+function truncated() {
+  if (file.stage === "blocks") {
+    return `the file is truncated: it ends inside block ${file.next + 1} of ${file.blocks.length} ` +
+           "(an interrupted download or copy?); the splats before it are shown.";
+  }
+  return "the file is truncated: it ends inside its header (an interrupted download or copy?).";
+}
+
+function fail(message) {
+  if (failed) return;
+  failed = true;
+  pieces = [];
+  available = 0;
+  if (helpers) helpers.forEach((h) => h.terminate());
+  self.postMessage({type: "error", message});
+}
+
+// ------------------------------------------------------------------ header and block table
+
+function readPreamble(bytes) {
+  const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  if (String.fromCharCode(bytes[0], bytes[1], bytes[2], bytes[3]) !== MAGIC) {
+    throw new Refusal("this is not a .splatvq file (it does not start with SPVQ).");
+  }
+  if (bytes[4] !== VERSION) {
+    throw new Refusal(`it is a .splatvq file of version ${bytes[4]}; this page reads version ${VERSION}.`);
+  }
+  if (bytes[5] !== CODER_DEFLATE_RAW) {
+    throw new Refusal(`its blocks use coder ${bytes[5]}, which this page does not know (it knows 1, raw deflate).`);
+  }
+  const setting = {};
+  SETTING.forEach(([name, signed, lo, hi], i) => {
+    const v = signed ? dv.getInt8(6 + i) : dv.getUint8(6 + i);
+    if (v < lo || v > hi) throw new Refusal(`its header is damaged (setting ${name} is ${v}, outside ${lo}..${hi}).`);
+    setting[name] = v;
+  });
+  if (bytes[13] !== CHUNK_LOG2) throw new Refusal(`its header is damaged (chunks of 2^${bytes[13]} splats, not 2^8).`);
+  file.setting = setting;
+  file.jsonLength = dv.getUint32(14, true);
+  file.blockCount = dv.getUint32(18, true);
+  if (file.jsonLength > MAX_JSON) {
+    throw new Refusal(`its header is damaged (it claims a header of ${file.jsonLength} bytes).`);
+  }
+  if (file.blockCount > MAX_SPLATS) {
+    throw new Refusal(`its block table is damaged (it claims ${file.blockCount} blocks).`);
+  }
+  file.stage = "json";
+}
+
+function readJson(bytes) {
+  let meta;
+  try {
+    meta = JSON.parse(new TextDecoder("utf-8", {fatal: true}).decode(bytes));
+  } catch (e) {
+    throw new Refusal("its header is damaged (not valid JSON).");
+  }
+  if (!meta || typeof meta !== "object" || Array.isArray(meta)) {
+    throw new Refusal("its header is damaged (not a JSON object).");
+  }
+  return meta;
+}
+
+function readTable(bytes) {
+  const dv = new DataView(bytes.buffer, bytes.byteOffset, bytes.byteLength);
+  let total = 0;
+  for (let i = 0; i < file.blockCount; i++) {
+    const coded = dv.getUint32(ENTRY * i, true), raw = dv.getUint32(ENTRY * i + 4, true);
+    const stored = dv.getUint32(ENTRY * i + 8, true);
+    const n = coded + raw;
+    if (n === 0 || n > BLOCK) {
+      throw new Refusal(`its block table is damaged (block ${i + 1} claims ${n} splats; a block holds 1 to ${BLOCK}).`);
+    }
+    const expected = Math.ceil(coded / CHUNK) * CHUNK_BYTES + coded * SPLAT_BYTES + raw * RAW_BYTES;
+    if (expected > MAX_RATIO * stored + 64) {
+      throw new Refusal(`its block table is damaged (block ${i + 1} claims ${expected} decoded bytes from ` +
+                        `${stored} stored, more than deflate can give).`);
+    }
+    file.blocks.push({coded, raw, stored, expected, start: total});
+    total += n;
+  }
+  const count = file.meta.count;
+  if (count !== total) {
+    throw new Refusal(`its header is damaged (its count ${String(count).slice(0, 40)} is not the ${total} ` +
+                      "splats its block table lists).");
+  }
+  if (total === 0) throw new Refusal("it holds no splats.");
+  if (total > MAX_SPLATS) throw new Refusal(`it holds ${total} splats, more than a .splatv texture takes.`);
+  startHelpers(file.blockCount);
+  self.postMessage({type: "header", count: total, blocks: file.blockCount,
+                    cameras: Array.isArray(file.meta.cameras) ? file.meta.cameras : [],
+                    setting: typeof file.meta.setting === "string" ? file.meta.setting : null});
+  file.stage = "blocks";
+}
+
+// ------------------------------------------------------------------ one block
+
+// Deflate gives at most MAX_RATIO bytes a stored byte and the table was checked
+// against that, so the whole output is collected natively (far fewer round trips
+// than reading it piece by piece) and then compared with what the table declares.
+async function inflate(stored, expected, which) {
+  let out;
+  try {
+    // Written straight into the stream: a Blob's stream would go through the browser's blob store.
+    const inflater = new DecompressionStream("deflate-raw");
+    const writer = inflater.writable.getWriter();
+    writer.write(stored).catch(() => {}); // a corrupt stream fails the read below
+    writer.close().catch(() => {});
+    out = new Uint8Array(await new Response(inflater.readable).arrayBuffer());
+  } catch (e) {
+    throw new Refusal(`${which} is corrupt: its compressed data cannot be decoded.`);
+  }
+  if (out.length > expected) {
+    throw new Refusal(`${which} is damaged: it decodes to more than the ${expected} bytes its table declares.`);
+  }
+  if (out.length !== expected) {
+    throw new Refusal(`${which} is damaged: it decodes to ${out.length} bytes, not the ${expected} its table ` +
+                      "declares.");
+  }
+  return out;
+}
+
+async function decodeBlock(stored, coded, raw, expected, setting, which) {
+  const t0 = performance.now();
+  const payload = await inflate(stored, expected, which);
+  const t1 = performance.now();
+  const words = decodePayload(payload, coded, raw, setting, which);
+  return {words, ms: performance.now() - t0, inflateMs: t1 - t0};
+}
+
+// A zigzag code (uint32 or uint16) -> its integer: 0, -1, 1, -2, ...
+function unzigzag(u) {
+  return u & 1 ? -((u >>> 1) + 1) : u >>> 1;
+}
+
+// A block payload -> its records. Field by field over all splats (short loops over
+// contiguous byte planes run several times faster than one loop doing everything).
+function decodePayload(p, n, raw, s, which) {
+  const out = new Uint32Array((n + raw) * WORDS);
+  const chunks = Math.ceil(n / CHUNK);
+  const rawAt = chunks * CHUNK_BYTES + n * SPLAT_BYTES;
+  new Uint8Array(out.buffer, n * WORDS * 4).set(p.subarray(rawAt, rawAt + raw * RAW_BYTES));
+  if (!n) return out;
+  const posBase = new Float64Array(p.buffer, p.byteOffset, 3 * chunks);
+  const scaleBase = new Uint16Array(p.buffer, p.byteOffset + 24 * chunks, 3 * chunks);
+  const trbfBase = new Uint16Array(p.buffer, p.byteOffset + 30 * chunks, chunks);
+  for (let j = 0; j < 3 * chunks; j++) {
+    if (!Number.isFinite(posBase[j])) throw new Refusal(`${which} is damaged (a chunk's position base is not finite).`);
+  }
+  // Plane offsets (SPLAT_FIELDS order): each value's bytes, lowest first, n bytes a plane.
+  let at = 32 * chunks;
+  const planes = (count) => { const first = at; at += count * n; return first; };
+  const POS = planes(12), RIDX = planes(1), ROT = planes(6), OMEGA = planes(8), SCALE = planes(6);
+  const COLOR = planes(4), CENTER = planes(4), TSCALE = planes(2), WINDOW = planes(1), MOTION = planes(36);
+  const floats = new Float32Array(out.buffer, 0, n * WORDS);
+  const halves = new Uint16Array(out.buffer, 0, n * WORDS * 2);
+  const bytes = new Uint8Array(out.buffer, 0, n * WORDS * 4);
+
+  // Scales (words 5-6, half slots 10-12) and the temporal scale (slot 31): integers only.
+  const scaleField = (plane, slot, base, stride, offset, step) => {
+    const lo = plane, hi = plane + n;
+    for (let i = 0; i < n; i++) {
+      const code = p[lo + i] | (p[hi + i] << 8);
+      let h;
+      if (code === SCALE_ZERO) h = 0;
+      else if (code === SCALE_INF) h = HALF_INF;
+      else {
+        h = (base[stride * (i >>> CHUNK_LOG2) + offset] + code - SCALE_FIRST) * step;
+        if (h > HALF_INF) throw new Refusal(`${which} is damaged (a scale code decodes past the half range).`);
+      }
+      halves[32 * i + slot] = h;
+    }
+  };
+  for (let j = 0; j < 3; j++) scaleField(SCALE + 2 * j * n, 10 + j, scaleBase, 3, j, s.scale_step);
+  scaleField(TSCALE, 31, trbfBase, 1, 0, s.trbf_scale_step);
+  // Each splat's step exponent k (from its least scale) and window exponent e.
+  const k = new Int32Array(n), e = new Int32Array(n);
+  for (let i = 0; i < n; i++) {
+    const least = Math.min(halves[32 * i + 10], halves[32 * i + 11], halves[32 * i + 12]);
+    k[i] = Math.min(16, Math.max(-15, (least >> 10) - 15)) + s.position_shift;
+    e[i] = p[WINDOW + i] - WINDOW_BIAS;
+  }
+  // Positions (words 0-2): f32(base + code * 2^k).
+  for (let j = 0; j < 3; j++) {
+    const b0 = POS + 4 * j * n, b1 = b0 + n, b2 = b1 + n, b3 = b2 + n;
+    for (let i = 0; i < n; i++) {
+      const code = (p[b0 + i] | (p[b1 + i] << 8) | (p[b2 + i] << 16) | (p[b3 + i] << 24)) >>> 0;
+      floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code * POW2[POW2_BIAS + k[i]];
+    }
+  }
+  // Rotation (words 3-4, half slots 6-9): three kept components, the dropped one from them.
+  const M = (1 << s.rotation_bits) - 1;
+  const rotValue = new Float64Array(M + 1), rotHalf = new Uint16Array(M + 1);
+  for (let c = 0; c <= M; c++) { // a kept component depends on its code alone
+    rotValue[c] = ((2 * c - M) / M) * Math.SQRT1_2;
+    rotHalf[c] = half(rotValue[c]);
+  }
+  for (let i = 0; i < n; i++) {
+    const index = p[RIDX + i];
+    if (index > 3) throw new Refusal(`${which} is damaged (a rotation index past 3).`);
+    const c0 = p[ROT + i] | (p[ROT + n + i] << 8), c1 = p[ROT + 2 * n + i] | (p[ROT + 3 * n + i] << 8);
+    const c2 = p[ROT + 4 * n + i] | (p[ROT + 5 * n + i] << 8);
+    if (c0 > M || c1 > M || c2 > M) throw new Refusal(`${which} is damaged (a rotation code past ${M}).`);
+    const a0 = rotValue[c0], a1 = rotValue[c1], a2 = rotValue[c2];
+    const q = 32 * i + 6;
+    // The kept three fill the other slots in order.
+    halves[q + (index === 0 ? 1 : 0)] = rotHalf[c0];
+    halves[q + (index <= 1 ? 2 : 1)] = rotHalf[c1];
+    halves[q + (index <= 2 ? 3 : 2)] = rotHalf[c2];
+    halves[q + index] = half(Math.sqrt(Math.max(0, 1 - ((a0 * a0 + a1 * a1) + a2 * a2))));
+  }
+  // Colour and opacity (word 7): the four bytes as they are.
+  for (let j = 0; j < 4; j++) {
+    const plane = COLOR + j * n;
+    for (let i = 0; i < n; i++) bytes[64 * i + 28 + j] = p[plane + i];
+  }
+  // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice 2^(k + motion_shift - e d).
+  for (let j = 0; j < 9; j++) {
+    const d = 1 + ((j / 3) | 0), slot = 16 + j;
+    const b0 = MOTION + 4 * j * n, b1 = b0 + n, b2 = b1 + n, b3 = b2 + n;
+    const shift = POW2_BIAS + s.motion_shift;
+    for (let i = 0; i < n; i++) {
+      const u = (p[b0 + i] | (p[b1 + i] << 8) | (p[b2 + i] << 16) | (p[b3 + i] << 24)) >>> 0;
+      if (u !== 0) halves[32 * i + slot] = half(unzigzag(u) * POW2[shift + k[i] - e[i] * d]);
+    }
+  }
+  // Omega (words 13-14, half slots 26-29) on the lattice 2^-(e + omega_shift).
+  for (let j = 0; j < 4; j++) {
+    const b0 = OMEGA + 2 * j * n, b1 = b0 + n, slot = 26 + j, shift = POW2_BIAS - s.omega_shift;
+    for (let i = 0; i < n; i++) {
+      const u = p[b0 + i] | (p[b1 + i] << 8);
+      if (u !== 0) halves[32 * i + slot] = half(unzigzag(u) * POW2[shift - e[i]]);
+    }
+  }
+  // Temporal centre (half slot 30) on the lattice 2^-time_shift.
+  const timeScale = POW2[POW2_BIAS - s.time_shift];
+  for (let i = 0; i < n; i++) {
+    const u = (p[CENTER + i] | (p[CENTER + n + i] << 8) | (p[CENTER + 2 * n + i] << 16)
+               | (p[CENTER + 3 * n + i] << 24)) >>> 0;
+    if (u !== 0) halves[32 * i + 30] = half(unzigzag(u) * timeScale);
+  }
+  return out;
+}
+
+// The page's worker gets {type: "init", source} (its own source, for helpers),
+// then the file; a helper gets {type: "helper"}, then blocks to decode.
+let helperMode = false, queue = Promise.resolve();
+self.onmessage = (event) => {
+  const msg = event.data;
+  if (msg.type === "helper") {
+    helperMode = true;
+    return;
+  }
+  if (helperMode) {
+    // One block at a time, so that each block's time is its own work.
+    queue = queue.then(() => decodeBlock(msg.stored, msg.coded, msg.raw, msg.expected, msg.setting, msg.which)).then(
+      ({words, ms, inflateMs}) => self.postMessage({id: msg.id, words, ms, inflateMs}, [words.buffer]),
+      (e) => self.postMessage({id: msg.id, error: e instanceof Refusal ? e.message
+                                                  : `the decoder failed (${e && e.message ? e.message : e}).`}));
+    return;
+  }
+  if (failed) return;
+  if (msg.type === "init") {
+    source = msg.source;
+    return;
+  }
+  if (msg.type === "bytes") {
+    const bytes = new Uint8Array(msg.data);
+    if (bytes.length) { pieces.push(bytes); available += bytes.length; }
+  } else if (msg.type === "end") {
+    ended = true;
+  }
+  advance();
+};

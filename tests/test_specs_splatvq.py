@@ -1,0 +1,120 @@
+"""specs/splatvq.md against the code: the file layout, the payload tables, the settings, constants and test vector."""
+
+from __future__ import annotations
+
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from splatconv.formats import splatvq
+from splatconv.formats import splatvq_codec as codec
+
+SPEC = (Path(__file__).resolve().parent.parent / "specs" / "splatvq.md").read_text(encoding="utf-8")
+TYPES = {"uint8": "u1", "int8": "i1", "uint16": "<u2", "uint32": "<u4", "float64": "<f8"}
+
+
+def _section(title: str) -> str:
+    start = SPEC.index(title)
+    end = SPEC.find("\n## ", start + len(title))
+    return SPEC[start:end if end >= 0 else len(SPEC)]
+
+
+def _table(text: str) -> tuple[list, list]:
+    """The first Markdown table in ``text``: its header cells and its rows' cells."""
+    lines = [line.strip() for line in text.splitlines()]
+    start = next(i for i, line in enumerate(lines) if line.startswith("|"))
+    table = []
+    for line in lines[start:]:
+        if not line.startswith("|"):
+            break
+        cells = [c.strip() for c in line.strip("|").split("|")]
+        if not all(set(c) <= {"-"} for c in cells):
+            table.append(cells)
+    return table[0], table[1:]
+
+
+def test_preamble_table_is_the_struct():
+    _, rows = _table(_section("## File layout"))
+    fixed = [r for r in rows if r[0].isdigit() and r[1].isdigit()]
+    offset = 0
+    fmt = "<"
+    for start, size, name, content in fixed:
+        assert int(start) == offset, name
+        if size == "4" and name == "magic":
+            fmt += "4s"
+        elif size == "4":
+            fmt += "I"
+        else:
+            fmt += "b" if content.startswith("int8") else "B"
+        offset += int(size)
+    assert fmt == splatvq.PREAMBLE.format
+    names = [r[2] for r in fixed]
+    assert names[3:10] == list(splatvq.SETTING_ORDER)
+    assert offset == splatvq.PREAMBLE.size
+    assert "12 `B`" in SPEC and splatvq.BLOCK_ENTRY.size == 12
+    assert "the bytes `SPVQ` (`MAGIC`)" in SPEC and splatvq.MAGIC == b"SPVQ"
+    assert "| 4 | 1 | version | 1 (`VERSION`) |" in SPEC and splatvq.VERSION == 1
+    assert "1: raw deflate (`CODER_DEFLATE_RAW`)" in SPEC and codec.CODER_DEFLATE_RAW == 1
+    assert "8: 256 splats a chunk (`CHUNK_LOG2`)" in SPEC and codec.CHUNK == 256
+
+
+@pytest.mark.parametrize("title, fields", [("table | type | per chunk", codec.CHUNK_FIELDS),
+                                           ("field | type | per splat", codec.SPLAT_FIELDS)])
+def test_payload_tables_are_the_codec_layout(title, fields):
+    text = _section("## The block payload")
+    _, table = _table(text[text.index(title) - 2:])
+    rows = [(name, TYPES[kind], int(k)) for name, kind, k, _ in table]
+    assert rows == list(fields)
+
+
+def test_payload_size_sentence():
+    sentence = re.search(r"(\d+) · ceil\(coded / (\d+)\) \+ (\d+) · coded \+ (\d+) · raw bytes", SPEC)
+    chunk_bytes, chunk, splat_bytes, raw_bytes = map(int, sentence.groups())
+    assert (chunk_bytes, chunk, splat_bytes, raw_bytes) == (codec.CHUNK_BYTES, codec.CHUNK, codec.SPLAT_BYTES,
+                                                           codec.RAW_BYTES)
+
+
+def test_settings_table_is_the_code():
+    header, rows = _table(_section("### Settings"))
+    stated = {r[0]: dict(zip(header[1:], map(int, r[1:]))) for r in rows}
+    assert set(stated) == set(codec.SETTINGS)
+    for name, values in stated.items():
+        assert codec.Setting(**values) == codec.SETTINGS[name]
+
+
+@pytest.mark.parametrize("text, value", [
+    ("1 to 65536 in all (`BLOCK`)", codec.BLOCK == 65536),
+    ("e + 128 (`WINDOW_BIAS`)", codec.WINDOW_BIAS == 128),
+    ("clamped to [−30, 30]", (codec.WINDOW_MIN, codec.WINDOW_MAX) == (-30, 30)),
+    ("code 0 is +0", codec.SCALE_ZERO == 0),
+    ("code 1 is +inf\n  (`SCALE_INF`)", codec.SCALE_INF == 1),
+    ("c ≥ 2 (`SCALE_FIRST`)", codec.SCALE_FIRST == 2),
+    ("4096 interquartile extents", codec.OUTLIER_EXTENTS == 4096),
+    ("1032 decoded bytes a stored byte", codec.MAX_RATIO == 1032),
+    ("clamp((h >> 10) − 15, −15, 16)", True),
+])
+def test_constants_are_as_written(text, value):
+    assert text in SPEC
+    assert value
+
+
+def test_size_exponent_is_as_written():
+    h = np.array([[0, 0x3C00, 0x7C00], [0x3C00, 0x4000, 0x4400], [0x7C00, 0x7C00, 0x7C00], [1, 0x3C00, 0x3C00]],
+                 dtype=np.uint16)
+    assert codec.size_exponent(h).tolist() == [-15, 0, 16, -15]
+
+
+def test_the_test_vector_decodes_as_written():
+    section = _section("## Test vector")
+    blocks = re.findall(r"```\n(.*?)```", section, re.S)
+    payload = bytes.fromhex(blocks[0].strip())
+    words = [int(w, 16) for w in blocks[1].split()]
+    assert len(payload) == codec.payload_bytes(1, 0)
+    out = codec.decode_block(payload, 1, 0, codec.SETTINGS["default"], "<spec>", ())
+    assert out[0].tolist() == words
+    # The numbers the prose gives are in the payload.
+    assert struct.unpack_from("<3d", payload) == (1.0, 2.0, -0.5)
+    assert np.float32(1 + 1000 * 2.0 ** -20).view(np.uint32) == words[0]

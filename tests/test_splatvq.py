@@ -1,0 +1,284 @@
+"""The ``.splatvq`` format: decoded texture words, stability, fidelity by pixels, undrawables, hostile input."""
+
+from __future__ import annotations
+
+import json
+import zlib
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from splatconv import io
+from splatconv.cli import main
+from splatconv.errors import UsageError
+from splatconv.formats import splatv, splatvq
+from splatconv.formats import splatvq_codec as codec
+from splatconv.render.preview import Renderer
+from splatconv.viewer import undrawable
+from tests.ops_helpers import CAMERA, H, W, draw, psnr
+from tests.real_scenes import real_scene
+
+TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    r = Renderer(W, H)
+    yield r
+    r.release()
+
+
+@pytest.fixture(scope="module")
+def real():
+    return real_scene(1200, seed=3)
+
+
+def written(tmp_path, scene, name="a.splatvq", quality=None):
+    path = tmp_path / name
+    if quality is None:
+        return path, io.write(scene, path)
+    data, report = splatvq.encode(scene, quality=quality)
+    path.write_bytes(data)
+    return path, report
+
+
+def sorted_records(records: np.ndarray) -> np.ndarray:
+    return records[np.lexsort(records.T[::-1])]
+
+
+def test_decoding_gives_the_texture_words_the_splatv_writer_packs(tmp_path, real):
+    path, _ = written(tmp_path, real[0])
+    words = splatvq.decode(path)
+    scene = splatvq.read(path)
+    packed, _ = splatv.encode(scene, sort="none")
+    assert words.dtype == np.dtype("<u4") and words.shape == (scene.count, 16)
+    assert np.array_equal(packed[:scene.count], words)
+
+
+@pytest.mark.parametrize("quality", list(codec.SETTINGS))
+def test_a_second_conversion_changes_nothing(tmp_path, real, quality):
+    # .splatvq -> .splatv -> .splatvq -> .splatv: the two .splatv hold the same records.
+    first, _ = written(tmp_path, real[0], quality=quality)
+    assert run("convert", first, tmp_path / "b.splatv").exit_code == 0
+    written(tmp_path, io.read(tmp_path / "b.splatv"), "c.splatvq", quality)
+    assert run("convert", tmp_path / "c.splatvq", tmp_path / "d.splatv").exit_code == 0
+    b = splatv.read_records(tmp_path / "b.splatv")[0]
+    d = splatv.read_records(tmp_path / "d.splatv")[0]
+    assert np.array_equal(sorted_records(b), sorted_records(d))
+    # The first step did change values (it is lossy), so the second had something to move.
+    scene = real[0]
+    drawn = splatv.encode(scene, sort="none")[0][:scene.count][~undrawable(scene.columns)]
+    assert len(drawn) == len(b) and not np.array_equal(sorted_records(b), sorted_records(drawn))
+
+
+def test_same_input_same_bytes(real):
+    assert splatvq.encode(real[0])[0] == splatvq.encode(real[0])[0]
+
+
+def test_undrawable_splats_are_left_out_and_counted(tmp_path, real, renderer):
+    scene, rows = real
+    path, report = written(tmp_path, scene)
+    assert splatvq.splat_count(path) == scene.count - len(rows.undrawable)
+    note = next(n for n in report.notes if n.startswith("left out"))
+    assert note.startswith(f"left out {len(rows.undrawable):,} undrawable splats (")
+    assert f"{len(rows.zero_rotation):,} zero rotation" in note
+    decoded = splatvq.read(path)
+    assert not undrawable(decoded.columns).any()
+
+
+def test_fidelity_by_pixels(tmp_path, real, renderer):
+    scene, _ = real
+    for quality, floor in (("default", 42.0), ("small", 38.0)):
+        path, _ = written(tmp_path, scene, f"{quality}.splatvq", quality)
+        decoded = splatvq.read(path)
+        values = [psnr(draw(renderer, scene, t, CAMERA), draw(renderer, decoded, t, CAMERA)) for t in TIMES]
+        assert min(values) >= floor, (quality, values)
+
+
+def test_small_is_smaller_and_both_beat_splatv(tmp_path, real):
+    sizes = {quality: len(splatvq.encode(real[0], quality=quality)[0]) for quality in codec.SETTINGS}
+    assert sizes["small"] < sizes["default"] < 64 * real[0].count / 2
+
+
+def test_values_the_codes_cannot_hold_are_kept_verbatim(tmp_path, real):
+    scene, rows = real
+    path, report = written(tmp_path, scene)
+    assert any("kept verbatim" in n for n in report.notes)
+    words = splatvq.decode(path)
+    source = splatv.encode(scene, sort="none")[0]
+    for picked in (rows.huge_position, rows.zero_rotation_spinning):
+        want = {r.tobytes() for r in source[picked]}
+        assert want <= {r.tobytes() for r in words}
+
+
+def test_flat_splats_and_infinite_temporal_scales_keep_their_infinities(tmp_path, real):
+    scene, rows = real
+    path, _ = written(tmp_path, scene)
+    decoded = splatvq.read(path).columns
+    assert np.isneginf(decoded["scale_1"]).sum() >= len(rows.flat)
+    assert np.isposinf(decoded["trbf_scale"]).sum() == len(rows.infinite_trbf)
+
+
+# --------------------------------------------------------------------------
+# Hostile input: one Error: line, nothing written.
+
+
+def _good(tmp_path) -> bytes:
+    scene, _ = real_scene(300, seed=1)
+    return splatvq.encode(scene)[0]
+
+
+def _parts(data: bytes):
+    fields = splatvq.PREAMBLE.unpack_from(data)
+    json_len, blocks = fields[-2], fields[-1]
+    table_at = splatvq.PREAMBLE.size + json_len
+    entries = [splatvq.BLOCK_ENTRY.unpack_from(data, table_at + i * splatvq.BLOCK_ENTRY.size) for i in range(blocks)]
+    body_at = table_at + blocks * splatvq.BLOCK_ENTRY.size
+    return fields, table_at, entries, body_at
+
+
+def _with_entry(data, coded=None, raw=None, stored=None, body=None):
+    fields, table_at, entries, body_at = _parts(data)
+    c, r, s = entries[0]
+    entry = splatvq.BLOCK_ENTRY.pack(c if coded is None else coded, r if raw is None else raw,
+                                     s if stored is None else stored)
+    rest = data[body_at:] if body is None else body
+    return data[:table_at] + entry + rest
+
+
+def _payload(data):
+    _, _, entries, body_at = _parts(data)
+    return zlib.decompress(data[body_at:body_at + entries[0][2]], -15)
+
+
+def _deflate(payload: bytes) -> bytes:
+    c = zlib.compressobj(9, zlib.DEFLATED, -15)
+    return c.compress(payload) + c.flush()
+
+
+def _set_count(data: bytes, count) -> bytes:
+    fields, table_at, _, _ = _parts(data)
+    meta = json.loads(data[splatvq.PREAMBLE.size:table_at])
+    meta["count"] = count
+    text = json.dumps(meta).encode()
+    return splatvq.PREAMBLE.pack(*fields[:-2], len(text), fields[-1]) + text + data[table_at:]
+
+
+def _more_raw(data, extra):
+    """The block table and count say ``extra`` more verbatim splats than the block holds."""
+    coded, raw, _ = _parts(data)[2][0]
+    return _set_count(_with_entry(data, raw=raw + extra), coded + raw + extra)
+
+
+def _bad_rotation_index(data):
+    payload = bytearray(_payload(data))
+    coded = _parts(data)[2][0][0]
+    at = -(-coded // codec.CHUNK) * codec.CHUNK_BYTES + coded * 12  # after the position planes
+    payload[at] = 7
+    return _with_entry(data, stored=len(d := _deflate(bytes(payload))), body=d)
+
+
+BAD = [
+    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (22-byte preamble)"),
+    ("magic", lambda d: b"XXXX" + d[4:], "not a .splatvq file: magic b'XXXX', expected b'SPVQ'"),
+    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (1)"),
+    ("coder", lambda d: d[:5] + b"\x02" + d[6:], "coder 2 is not one this reader knows (1: raw deflate)"),
+    ("setting", lambda d: d[:7] + b"\x00" + d[8:], "setting 'rotation_bits' is 0, outside [2, 16]"),
+    ("truncated", lambda d: d[:-5], "block 0: declares {stored} bytes but the file ends {short} bytes after its "
+     "start: file truncated?"),
+    ("extra bytes", lambda d: d + b"\0", "the blocks end at byte {size} but the file has {size1}"),
+    ("count lies", lambda d: _set_count(d, 5), "header 'count' is 5 but the blocks hold {count} splats"),
+    ("table lies: more splats", lambda d: _with_entry(d, coded=70000), "block 0: holds {big} splats; a block "
+     "holds 1 to 65536"),
+    ("table lies: decoded size", lambda d: _more_raw(d, 3), "block 0: decodes to {payload} bytes, not the "
+     "{more} declared"),
+    ("decodes to more", lambda d: _with_entry(d, stored=len(x := _deflate(_payload(d) + bytes(64))), body=x),
+     "block 0: decodes to more than the {payload} bytes declared"),
+    ("ratio", lambda d: _with_entry(d, coded=65000, stored=5, body=b"\0" * 5), "block 0: declares {ratio} decoded "
+     "bytes from 5 stored, more than deflate can give"),
+    ("corrupt stream", lambda d: _with_entry(d, body=b"\xff" * len(d[_parts(d)[3]:])), "block 0: compressed data "
+     "is corrupt (Error -3 while decompressing data: invalid block type)"),
+    ("rotation index", _bad_rotation_index, "block 0: a rotation index is past 3"),
+]
+
+
+@pytest.mark.parametrize("name, mutate, message", BAD, ids=[b[0] for b in BAD])
+def test_bad_input_gives_one_error_line_and_writes_nothing(tmp_path, name, mutate, message):
+    good = _good(tmp_path)
+    _, _, entries, body_at = _parts(good)
+    coded, raw, stored = entries[0]
+    bad = mutate(good)
+    path = tmp_path / "bad.splatvq"
+    path.write_bytes(bad)
+    payload = codec.payload_bytes(coded, raw)
+    message = message.format(stored=stored, short=stored - 5, size=len(good), size1=len(good) + 1,
+                             count=coded + raw, big=70000 + raw, payload=payload,
+                             more=codec.payload_bytes(coded, raw + 3), ratio=codec.payload_bytes(65000, raw))
+    r = run("convert", path, tmp_path / "out.splatv")
+    assert (r.exit_code, r.stderr) == (1, f"Error: {path}: {message}\n"), r.output
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.splatvq"]
+
+
+def test_an_unknown_quality_is_a_usage_error(real):
+    with pytest.raises(UsageError, match=r"unknown .splatvq setting 'best' \(expected one of default, small\)"):
+        splatvq.encode(real[0], quality="best")
+
+
+def test_verify_and_stats_compare_against_the_sources_drawable_splats(tmp_path, real):
+    """The writer leaves undrawable splats out: both commands pair the file with the source's drawable splats
+    (once, in compare.pair) and say so, instead of refusing for the difference in count."""
+    scene, _rows = real
+    source, converted = tmp_path / "rs.ply", tmp_path / "rs.splatvq"
+    io.write(scene, source)
+    io.write(scene, converted)
+    kept = int(np.count_nonzero(~undrawable(scene.columns)))
+    assert kept < scene.count
+    note = f"note: {converted} holds the {kept:,} drawable splats of {source}'s {scene.count:,} (the "
+    r = CliRunner().invoke(main, ["verify", str(source), str(converted), "--json", "--times", "0.2,0.8",
+                                  "--size", "160x120"])
+    assert r.exit_code == 0, r.output
+    verified = json.loads(r.stdout)
+    assert verified["passed"] and verified["count"] == kept
+    assert verified["notes"][0].startswith(note[len("note: "):])
+    assert verified["notes"][0].endswith("compared against those")
+    assert note in r.stderr
+    r = CliRunner().invoke(main, ["stats", str(source), str(converted), "--json"])
+    assert r.exit_code == 0, r.output
+    stats = json.loads(r.stdout)
+    assert stats["notes"] == verified["notes"] and note in r.stderr
+    # Paired with the right splats: colour and opacity bytes are kept exactly, positions move by under a step.
+    assert stats["attributes"]["color"]["max_abs_error"] <= 0.5 / 255 + 1e-6
+    assert stats["attributes"]["opacity"]["max_abs_error"] <= 0.5 / 255 + 1e-6
+    assert stats["attributes"]["position"]["max_abs_error"] < 0.01
+
+
+def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path, real):
+    """compare.pair: the source's drawable splats, each paired with its own quantized copy (colour and opacity
+    bytes equal, position within a hundredth); a file that lost other splats is still refused."""
+    from splatconv.compare import _byte_key, pair
+    from splatconv.errors import UnsupportedError
+    from splatconv.model import Scene
+
+    scene, _rows = real
+    path, _report = written(tmp_path, scene)
+    converted = io.read(path)
+    order, notes = pair(scene, converted, storage=splatv.FORMAT.storage(converted))
+    keep = np.flatnonzero(~undrawable(scene.columns))
+    assert sorted(order.tolist()) == keep.tolist() and len(notes) == 1
+    assert (_byte_key(scene.take(order)) == _byte_key(converted.columns)).all()
+    moved = np.stack([np.abs(scene.columns[c][order] - converted.columns[c]) for c in "xyz"])
+    assert moved.max() < 0.01
+    # The same count: no note, as before.
+    drawable = Scene(columns=scene.take(keep), cameras=scene.cameras)
+    same, notes = pair(drawable, converted, storage=splatv.FORMAT.storage(converted))
+    assert np.array_equal(keep[same], order) and notes == []
+    # One splat fewer than the drawable ones: refused as before.
+    short = Scene(columns={k: np.asarray(v)[1:] for k, v in converted.columns.items()})
+    refused = f"SOURCE has {scene.count:,} splats but CONVERTED has {len(keep) - 1:,}"
+    with pytest.raises(UnsupportedError, match=refused):
+        pair(scene, short, storage=splatv.FORMAT.storage(converted))
