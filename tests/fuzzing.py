@@ -29,7 +29,7 @@ import zstandard
 from click.testing import CliRunner
 
 from splatconv.cli import main
-from splatconv.formats import ply, splatv
+from splatconv.formats import ply
 
 from .conftest import GS_PROPS, lite_columns_with_normals, random_columns, write_ply
 

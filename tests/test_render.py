@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 from splatconv import packing
-from splatconv.formats import splatv
 from splatconv.model import COLUMNS
 from splatconv.render import camera as cam
 from splatconv.render.gl import create_context

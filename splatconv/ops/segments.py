@@ -405,7 +405,6 @@ def _windowed(cols: dict, rows: np.ndarray, p: Placement, m: int, leak: int, fir
     c = cols["trbf_center"][rows]
     sc = viewer.exp(cols["trbf_scale"][rows])
     peak = viewer.opacity(cols)[rows]
-    J = len(wc)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         inv = 1.0 / sc[:, None] ** 2 + 1.0 / ws[None, :] ** 2          # (M, J)
         s_new = 1.0 / np.sqrt(inv)
