@@ -73,6 +73,18 @@ def splatv_bytes(records: np.ndarray, cameras=None, *, pad=True, chunks=None) ->
 __all__ = ["random_columns", "write_ply", "splatv_bytes", "model"]
 
 
+@pytest.fixture(scope="module")
+def renderer():
+    """A float-reference renderer the size of :data:`tests.scenes.CAMERA`, one a test module."""
+    from splatconv.render.preview import Renderer
+
+    from .scenes import H, W
+
+    r = Renderer(W, H)
+    yield r
+    r.release()
+
+
 @pytest.fixture(scope="session")
 def sample_splatv(tmp_path_factory):
     """The bundled sample scene converted to .splatv with its cameras (made once per run)."""

@@ -21,21 +21,13 @@ from splatconv.cli import main
 from splatconv.model import COLUMNS, ROTATION, Scene
 from splatconv.ops.bake import FLAT_LOG_SCALE, bake
 from splatconv.render.layout import float_attributes
-from splatconv.render.preview import Renderer
 
-from .ops_helpers import CAMERA, H, W, coverage, draw, psnr, view_of
+from .ops_helpers import CAMERA, coverage, draw, psnr, view_of
 from .real_scenes import real_scene, unpadded_splatv
 
 TIMES = (0.0, 0.3, 0.77, 1.0)
 #: One .splat record, read here independently of splatconv.formats.splat.
 SPLAT_RECORD = np.dtype([("xyz", "<f4", 3), ("scale", "<f4", 3), ("rgba", "u1", 4), ("rot", "u1", 4)])
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    r = Renderer(W, H)
-    yield r
-    r.release()
 
 
 @pytest.fixture(scope="module")

@@ -3,21 +3,12 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import crop, drop_nonfinite, min_opacity
-from splatconv.render.preview import Renderer
-from tests.ops_helpers import H, W, draw, moving_scene, psnr
+from tests.ops_helpers import draw, moving_scene, psnr
 
 TIMES = (0.1, 0.5, 0.9)
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    r = Renderer(W, H)
-    yield r
-    r.release()
 
 
 def joined(keep: Scene, extra: dict) -> tuple:

@@ -13,15 +13,7 @@ from splatconv.cli import main
 from splatconv.errors import UsageError
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import place_in, remap_time, trim
-from splatconv.render.preview import Renderer
-from tests.ops_helpers import H, W, assert_same_image, draw, moving_scene, psnr
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    r = Renderer(W, H)
-    yield r
-    r.release()
+from tests.ops_helpers import assert_same_image, draw, moving_scene, psnr
 
 
 @pytest.mark.parametrize("t0, t1", [(0.2, 0.6), (0.0, 0.5), (0.55, 1.0), (0.3, 0.35)])

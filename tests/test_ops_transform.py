@@ -14,17 +14,9 @@ from splatconv.errors import UsageError
 from splatconv.model import MOTION, OMEGA, POSITION, ROTATION, SCALE
 from splatconv.ops import Transform, apply_transform, make_transform, parse_rotation
 from splatconv.ops.transform import axis_rotation, left_product_matrix, quaternion_matrix, transform_cameras
-from splatconv.render.preview import Renderer
-from tests.ops_helpers import CAMERA, H, W, assert_same_image, draw, moving_scene, psnr
+from tests.ops_helpers import CAMERA, assert_same_image, draw, moving_scene, psnr
 
 TIMES = (0.0, 0.3, 0.65, 1.0)
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    r = Renderer(W, H)
-    yield r
-    r.release()
 
 
 # --------------------------------------------------------------------------

@@ -14,9 +14,8 @@ from splatconv.cli import main
 from splatconv.errors import UsageError
 from splatconv.formats import splatv, splatvq
 from splatconv.formats import splatvq_codec as codec
-from splatconv.render.preview import Renderer
 from splatconv.viewer import undrawable
-from tests.ops_helpers import CAMERA, H, W, draw, psnr
+from tests.ops_helpers import CAMERA, draw, psnr
 from tests.real_scenes import real_scene
 
 TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
@@ -24,13 +23,6 @@ TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
 
 def run(*args):
     return CliRunner().invoke(main, [str(a) for a in args])
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    r = Renderer(W, H)
-    yield r
-    r.release()
 
 
 @pytest.fixture(scope="module")

@@ -19,7 +19,6 @@ from splatconv import io
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
 from splatconv.render.layout import float_attributes
-from splatconv.render.preview import Renderer
 from splatconv.render.sort import viewer_order
 
 from .ops_helpers import CAMERA, coverage, moving_scene, view_of
@@ -291,13 +290,6 @@ def carried(order: np.ndarray, index: np.ndarray, size: int, filler: int) -> np.
     mapped = index[order]
     mapped = mapped[mapped >= 0]
     return np.concatenate([mapped, np.full(size - len(mapped), filler)]).astype(np.int32)
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    r = Renderer(CAMERA["width"], CAMERA["height"])
-    yield r
-    r.release()
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
