@@ -24,6 +24,7 @@ columns dict (``(N,) float32`` arrays named as in :data:`splatconv.model.COLUMNS
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -308,6 +309,10 @@ def without_meaning(values: np.ndarray, name: str) -> np.ndarray:
 UNDRAWABLE_KINDS = ("zero_rotation", "nan_position", "alpha_zero", "hidden_in_time")
 #: Code of a drawable splat in :func:`undrawable_kinds`.
 DRAWABLE = -1
+#: Columns :func:`undrawable_kinds` reads.
+_UNDRAWABLE_READS = ROTATION + OMEGA + POSITION + MOTION + ("opacity", "trbf_center", "trbf_scale")
+#: Rows :func:`undrawable_counts` classes at a time.
+_COUNT_BLOCK = 1 << 14
 #: Relative margin below the cut a splat's best temporal opacity must keep to be
 #: undrawable in time: the shader's float32 ``exp`` and ``pow`` are not exact.
 _CUT_MARGIN = 1e-3
@@ -332,10 +337,32 @@ def alpha_zero(cols: dict) -> np.ndarray:
     """Rows whose alpha byte is 0 however a writer rounds: ``(N,) bool``.
 
     sigmoid(opacity) * 255 rounds to 0 (it then also truncates to 0), or the
-    opacity is NaN (stored as byte 0).
+    opacity is NaN (stored as byte 0). The byte never decreases as the opacity
+    grows, so this is one float32 comparison a row with :func:`_alpha_zero_max`.
     """
-    a = opacity(cols) * 255.0
-    return np.isnan(a) | (np.rint(a) == 0)
+    x = np.asarray(cols["opacity"], dtype=np.float32)
+    return np.isnan(x) | (x <= _alpha_zero_max())
+
+
+def _alpha_zero_byte(x: np.float32) -> bool:
+    """Whether the float32 opacity ``x`` gives alpha byte 0, by the viewer's own float64 sigmoid."""
+    return bool(np.rint(opacity({"opacity": np.array([x], dtype=np.float32)})[0] * 255.0) == 0)
+
+
+@functools.lru_cache(maxsize=None)
+def _alpha_zero_max() -> np.float32:
+    """The largest float32 opacity whose alpha byte is 0: bisection over the float32 values ordered
+    as integers (the byte is monotone in the opacity), with :func:`_alpha_zero_byte`."""
+
+    def value(key: int) -> np.float32:  # the float32 at position `key` of the ordered values
+        bits = key if key >= 0 else 0x80000000 | -key
+        return np.array([bits], dtype=np.uint32).view(np.float32)[0]
+
+    lo, hi = -0x7F800000, 0x7F800000  # -inf gives byte 0, +inf byte 255
+    while hi - lo > 1:  # byte 0 at lo, not at hi
+        mid = (lo + hi) // 2
+        lo, hi = (mid, hi) if _alpha_zero_byte(value(mid)) else (lo, mid)
+    return value(lo)
 
 
 def _best_temporal(centre: np.ndarray, scale: np.ndarray) -> np.ndarray:
@@ -350,19 +377,23 @@ def hidden_in_time(cols: dict) -> np.ndarray:
     Checked on the float32 values and on both half-float roundings of the centre
     and the log scale (the viewer's texture stores halves), each below
     ``TEMPORAL_CUTOFF * (1 - 1e-3)``. A NaN centre or scale is never hidden:
-    NaN passes the shader's ``topacity < 0.02`` test.
+    NaN passes the shader's ``topacity < 0.02`` test. Nor is a centre in [0, 1]
+    (its halves stay there): at t = centre the basis is 1, or NaN for a zero scale.
     """
     below = TEMPORAL_CUTOFF * (1.0 - _CUT_MARGIN)
     centre = np.asarray(cols["trbf_center"], dtype=np.float32)
-    log_scale = np.asarray(cols["trbf_scale"], dtype=np.float32)
-    hidden = _best_temporal(wide(centre), exp(log_scale)) < below
-    if not hidden.any():
+    hidden = np.zeros(len(centre), dtype=bool)
+    rows = np.flatnonzero((centre < 0) | (centre > 1))  # NaN neither
+    if not len(rows):
         return hidden
-    rows = np.flatnonzero(hidden)
+    centre = centre[rows]
+    log_scale = np.asarray(cols["trbf_scale"], dtype=np.float32)[rows]
+    keep = _best_temporal(wide(centre), exp(log_scale)) < below
     for splatvjs in (False, True):
-        c = packing.half_to_float(packing.float_to_half_exact(centre[rows], splatvjs=splatvjs)[0])
-        s = packing.half_to_float(packing.float_to_half_exact(log_scale[rows], splatvjs=splatvjs)[0])
-        hidden[rows[~(_best_temporal(wide(c), exp(s)) < below)]] = False
+        c = packing.half_to_float(packing.float_to_half_exact(centre, splatvjs=splatvjs)[0])
+        s = packing.half_to_float(packing.float_to_half_exact(log_scale, splatvjs=splatvjs)[0])
+        keep &= _best_temporal(wide(c), exp(s)) < below
+    hidden[rows[keep]] = True
     return hidden
 
 
@@ -388,8 +419,17 @@ def undrawable(cols: dict) -> np.ndarray:
 
 
 def undrawable_counts(cols: dict) -> dict:
-    """Undrawable splats by kind: ``{kind: int}`` in :data:`UNDRAWABLE_KINDS` order, each splat under one kind."""
-    return kind_counts(undrawable_kinds(cols))
+    """Undrawable splats by kind: ``{kind: int}`` in :data:`UNDRAWABLE_KINDS` order, each splat under one kind.
+
+    A block of rows at a time: columns that are views of one row table (a PLY read
+    in place) are then read from cache, not from memory once per column.
+    """
+    n = len(cols["x"])
+    code = np.empty(n, dtype=np.int8)
+    for start in range(0, n, _COUNT_BLOCK):
+        rows = slice(start, start + _COUNT_BLOCK)
+        code[rows] = undrawable_kinds({name: cols[name][rows] for name in _UNDRAWABLE_READS})
+    return kind_counts(code)
 
 
 def kind_counts(code: np.ndarray) -> dict:

@@ -427,3 +427,24 @@ def test_with_drawable_depth_extremes_the_viewer_draws_the_same_frames(renderer,
             assert coverage(frames[0][0]) > 0.2, where
             assert np.array_equal(frames[0][0], frames[1][0]), "texture " + where
             assert np.array_equal(frames[0][1], frames[1][1]), "float " + where
+
+
+@pytest.mark.parametrize("zero_share, noted", [(0.4, True), (0.0, False)])
+def test_a_large_scene_is_noted_with_exact_counts_after_its_probe(zero_share, noted, tmp_path):
+    # From 65,536 splats a probe of every 16th row decides whether to count the scene whole: the
+    # note's figures are still the whole scene's, counted here by numpy.
+    scene, _ = real_scene(600, seed=4, zero_share=zero_share)
+    reps = 70_000 // 600 + 1
+    big = Scene({k: np.tile(v, reps)[:70_000] for k, v in scene.columns.items()}, cameras=scene.cameras)
+    mine = counts(big.columns)
+    heard = []
+    with io.noting_undrawable(heard.append):
+        io._check_undrawable(big, tmp_path / "big.ply")
+    total = sum(mine.values())
+    assert (total >= 0.1 * 70_000) == noted
+    if noted:
+        listed = ", ".join(f"{WORDS[k]} {v:,}" for k, v in mine.items() if v)
+        assert heard == [f"{tmp_path / 'big.ply'}: {total:,} of 70,000 splats ({100 * total / 70_000:.3g}%) can never "
+                         f"be drawn ({listed}); `splatconv convert --drop-undrawable` removes them"]
+    else:
+        assert heard == []
