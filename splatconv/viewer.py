@@ -479,16 +479,35 @@ def not_drawn_kinds_at(cols: dict, t: float) -> np.ndarray:
     [0, 1]. The maths is float64; at the one instant where a spinning rotation
     passes through zero, the shader's float32 sum may not be exactly zero.
     """
+    return state_at(cols, t)[0]
+
+
+def state_at(cols: dict, t: float) -> tuple:
+    """:func:`not_drawn_kinds_at` and what it computes on the way, for a caller that needs them too.
+
+    Returns
+    -------
+    code : (N,) int8
+        As :func:`not_drawn_kinds_at`.
+    position : (N, 3) float64
+        :func:`position_at` ``t``.
+    rotation : (N, 4) float64
+        rot + omega dt, not normalised (:func:`rotation_at` with ``normalize=False``).
+    temporal : (N,) float64
+        :func:`temporal_opacity` at ``t``, not cut.
+    """
     n = len(cols["x"])
     code = np.full(n, DRAWABLE, dtype=np.int8)
     temporal = temporal_opacity(cols, t, cut=False)
+    rotation = rotation_at(cols, t, normalize=False)
+    position = position_at(cols, t)
     hidden = temporal < TEMPORAL_CUTOFF
     faint = ~hidden & ~(np.rint(opacity(cols) * temporal * 255.0) > 0)  # NaN included
-    tests = (lambda: rotation_has_no_direction(rotation_at(cols, t, normalize=False)),
-             lambda: np.isnan(position_at(cols, t)).any(axis=1), lambda: alpha_zero(cols) | faint, lambda: hidden)
+    tests = (lambda: rotation_has_no_direction(rotation), lambda: np.isnan(position).any(axis=1),
+             lambda: alpha_zero(cols) | faint, lambda: hidden)
     for kind, test in enumerate(tests):
         code[(code == DRAWABLE) & test()] = kind
-    return code
+    return code, position, rotation, temporal
 
 
 def drawn_at(cols: dict, t: float) -> np.ndarray:

@@ -135,14 +135,15 @@ def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Sc
         raise UsageError(f"--time {time}: not a finite number")
     cols = scene.columns
     n = scene.count
-    kinds = viewer.not_drawn_kinds_at(cols, t)
+    kinds, position, rotation, kept_temporal = viewer.state_at(cols, t)
     keep = np.flatnonzero(kinds == viewer.DRAWABLE)
-    part = _rows_of(cols, keep if len(keep) < n else None)
+    index = keep if len(keep) < n else None
+    part = _rows_of(cols, index)
     m = len(keep)
     _rows, out = model.lite_rows(m)
-    position = viewer.position_at(part, t)
-    rotation = viewer.rotation_at(part, t)
-    kept_temporal = viewer.temporal_opacity(part, t, cut=False)
+    if index is not None:  # the viewer's values at t, computed once for every row, of the rows kept
+        position, rotation, kept_temporal = position[index], rotation[index], kept_temporal[index]
+    rotation = viewer.unit_quaternions(rotation)
     with np.errstate(over="ignore", invalid="ignore"):
         for i, name in enumerate(model.POSITION):
             out[name][:] = position[:, i]
