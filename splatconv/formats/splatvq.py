@@ -28,7 +28,7 @@ from ..jsonutil import loads_strict
 from ..model import Scene
 from ..progress import SILENT
 from ..viewer import UNDRAWABLE_KINDS, importance_order, undrawable_kinds
-from ..wording import plural
+from ..wording import kinds_text, plural
 from . import splatv
 from . import splatvq_codec as codec
 from .base import Format, WriteReport
@@ -125,7 +125,7 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     table = b"".join(BLOCK_ENTRY.pack(coded, raw, len(stored)) for stored, coded, raw in blocks)
     data = b"".join([head, text, table] + [stored for stored, _, _ in blocks])
     if dropped.any():
-        what = ", ".join(f"{int(c):,} {kind.replace('_', ' ')}" for kind, c in zip(UNDRAWABLE_KINDS, dropped) if c)
+        what = kinds_text({kind: int(c) for kind, c in zip(UNDRAWABLE_KINDS, dropped)})
         report.notes.append(f"left out {plural(int(dropped.sum()), 'undrawable splat')} ({what}): "
                             "no frame the viewer draws changes")
     raw = sum(r for _, _, r in blocks)
