@@ -203,9 +203,9 @@ def finite_stand_ins(cols: dict) -> dict:
 def _stand_in_notes(counts: dict) -> list:
     notes = []
     if counts["flat"]:
-        notes.append(f"{plural(counts['flat'], 'flat splat')} (a linear scale of exactly 0) written with log scale "
-                     f"{FLAT_LOG_SCALE:g}, not -inf: still 0 in float32, so every reader draws them flat, and "
-                     "readers that drop non-finite rows keep them")
+        notes.append(f"{plural(counts['flat'], 'flat splat')} (a linear scale of exactly 0) given log scale "
+                     f"{FLAT_LOG_SCALE:g}, not -inf: its exp is still 0 in float32 (a .splat stores that 0), so "
+                     "every reader draws them flat, and readers that drop non-finite rows keep them")
     if counts["opaque"]:
         notes.append(f"{plural(counts['opaque'], 'splat')} with opacity +inf written with opacity {OPAQUE_LOGIT:g} "
                      "(sigmoid 1 either way), which readers that drop non-finite rows keep")
