@@ -19,7 +19,7 @@ import numpy as np
 from . import packing, viewer
 from .errors import UnsupportedError
 from .model import GROUPS, Scene
-from .wording import plural
+from .wording import kinds_text, plural
 
 HALF_MAX = packing.HALF_MAX
 #: One half-float ulp relative to the value (10 mantissa bits), the largest error
@@ -183,13 +183,12 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
     n, m = source.count, converted.count
     if n != m:
         kinds = viewer.undrawable_kinds(source.columns)
-        keep = np.flatnonzero(kinds == -1)
+        keep = np.flatnonzero(kinds == viewer.DRAWABLE)
         if len(keep) == m:
             drawable = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
                              meta=source.meta)
             order = keep[align(drawable, converted, source_name, converted_name, storage=storage)]
-            left = ", ".join(f"{count:,} {kind.replace('_', ' ')}"
-                             for kind, count in viewer.kind_counts(kinds).items() if count)
+            left = kinds_text(viewer.kind_counts(kinds))
             return order, [f"{converted_name} holds the {plural(m, 'drawable splat')} of {source_name}'s {n:,} "
                            f"(the {n - m:,} undrawable ones, {left}, left out: no frame changes); "
                            "compared against those"]
