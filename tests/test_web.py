@@ -279,6 +279,9 @@ def test_drag_changes_view_and_hash_reproduces_frame_after_reload(browser, sampl
         later = wait_settled(page)
         assert later["view"] != after["view"]
         frame = capture(page)
+        # The page writes its hash 150 ms after the last move: wait for the one of this view, not a sample.
+        page.wait_for_function("""() => decodeURIComponent(location.hash).startsWith(
+            '#view=' + JSON.stringify(window.splatconvPlayer.status().view))""")
         url = page.url
         assert "&t=0.3" in url  # paused time is part of the shareable hash
         page.close()
