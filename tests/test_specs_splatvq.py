@@ -52,11 +52,11 @@ def test_preamble_table_is_the_struct():
         offset += int(size)
     assert fmt == splatvq.PREAMBLE.format
     names = [r[2] for r in fixed]
-    assert names[3:10] == list(splatvq.SETTING_ORDER)
+    assert names[3:3 + len(splatvq.SETTING_ORDER)] == list(splatvq.SETTING_ORDER)
     assert offset == splatvq.PREAMBLE.size
     assert "12 `B`" in SPEC and splatvq.BLOCK_ENTRY.size == 12
     assert "the bytes `SPVQ` (`MAGIC`)" in SPEC and splatvq.MAGIC == b"SPVQ"
-    assert "| 4 | 1 | version | 1 (`VERSION`) |" in SPEC and splatvq.VERSION == 1
+    assert "| 4 | 1 | version | 2 (`VERSION`) |" in SPEC and splatvq.VERSION == 2
     assert "1: raw deflate (`CODER_DEFLATE_RAW`)" in SPEC and codec.CODER_DEFLATE_RAW == 1
     assert "8: 256 splats a chunk (`CHUNK_LOG2`)" in SPEC and codec.CHUNK == 256
 
@@ -95,6 +95,7 @@ def test_settings_table_is_the_code():
     ("4096 interquartile extents", codec.OUTLIER_EXTENTS == 4096),
     ("1032 decoded bytes a stored byte", codec.MAX_RATIO == 1032),
     ("clamp((h >> 10) − 15, −15, 16)", True),
+    ("c = min(`alpha_levels`, 7 − floor(log2(max(a, 1))))", True),
 ])
 def test_constants_are_as_written(text, value):
     assert text in SPEC
@@ -102,19 +103,31 @@ def test_constants_are_as_written(text, value):
 
 
 def test_size_exponent_is_as_written():
-    h = np.array([[0, 0x3C00, 0x7C00], [0x3C00, 0x4000, 0x4400], [0x7C00, 0x7C00, 0x7C00], [1, 0x3C00, 0x3C00]],
-                 dtype=np.uint16)
-    assert codec.size_exponent(h).tolist() == [-15, 0, 16, -15]
+    h = np.array([[0, 0x3C00, 0x7C00], [0x4400, 0x4000, 0x3C00], [0x7C00, 0x7C00, 0x7C00], [1, 0x3C00, 0x3C00],
+                  [0, 1, 0x3C00]], dtype=np.uint16)
+    # The middle of the three bit patterns.
+    assert codec.size_exponent(h).tolist() == [0, 1, 16, 0, -15]
+
+
+def test_alpha_coarsening_is_as_written():
+    alpha = np.arange(256)
+    expected = [min(3, 7 - int(np.floor(np.log2(max(a, 1))))) for a in alpha]
+    assert codec.alpha_coarsening(alpha, 3).tolist() == expected
+    assert codec.alpha_coarsening(np.array([0, 1, 127, 128, 255]), 7).tolist() == [7, 7, 1, 0, 0]
 
 
 def test_the_test_vector_decodes_as_written():
     section = _section("## Test vector")
     blocks = re.findall(r"```\n(.*?)```", section, re.S)
-    payload = bytes.fromhex(blocks[0].strip())
+    payload = bytes.fromhex("".join(blocks[0].split()))
     words = [int(w, 16) for w in blocks[1].split()]
-    assert len(payload) == codec.payload_bytes(1, 0)
-    out = codec.decode_block(payload, 1, 0, codec.SETTINGS["default"], "<spec>", ())
-    assert out[0].tolist() == words
-    # The numbers the prose gives are in the payload.
+    prose = " ".join(section[:section.index("```")].split())
+    stated = dict(re.findall(r"(\w+) (−?\d+)[,.]", prose[prose.index("setting"):]))
+    setting = codec.Setting(**{name: int(stated[name].replace("−", "-")) for name in splatvq.SETTING_ORDER})
+    assert len(payload) == codec.payload_bytes(2, 0)
+    out = codec.decode_block(payload, 2, 0, setting, "<spec>", ())
+    assert out.reshape(-1).tolist() == words
+    # The numbers the prose gives are in the payload and the words.
     assert struct.unpack_from("<3d", payload) == (1.0, 2.0, -0.5)
-    assert np.float32(1 + 1000 * 2.0 ** -20).view(np.uint32) == words[0]
+    assert out[:, 0].view(np.float32).tolist() == [32.25, 38.5]
+    assert codec.x_steps(np.array([1000, 300]), np.array([-5, -3])).tolist() == [1000, 50]

@@ -175,10 +175,20 @@ def _bad_rotation_index(data):
     return _with_entry(data, stored=len(d := _deflate(bytes(payload))), body=d)
 
 
+def _bad_position_step(data):
+    """The first two splats' x steps at their largest: the second's code passes 2**32 - 1."""
+    payload = bytearray(_payload(data))
+    coded = _parts(data)[2][0][0]
+    at = -(-coded // codec.CHUNK) * codec.CHUNK_BYTES  # the x planes, lowest byte first
+    for plane in range(4):
+        payload[at + plane * coded:at + plane * coded + 2] = b"\xff\xff"
+    return _with_entry(data, stored=len(d := _deflate(bytes(payload))), body=d)
+
+
 BAD = [
-    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (22-byte preamble)"),
+    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (25-byte preamble)"),
     ("magic", lambda d: b"XXXX" + d[4:], "not a .splatvq file: magic b'XXXX', expected b'SPVQ'"),
-    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (1)"),
+    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (2)"),
     ("coder", lambda d: d[:5] + b"\x02" + d[6:], "coder 2 is not one this reader knows (1: raw deflate)"),
     ("setting", lambda d: d[:7] + b"\x00" + d[8:], "setting 'rotation_bits' is 0, outside [2, 16]"),
     ("truncated", lambda d: d[:-5], "block 0: declares {stored} bytes but the file ends {short} bytes after its "
@@ -196,6 +206,7 @@ BAD = [
     ("corrupt stream", lambda d: _with_entry(d, body=b"\xff" * len(d[_parts(d)[3]:])), "block 0: compressed data "
      "is corrupt (Error -3 while decompressing data: invalid block type)"),
     ("rotation index", _bad_rotation_index, "block 0: a rotation index is past 3"),
+    ("position step", _bad_position_step, "block 0: a position code is past 2**32 - 1"),
 ]
 
 

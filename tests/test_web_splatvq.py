@@ -55,7 +55,7 @@ def large(tmp_path_factory):
     with open(path, "wb") as f:
         splatvq.write(scene, f, quality="small")
     with open(path, "rb") as f:
-        blocks = struct.unpack_from("<I", f.read(splatvq.PREAMBLE.size), 18)[0]
+        blocks = splatvq.PREAMBLE.unpack(f.read(splatvq.PREAMBLE.size))[-1]
     assert blocks == 2
     return path
 
@@ -203,7 +203,7 @@ def test_the_first_block_is_drawn_before_the_file_has_arrived(browser, large):
 
 
 def _parts(data: bytes):
-    json_length, blocks = struct.unpack_from("<II", data, 14)
+    json_length, blocks = splatvq.PREAMBLE.unpack_from(data)[-2:]
     table_at = splatvq.PREAMBLE.size + json_length
     return table_at, blocks
 
@@ -236,6 +236,21 @@ def _wrong_size_block(data: bytes) -> bytes:
     return data[:start] + again + data[start + stored:]
 
 
+def _bad_position_step(data: bytes) -> bytes:
+    """The first two splats' x steps at their largest: the second's code passes 2**32 - 1."""
+    table_at, blocks = _parts(data)
+    start = table_at + blocks * splatvq.BLOCK_ENTRY.size
+    coded, raw, stored = splatvq.BLOCK_ENTRY.unpack_from(data, table_at)
+    payload = bytearray(codec.inflate(data[start:start + stored], codec.payload_bytes(coded, raw), "x", ()))
+    at = -(-coded // codec.CHUNK) * codec.CHUNK_BYTES
+    for plane in range(4):
+        payload[at + plane * coded:at + plane * coded + 2] = b"\xff\xff"
+    comp = zlib.compressobj(9, zlib.DEFLATED, -15)
+    again = comp.compress(bytes(payload)) + comp.flush()
+    data = _with_entry(data, 0, stored=len(again))
+    return data[:start] + again + data[start + stored:]
+
+
 BAD = [
     ("truncated in its last block", lambda d: d[:-100], "the file is truncated: it ends inside block 1 of 1"),
     ("truncated in its header", lambda d: d[:30], "the file is truncated: it ends inside its header"),
@@ -245,8 +260,10 @@ BAD = [
     ("bytes after the last block", lambda d: d + b"\0" * 7, "bytes after its last block"),
     ("corrupt deflate data", _corrupt_deflate, "block 1 of 1 is corrupt"),
     ("a block shorter than declared", _wrong_size_block, "block 1 of 1 is damaged: it decodes to"),
-    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 1"),
+    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 2"),
     ("a setting out of range", lambda d: d[:7] + b"\x00" + d[8:], "setting rotation_bits is 0"),
+    ("a position step past the code range", _bad_position_step,
+     "block 1 of 1 is damaged (a position code past 2^32 - 1)"),
 ]
 
 

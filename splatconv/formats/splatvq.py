@@ -42,9 +42,9 @@ STORAGE = {"position": "none", "rotation": "none", "scale": "none", "color": "by
            "motion": "none", "omega": "none", "trbf": "none"}
 
 MAGIC = b"SPVQ"
-VERSION = 1
-#: magic, version, coder, the setting's seven numbers, chunk size (log2), JSON length, block count.
-PREAMBLE = struct.Struct("<4sBBbBBBBBbBII")
+VERSION = 2
+#: magic, version, coder, the setting's ten numbers, chunk size (log2), JSON length, block count.
+PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBII")
 #: One block table entry: splats quantized, splats verbatim, stored (compressed) bytes.
 BLOCK_ENTRY = struct.Struct("<III")
 #: Largest JSON header read.
@@ -53,7 +53,7 @@ MAX_JSON_BYTES = 64 << 20
 MAX_SPLATS = 65536 * SPLATS_PER_ROW
 #: The setting's fields in preamble order.
 SETTING_ORDER = ("position_shift", "rotation_bits", "scale_step", "trbf_scale_step", "time_shift", "omega_shift",
-                 "motion_shift")
+                 "motion_shift", "acceleration_shift", "jerk_shift", "alpha_levels")
 
 __all__ = ["FORMAT", "read", "write", "encode", "decode", "check", "info_fields", "splat_count", "most_splats",
            "storage", "read_records", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
@@ -160,8 +160,8 @@ def _header(f, path: str, file_size: int):
                           path)
     fields = PREAMBLE.unpack(f.read(PREAMBLE.size))
     magic, version, coder = fields[:3]
-    values = dict(zip(SETTING_ORDER, fields[3:10]))
-    chunk_log2, json_len, block_count = fields[10:]
+    values = dict(zip(SETTING_ORDER, fields[3:3 + len(SETTING_ORDER)]))
+    chunk_log2, json_len, block_count = fields[3 + len(SETTING_ORDER):]
     if magic != MAGIC:
         raise FormatError(f"not a .splatvq file: magic {magic!r}, expected {MAGIC!r}", path)
     if version != VERSION:

@@ -58,9 +58,9 @@ class Setting:
     Attributes
     ----------
     position_shift : int
-        A splat's position step is 2**k, k = floor(log2(its least linear
-        scale)) + position_shift (see :func:`size_exponent`): a displacement
-        shows in proportion to the splat it moves.
+        A splat's position step is 2**k, k = floor(log2(its middle linear
+        scale)) + position_shift (+ its alpha coarsening; see :func:`size_exponent`):
+        a displacement shows in proportion to the splat it moves.
     rotation_bits : int
         Bits of each of the three smallest unit-quaternion components.
     scale_step : int
@@ -73,8 +73,18 @@ class Setting:
     omega_shift : int
         omega / |q| * W on the lattice 2**-omega_shift.
     motion_shift : int
-        Scaled motion m_p * W**p on the lattice 2**(k + motion_shift), k the
+        Scaled velocity m_1 * W on the lattice 2**(k + motion_shift), k the
         splat's position step exponent.
+    acceleration_shift, jerk_shift : int
+        Added to ``motion_shift`` for the degree-2 and degree-3 terms: the
+        viewer weighs a splat's time offsets by its temporal opacity, so the
+        higher powers of the offset, large only where the splat is faint, take
+        a coarser step for the same error in what is drawn.
+    alpha_levels : int
+        A splat of alpha byte ``a`` takes every geometric step (position,
+        motion, omega) ``c = min(alpha_levels, 7 - floor(log2(a)))`` times
+        coarser by powers of two (``c >= 0``): what it draws is in proportion
+        to its alpha, so the same displacement of a faint splat changes a frame less.
     """
 
     position_shift: int
@@ -84,20 +94,24 @@ class Setting:
     time_shift: int
     omega_shift: int
     motion_shift: int
+    acceleration_shift: int
+    jerk_shift: int
+    alpha_levels: int
 
 
 #: Quality settings by name, best first. The bench (``bench/bench_splatvq.py``) measures them.
 SETTINGS = {
-    "default": Setting(position_shift=-5, rotation_bits=8, scale_step=64, trbf_scale_step=128, time_shift=10,
-                       omega_shift=5, motion_shift=2),
-    "small": Setting(position_shift=-4, rotation_bits=8, scale_step=64, trbf_scale_step=128, time_shift=10,
-                     omega_shift=5, motion_shift=3),
+    "default": Setting(position_shift=-6, rotation_bits=8, scale_step=32, trbf_scale_step=64, time_shift=11,
+                       omega_shift=5, motion_shift=2, acceleration_shift=1, jerk_shift=1, alpha_levels=0),
+    "small": Setting(position_shift=-5, rotation_bits=6, scale_step=64, trbf_scale_step=64, time_shift=10,
+                     omega_shift=4, motion_shift=3, acceleration_shift=1, jerk_shift=1, alpha_levels=2),
 }
 DEFAULT_SETTING = "default"
 #: Limits a header's setting is checked against.
 SETTING_LIMITS = {"position_shift": (-30, 30), "rotation_bits": (2, 16), "scale_step": (1, 255),
                   "trbf_scale_step": (1, 255), "time_shift": (0, 30), "omega_shift": (0, 30),
-                  "motion_shift": (-30, 30)}
+                  "motion_shift": (-30, 30), "acceleration_shift": (0, 8), "jerk_shift": (0, 8),
+                  "alpha_levels": (0, 7)}
 
 #: The chunk tables of a block payload, in order: name, dtype, values per chunk.
 CHUNK_FIELDS = (
@@ -193,6 +207,69 @@ def _morton(positions: np.ndarray) -> np.ndarray:
     return out
 
 
+def alpha_coarsening(alpha: np.ndarray, levels: int) -> np.ndarray:
+    """Extra step exponent of each splat from its alpha byte, ``(N,) uint8`` -> ``(N,) int64`` in [0, levels].
+
+    ``min(levels, 7 - floor(log2(a)))``: 0 for alpha 128 and more, one more for
+    each halving below (an alpha of 0 counts as 1). Integers only.
+    """
+    a = np.maximum(alpha.astype(np.int64), 1)
+    floor_log2 = np.frexp(a.astype(np.float64))[1] - 1
+    return np.clip(7 - floor_log2, 0, levels)
+
+
+def motion_exponents(setting: Setting) -> np.ndarray:
+    """Lattice exponent offset of each motion term (motion_0..8) over k: ``(9,) int64``."""
+    extra = np.array([0, setting.acceleration_shift, setting.jerk_shift], dtype=np.int64)
+    return setting.motion_shift + np.repeat(extra, 3)
+
+
+def _predicted_x(previous: np.ndarray, k_previous: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """floor(previous * 2**(k_previous - k)) in float64 (exact: a power-of-two scaling and a floor)."""
+    return np.floor(np.ldexp(previous.astype(np.float64), k_previous - k))
+
+
+def x_steps(code: np.ndarray, k: np.ndarray) -> np.ndarray:
+    """Position x codes in chunks sorted by decoded x -> their steps: ``(N,) int64`` each, steps >= 0.
+
+    The first splat of a chunk keeps its code; each other stores its code less
+    floor(previous code * 2**(previous k - its k)): the previous splat's x on
+    its own, possibly coarser or finer, lattice.
+    """
+    steps = code.copy()
+    rest = np.arange(len(code)) % CHUNK != 0
+    i = np.flatnonzero(rest)
+    steps[i] = code[i] - _predicted_x(code[i - 1], k[i - 1], k[i]).astype(np.int64)
+    return steps
+
+
+def x_codes(steps: np.ndarray, k: np.ndarray, path: str, where: tuple) -> np.ndarray:
+    """The inverse of :func:`x_steps`, one chunk column at a time: ``(N,) int64``.
+
+    Raises
+    ------
+    FormatError
+        Where a code would pass :data:`POSITION_CODE_MAX` (a damaged block).
+    """
+    n = len(steps)
+    chunks = -(-n // CHUNK)
+    pad = chunks * CHUNK - n
+    d = np.concatenate([steps, np.zeros(pad, np.int64)]).reshape(chunks, CHUNK)
+    # Padding takes a huge k, so that it predicts 0 from anything before it.
+    kk = np.concatenate([k, np.full(pad, 1 << 20, np.int64)]).reshape(chunks, CHUNK)
+    c = np.empty_like(d)
+    c[:, 0] = d[:, 0]
+    for j in range(1, CHUNK):
+        pred = _predicted_x(c[:, j - 1], kk[:, j - 1], kk[:, j])
+        if (pred > POSITION_CODE_MAX).any():
+            raise FormatError("a position code is past 2**32 - 1", path, where)
+        c[:, j] = d[:, j] + pred.astype(np.int64)
+    c = c.reshape(-1)[:n]
+    if (c > POSITION_CODE_MAX).any():
+        raise FormatError("a position code is past 2**32 - 1", path, where)
+    return c
+
+
 def _ceil_log2(x: np.ndarray) -> np.ndarray:
     """ceil(log2(x)) of positive finite float64 values, exactly: int64."""
     m, e = np.frexp(x)
@@ -242,13 +319,16 @@ def _scale_decoded(h: np.ndarray, step: int) -> np.ndarray:
 
 
 def size_exponent(scale_halves: np.ndarray) -> np.ndarray:
-    """floor(log2) of each splat's least linear scale, from decoded scale half bits ``(N, 3) uint16``: ``(N,) int64``.
+    """floor(log2) of each splat's middle linear scale, from decoded scale half bits ``(N, 3) uint16``: ``(N,) int64``.
 
+    The middle of the three, not the least: a flat splat (one scale near or at
+    0, common in trained scenes) is drawn as a disc, and a step in proportion to
+    its thickness would spend bits on a precision no frame shows but edge-on.
     Integers only (a half's exponent field): a decoder derives it from the
     scales it decoded. Subnormal and zero scales count as -15, infinite ones as 16.
     """
-    least = scale_halves.min(axis=1).astype(np.int64)
-    return np.clip((least >> 10) - 15, -15, 16)
+    middle = np.sort(scale_halves, axis=1)[:, 1].astype(np.int64)
+    return np.clip((middle >> 10) - 15, -15, 16)
 
 
 def _decoded_quaternion(code: np.ndarray, index: np.ndarray, rmax: int) -> np.ndarray:
@@ -298,11 +378,12 @@ def quantized_key(records: np.ndarray, setting: Setting) -> np.ndarray:
         return lin[:, 0] * lin[:, 1] * lin[:, 2] * alpha
 
 
-def _planes(values: np.ndarray, dtype) -> bytes:
-    """``(n, k)`` values as byte planes: component by component, lowest byte first."""
+def _planes(values: np.ndarray, dtype) -> list:
+    """``(n, k)`` values as byte planes, component by component, lowest byte first: a list of ``n``-byte planes."""
     a = np.ascontiguousarray(np.asarray(values).astype(dtype).T)  # (k, n)
     width = a.dtype.itemsize
-    return np.ascontiguousarray(a.view(np.uint8).reshape(a.shape[0], -1, width).transpose(0, 2, 1)).tobytes()
+    planes = np.ascontiguousarray(a.view(np.uint8).reshape(a.shape[0], -1, width).transpose(0, 2, 1))
+    return [p.tobytes() for p in planes.reshape(-1, a.shape[1])]
 
 
 def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: np.ndarray | None = None
@@ -362,13 +443,14 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
     rot_code = np.clip(np.rint((small3 / _SQRT1_2 + 1.0) * 0.5 * rmax), 0, rmax)
     rot_code = _keep_largest(rot_code, big, rmax)
     omega = packing.HALF_TO_FLOAT[_halves_of(rec, OMEGA_AT)].astype(np.float64)
-    omega_shift = (e + setting.omega_shift)[:, None]
+    coarse = alpha_coarsening(rec[:, COLOR_WORD] >> np.uint32(24), setting.alpha_levels)
+    omega_shift = (e + setting.omega_shift - coarse)[:, None]
     omega_code = np.rint(np.ldexp(omega * (sign / norm)[:, None], omega_shift))
 
     # Positions: each splat on the lattice 2**k, k = its size exponent + position_shift
     # (see size_exponent), coded from its chunk's base, a multiple of every step in the chunk.
     scale_h = _halves_of(rec, SCALE_AT)
-    k = size_exponent(_scale_decoded(scale_h, setting.scale_step)) + setting.position_shift
+    k = size_exponent(_scale_decoded(scale_h, setting.scale_step)) + setting.position_shift + coarse
     starts = np.arange(0, n, CHUNK)
     chunk_of = np.arange(n) // CHUNK
     pos = rec[:, :3].view(np.float32).astype(np.float64)
@@ -381,7 +463,7 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
     pos_code = np.rint(np.ldexp(pos - base[chunk_of], -k[:, None]))
 
     motion = packing.HALF_TO_FLOAT[_halves_of(rec, MOTION_AT)].astype(np.float64)
-    motion_shift = e[:, None] * MOTION_DEGREE[None, :] - (k + setting.motion_shift)[:, None]
+    motion_shift = e[:, None] * MOTION_DEGREE[None, :] - k[:, None] - motion_exponents(setting)[None, :]
     motion_code = np.rint(np.ldexp(motion, motion_shift))
 
     # Records whose codes do not fit go raw after all: the block is made again with them forced raw.
@@ -405,27 +487,42 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
                       np.where(tsh == packing.HALF_INF_BITS, SCALE_INF, t_lat - t_base[chunk_of] + SCALE_FIRST))
 
     colour = rec[:, COLOR_WORD:COLOR_WORD + 1].copy().view(np.uint8)
+    # Inside each chunk, splats in order of their decoded x (ties in Morton order), x
+    # stored as the step from the one before: the order itself carries information
+    # (some log2(256!) / 256 = 6.6 bits a splat) that independent codes spend again.
+    pos_code = pos_code.astype(np.int64)
+    order = np.lexsort((np.arange(n), np.ldexp(pos_code[:, 0].astype(np.float64), k), chunk_of))
+    big, rot_code, omega_code, s_code, colour = big[order], rot_code[order], omega_code[order], s_code[order], colour[order]
+    centre_code, t_code, e, motion_code = centre_code[order], t_code[order], e[order], motion_code[order]
+    pos_code, k = pos_code[order], k[order]
+    pos_code[:, 0] = x_steps(pos_code[:, 0], k)
     parts = [
-        np.ascontiguousarray(base, dtype="<f8").tobytes(),
-        np.ascontiguousarray(s_base, dtype="<u2").tobytes(),
-        np.ascontiguousarray(t_base, dtype="<u2").tobytes(),
-        _planes(pos_code, "<u4"),
-        _planes(big[:, None], "u1"),
-        _planes(rot_code, "<u2"),
-        _planes(_zigzag(omega_code, np.uint16), "<u2"),
-        _planes(s_code, "<u2"),
-        _planes(colour, "u1"),
-        _planes(_zigzag(centre_code, np.uint32)[:, None], "<u4"),
-        _planes(t_code[:, None], "<u2"),
-        _planes((e + WINDOW_BIAS)[:, None], "u1"),
-        _planes(_zigzag(motion_code, np.uint32), "<u4"),
+        np.ascontiguousarray(base, dtype="<f8").tobytes()
+        + np.ascontiguousarray(s_base, dtype="<u2").tobytes()
+        + np.ascontiguousarray(t_base, dtype="<u2").tobytes(),
+        *_planes(pos_code, "<u4"),
+        *_planes(big[:, None], "u1"),
+        *_planes(rot_code, "<u2"),
+        *_planes(_zigzag(omega_code, np.uint16), "<u2"),
+        *_planes(s_code, "<u2"),
+        *_planes(colour, "u1"),
+        *_planes(_zigzag(centre_code, np.uint32)[:, None], "<u4"),
+        *_planes(t_code[:, None], "<u2"),
+        *_planes((e + WINDOW_BIAS)[:, None], "u1"),
+        *_planes(_zigzag(motion_code, np.uint32), "<u4"),
         np.ascontiguousarray(raw_records, dtype="<u4").tobytes(),
     ]
-    payload = b"".join(parts)
     # Run-length matching only: byte planes hold few long matches; it is some thirty
     # times faster than level 9's search for 1.3% more bytes (bench/README.md).
+    # Each plane ends a deflate block (Z_BLOCK: no padding, no marker), so each gets
+    # Huffman codes of its own: a plane's byte statistics differ from its neighbours'.
     comp = zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
-    return comp.compress(payload) + comp.flush(), n, len(raw_records)
+    out = []
+    for part in parts:
+        out.append(comp.compress(part))
+        out.append(comp.flush(zlib.Z_BLOCK))
+    out.append(comp.flush())
+    return b"".join(out), n, len(raw_records)
 
 
 # --------------------------------------------------------------------------
@@ -485,9 +582,13 @@ def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: s
     if not np.isfinite(base).all():
         raise FormatError("a chunk's position base is not finite", path, where)
     scale = _scale_halves(fields["scale"], table["scale_base"][chunk_of], setting.scale_step, path, where)
-    k = size_exponent(scale) + setting.position_shift
+    colour = np.ascontiguousarray(fields["color"]).view("<u4")[:, 0]
+    coarse = alpha_coarsening(colour >> np.uint32(24), setting.alpha_levels)
+    k = size_exponent(scale) + setting.position_shift + coarse
+    code = fields["position"].astype(np.int64)
+    code[:, 0] = x_codes(code[:, 0], k, path, where)
     with np.errstate(over="ignore", invalid="ignore"):
-        pos = base[chunk_of] + np.ldexp(fields["position"].astype(np.float64), k[:, None])
+        pos = base[chunk_of] + np.ldexp(code.astype(np.float64), k[:, None])
         out[:n, :3] = pos.astype(np.float32).view(np.uint32)
     e = fields["window"][:, 0].astype(np.int64) - WINDOW_BIAS
     # Rotation.
@@ -498,12 +599,13 @@ def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: s
     if (fields["rotation"] > rmax).any():
         raise FormatError(f"a rotation code is past {rmax}", path, where)
     quat_halves = _decoded_quaternion(fields["rotation"], index, rmax)
-    omega = np.ldexp(_unzigzag(fields["omega"]).astype(np.float64), -(e + setting.omega_shift)[:, None])
     tscale = _scale_halves(fields["trbf_scale"], table["trbf_scale_base"][chunk_of], setting.trbf_scale_step,
                            path, where)[:, 0]
     centre = np.ldexp(_unzigzag(fields["trbf_center"][:, 0]).astype(np.float64), -setting.time_shift)
-    motion = np.ldexp(_unzigzag(fields["motion"]).astype(np.float64),
-                      (k + setting.motion_shift)[:, None] - e[:, None] * MOTION_DEGREE[None, :])
+    with np.errstate(over="ignore"):  # a damaged window byte may scale a code past the double range: inf
+        omega = np.ldexp(_unzigzag(fields["omega"]).astype(np.float64), -(e + setting.omega_shift - coarse)[:, None])
+        motion = np.ldexp(_unzigzag(fields["motion"]).astype(np.float64),
+                          k[:, None] + motion_exponents(setting)[None, :] - e[:, None] * MOTION_DEGREE[None, :])
     half = out[:n].view(np.uint16)
     for j, (w, i) in enumerate(ROT_AT):
         half[:, 2 * w + i] = quat_halves[:, j]
@@ -515,7 +617,7 @@ def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: s
         half[:, 2 * w + i] = _half(motion[:, j])
     half[:, 2 * TRBF_CENTER_AT[0] + TRBF_CENTER_AT[1]] = _half(centre)
     half[:, 2 * TRBF_SCALE_AT[0] + TRBF_SCALE_AT[1]] = tscale
-    out[:n, COLOR_WORD] = np.ascontiguousarray(fields["color"]).view("<u4")[:, 0]
+    out[:n, COLOR_WORD] = colour
     return out
 
 

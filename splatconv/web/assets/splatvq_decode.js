@@ -17,12 +17,12 @@
 "use strict";
 
 const MAGIC = "SPVQ";
-const VERSION = 1;
+const VERSION = 2;
 const CODER_DEFLATE_RAW = 1;
 const CHUNK_LOG2 = 8;
 const CHUNK = 1 << CHUNK_LOG2;
 const BLOCK = 1 << 16;
-const PREAMBLE = 22;           // magic, version, coder, 7 setting bytes, chunk_log2, json_length, block_count
+const PREAMBLE = 25;           // magic, version, coder, 10 setting bytes, chunk_log2, json_length, block_count
 const ENTRY = 12;              // coded, raw, stored: three uint32
 const MAX_JSON = 64 << 20;
 const MAX_RATIO = 1032;        // deflate gives at most this many bytes a stored byte
@@ -31,15 +31,20 @@ const CHUNK_BYTES = 32, SPLAT_BYTES = 80, RAW_BYTES = 64, WORDS = 16;
 const WINDOW_BIAS = 128;
 const SCALE_ZERO = 0, SCALE_INF = 1, SCALE_FIRST = 2;
 const HALF_INF = 0x7c00;
-// Preamble bytes 6..12: name, signed, lowest, highest (SETTING_LIMITS in splatvq_codec.py).
+const POSITION_CODE_MAX = 4294967295;
+// Preamble bytes 6..15: name, signed, lowest, highest (SETTING_LIMITS in splatvq_codec.py).
 const SETTING = [
   ["position_shift", true, -30, 30], ["rotation_bits", false, 2, 16], ["scale_step", false, 1, 255],
   ["trbf_scale_step", false, 1, 255], ["time_shift", false, 0, 30], ["omega_shift", false, 0, 30],
-  ["motion_shift", true, -30, 30],
+  ["motion_shift", true, -30, 30], ["acceleration_shift", false, 0, 8], ["jerk_shift", false, 0, 8],
+  ["alpha_levels", false, 0, 7],
 ];
+const CHUNK_LOG2_AT = 6 + SETTING.length, JSON_AT = CHUNK_LOG2_AT + 1, BLOCKS_AT = JSON_AT + 4;
 
-// 2^x for integer x, exactly (halving and doubling 1 are exact in doubles over this range).
-const POW2_BIAS = 400;
+// 2^x for integer x, exactly, past every exponent a file can give (halving and doubling 1
+// are exact in doubles; below 2^-1074 it is 0 and above 2^1023 Infinity: what decodes
+// from such a product is the same half as Python's ldexp gives).
+const POW2_BIAS = 1100;
 const POW2 = new Float64Array(2 * POW2_BIAS + 1);
 POW2[POW2_BIAS] = 1;
 for (let i = 1; i <= POW2_BIAS; i++) {
@@ -243,10 +248,12 @@ function readPreamble(bytes) {
     if (v < lo || v > hi) throw new Refusal(`its header is damaged (setting ${name} is ${v}, outside ${lo}..${hi}).`);
     setting[name] = v;
   });
-  if (bytes[13] !== CHUNK_LOG2) throw new Refusal(`its header is damaged (chunks of 2^${bytes[13]} splats, not 2^8).`);
+  if (bytes[CHUNK_LOG2_AT] !== CHUNK_LOG2) {
+    throw new Refusal(`its header is damaged (chunks of 2^${bytes[CHUNK_LOG2_AT]} splats, not 2^8).`);
+  }
   file.setting = setting;
-  file.jsonLength = dv.getUint32(14, true);
-  file.blockCount = dv.getUint32(18, true);
+  file.jsonLength = dv.getUint32(JSON_AT, true);
+  file.blockCount = dv.getUint32(BLOCKS_AT, true);
   if (file.jsonLength > MAX_JSON) {
     throw new Refusal(`its header is damaged (it claims a header of ${file.jsonLength} bytes).`);
   }
@@ -381,18 +388,32 @@ function decodePayload(p, n, raw, s, which) {
   };
   for (let j = 0; j < 3; j++) scaleField(SCALE + 2 * j * n, 10 + j, scaleBase, 3, j, s.scale_step);
   scaleField(TSCALE, 31, trbfBase, 1, 0, s.trbf_scale_step);
-  // Each splat's step exponent k (from its least scale) and window exponent e.
-  const k = new Int32Array(n), e = new Int32Array(n);
+  // Each splat's coarsening c from its alpha byte (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))),
+  // step exponent k (from its middle scale, plus c) and window exponent e.
+  const k = new Int32Array(n), e = new Int32Array(n), c = new Int32Array(n);
+  const alphaPlane = COLOR + 3 * n;
   for (let i = 0; i < n; i++) {
-    const least = Math.min(halves[32 * i + 10], halves[32 * i + 11], halves[32 * i + 12]);
-    k[i] = Math.min(16, Math.max(-15, (least >> 10) - 15)) + s.position_shift;
+    const s0 = halves[32 * i + 10], s1 = halves[32 * i + 11], s2 = halves[32 * i + 12];
+    const middle = Math.max(Math.min(s0, s1), Math.min(Math.max(s0, s1), s2));
+    c[i] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, p[alphaPlane + i]))));
+    k[i] = Math.min(16, Math.max(-15, (middle >> 10) - 15)) + s.position_shift + c[i];
     e[i] = p[WINDOW + i] - WINDOW_BIAS;
   }
-  // Positions (words 0-2): f32(base + code * 2^k).
+  // Positions (words 0-2): f32(base + code * 2^k). Inside a chunk x is stored as the step
+  // from floor(previous code * 2^(previous k - k)), the chunk's first splat as its code.
   for (let j = 0; j < 3; j++) {
     const b0 = POS + 4 * j * n, b1 = b0 + n, b2 = b1 + n, b3 = b2 + n;
+    let previous = 0;
     for (let i = 0; i < n; i++) {
-      const code = (p[b0 + i] | (p[b1 + i] << 8) | (p[b2 + i] << 16) | (p[b3 + i] << 24)) >>> 0;
+      let code = (p[b0 + i] | (p[b1 + i] << 8) | (p[b2 + i] << 16) | (p[b3 + i] << 24)) >>> 0;
+      if (j === 0 && (i & (CHUNK - 1)) !== 0) {
+        const predicted = Math.floor(previous * POW2[POW2_BIAS + k[i - 1] - k[i]]);
+        code += predicted;
+        if (predicted > POSITION_CODE_MAX || code > POSITION_CODE_MAX) {
+          throw new Refusal(`${which} is damaged (a position code past 2^32 - 1).`);
+        }
+      }
+      previous = code;
       floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code * POW2[POW2_BIAS + k[i]];
     }
   }
@@ -422,22 +443,23 @@ function decodePayload(p, n, raw, s, which) {
     const plane = COLOR + j * n;
     for (let i = 0; i < n; i++) bytes[64 * i + 28 + j] = p[plane + i];
   }
-  // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice 2^(k + motion_shift - e d).
+  // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice
+  // 2^(k + motion_shift + (0, acceleration_shift, jerk_shift)[d - 1] - e d).
   for (let j = 0; j < 9; j++) {
     const d = 1 + ((j / 3) | 0), slot = 16 + j;
     const b0 = MOTION + 4 * j * n, b1 = b0 + n, b2 = b1 + n, b3 = b2 + n;
-    const shift = POW2_BIAS + s.motion_shift;
+    const shift = POW2_BIAS + s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1];
     for (let i = 0; i < n; i++) {
       const u = (p[b0 + i] | (p[b1 + i] << 8) | (p[b2 + i] << 16) | (p[b3 + i] << 24)) >>> 0;
       if (u !== 0) halves[32 * i + slot] = half(unzigzag(u) * POW2[shift + k[i] - e[i] * d]);
     }
   }
-  // Omega (words 13-14, half slots 26-29) on the lattice 2^-(e + omega_shift).
+  // Omega (words 13-14, half slots 26-29) on the lattice 2^-(e + omega_shift - c).
   for (let j = 0; j < 4; j++) {
     const b0 = OMEGA + 2 * j * n, b1 = b0 + n, slot = 26 + j, shift = POW2_BIAS - s.omega_shift;
     for (let i = 0; i < n; i++) {
       const u = p[b0 + i] | (p[b1 + i] << 8);
-      if (u !== 0) halves[32 * i + slot] = half(unzigzag(u) * POW2[shift - e[i]]);
+      if (u !== 0) halves[32 * i + slot] = half(unzigzag(u) * POW2[shift - e[i] + c[i]]);
     }
   }
   // Temporal centre (half slot 30) on the lattice 2^-time_shift.
