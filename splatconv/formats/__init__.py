@@ -92,3 +92,8 @@ def compat_modes() -> tuple:
 def layouts() -> tuple:
     """Every record layout some format's writer offers, for option choices (first offered first)."""
     return tuple(dict.fromkeys(name for fmt in FORMATS for name in fmt.layouts))
+
+
+def qualities() -> tuple:
+    """Every quality setting some format's writer offers, for option choices (first offered first)."""
+    return tuple(dict.fromkeys(name for fmt in FORMATS for name in fmt.qualities))

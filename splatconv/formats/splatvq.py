@@ -313,4 +313,6 @@ FORMAT = Format(
     # it in a worker, so it plays a .splatvq's bytes as they are, once its preamble,
     # header and block table check out (the page checks each block as it decodes it).
     check_playable=check,
+    # The quality write option, the default setting first (for the help text).
+    qualities=tuple(sorted(QUALITIES, key=lambda name: name != codec.DEFAULT_SETTING)),
 )
