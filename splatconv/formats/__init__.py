@@ -94,6 +94,12 @@ def layouts() -> tuple:
     return tuple(dict.fromkeys(name for fmt in FORMATS for name in fmt.layouts))
 
 
+def quantized_formats() -> tuple:
+    """The scene formats whose writer offers quality settings (``qualities``), the page that embeds one
+    left out: what ``stats`` measures a scene in at each setting."""
+    return tuple(fmt for fmt in FORMATS if fmt.qualities and not fmt.plays_segments)
+
+
 def qualities() -> tuple:
     """Every quality setting some format's writer offers, for option choices (first offered first)."""
     return tuple(dict.fromkeys(name for fmt in FORMATS for name in fmt.qualities))
