@@ -158,3 +158,32 @@ def test_every_writing_command_refuses_it_for_other_outputs_before_reading(tmp_p
     assert r.stderr.startswith("Error: ") and r.stderr.endswith(
         f"--quality {QUALITIES[0]} applies to .splatvq, .html output only\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.ply"]
+
+
+def test_pages_of_several_scenes_and_external_pages_take_it(tmp_path, source):
+    """convert's player pages through publish: each segment embedded as .splatvq at the setting, or
+    written beside the page as OUT.splatvq; a .splatvq input is then not played where it is."""
+    quality = QUALITIES[-1]
+    page = tmp_path / "clip.html"
+    r = run("convert", source, source, page, "--quality", quality)
+    assert r.exit_code == 0, r.output
+    text = page.read_text(encoding="utf-8")
+    for i in range(2):
+        data = base64.b64decode("".join(re.search(rf'data-asset="scene-{i}">(.*?)</script>', text, re.S)
+                                        .group(1).split()))
+        assert data == splatvq.encode(io.read(source), quality=quality)[0]
+    site = tmp_path / "site"
+    site.mkdir()
+    r = run("convert", source, site / "scene.html", "--external", "--quality", quality)
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in site.iterdir()) == ["scene.html", "scene.splatvq"]
+    assert io.read(site / "scene.splatvq").meta["setting"] == quality
+    assert r.stdout.splitlines()[1] == f"wrote {site / 'scene.splatvq'}: {(site / 'scene.splatvq').stat().st_size:,} bytes"
+    # A .splatvq input where the page would fetch it is another setting's bytes: not played where it is,
+    # and never written onto.
+    before = (site / "scene.splatvq").read_bytes()
+    r = run("convert", site / "scene.splatvq", site / "scene.html", "--external", "--force", "--quality",
+            QUALITIES[0])
+    assert r.exit_code == 1
+    assert r.stderr == f"Error: {site / 'scene.splatvq'}: is the input file; refusing to write onto it\n"
+    assert (site / "scene.splatvq").read_bytes() == before

@@ -56,8 +56,9 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
 @options(
     click.option("--external", is_flag=True,
-                 help="For an .html OUTPUT: write the scene beside the page (OUT.splatv) instead of "
-                      "embedding it, for scenes too large to embed; the page must then be served over HTTP."),
+                 help="For an .html OUTPUT: write the scene beside the page (OUT.splatv; OUT.splatvq for a "
+                      ".splatvq INPUT or with --quality) instead of embedding it, for scenes too large to embed; "
+                      "the page must then be served over HTTP."),
     click.option("--durations", metavar="D0,D1,...",
                  help="For several INPUTs to .html: each segment's share of the clip's timeline, e.g. its "
                       "frames [default: equal shares]."),
@@ -100,9 +101,11 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     """
     # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
-        if compat or sort or cameras or layout or quality or zstd_level or scene_editor(edits):
-            raise Failure("--external and several inputs take no other options but --durations and --force", 2)
-        report = publish(input_paths, output_path, external=external, force=force, durations=durations)
+        if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
+            raise Failure("--external and several inputs take no other options but --durations, --quality and "
+                          "--force", 2)
+        report = publish(input_paths, output_path, external=external, force=force, durations=durations,
+                         quality=quality)
         notes(report.notes)
         for path, size in report.written:
             click.echo(f"wrote {path}: {size:,} bytes")
