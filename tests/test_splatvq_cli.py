@@ -178,7 +178,8 @@ def test_pages_of_several_scenes_and_external_pages_take_it(tmp_path, source):
     assert r.exit_code == 0, r.output
     assert sorted(p.name for p in site.iterdir()) == ["scene.html", "scene.splatvq"]
     assert io.read(site / "scene.splatvq").meta["setting"] == quality
-    assert r.stdout.splitlines()[1] == f"wrote {site / 'scene.splatvq'}: {(site / 'scene.splatvq').stat().st_size:,} bytes"
+    size = (site / "scene.splatvq").stat().st_size
+    assert r.stdout.splitlines()[1] == f"wrote {site / 'scene.splatvq'}: {size:,} bytes"
     # A .splatvq input where the page would fetch it is another setting's bytes: not played where it is,
     # and never written onto.
     before = (site / "scene.splatvq").read_bytes()

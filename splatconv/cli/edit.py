@@ -139,8 +139,9 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, qual
         wrote(output_path, written)
         return
     names, moments, reports = bake_frames(input_path, output_path, frames=frames, suffix=frame_suffix, sort=sort,
-                                          layout=layout, quality=quality, color=color, drop_nonfinite=drop_nonfinite, force=force,
-                                          progress=progress(quiet), tell=notes)
+                                          layout=layout, quality=quality, color=color,
+                                          drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet),
+                                          tell=notes)
     counts = [r.count for r in reports]
     click.echo(f"wrote {frames} frames to {output_path}: {names[0]} .. {names[-1]} (t = {moments[0]:g} .. "
                f"{moments[-1]:g}), {min(counts):,} to {plural(max(counts), 'splat')} a frame")
