@@ -219,7 +219,7 @@ def _stats_tables(data: dict) -> list:
     for name in dict.fromkeys(q["format"] for q in data.get("quantized") or ()):
         rows = [[q["quality"], _num(q["splats"]), _num(q["bytes"]), _num(q["bytes_per_splat"], "{:,.2f}"),
                  _num(q["ratio"], "{:.3f}")] for q in data["quantized"] if q["format"] == name]
-        tables.append((f"as .{name} (encoded in memory; B/splat: per drawable splat, the only ones it holds)",
+        tables.append((f"{name}, each setting (encoded in memory; B/splat: per drawable splat, the only ones held)",
                        ["setting", "splats", "bytes", "B/splat", "ratio"], rows, 1))
     m = data["motion"]
     tables.append(("motion and rotation speed (per unit time)", ["magnitude", "p50", "p90", "p99", "max"],

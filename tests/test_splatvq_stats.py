@@ -61,7 +61,7 @@ def test_stats_of_one_file_gives_its_splatvq_size_at_each_setting(files, real, n
     # The text and the Markdown print the same figures.
     text = run("stats", files / name, "--zstd-level", "1").stdout
     markdown = run("stats", files / name, "--zstd-level", "1", "--markdown").stdout
-    assert "as .splatvq (encoded in memory; B/splat: per drawable splat, the only ones it holds):" in text
+    assert "splatvq, each setting (encoded in memory; B/splat: per drawable splat, the only ones held):" in text
     for entry in data["quantized"]:
         row = [entry["quality"], f"{entry['splats']:,}", f"{entry['bytes']:,}", f"{entry['bytes_per_splat']:,.2f}",
                f"{entry['ratio']:.3f}"]
