@@ -318,6 +318,38 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str) -> GroupEr
 _ROWS = 1 << 17
 
 
+def _turning_as_drawn(qa: np.ndarray, qb: np.ndarray, wa: np.ndarray, wb: np.ndarray) -> tuple:
+    """Rotations and omegas of paired rows in the form the viewer turns a splat by, for a file that does not
+    keep the rotation's own values (its storage ``none``: a ``.splatvq`` normalises it and flips its sign).
+
+    The viewer draws normalize(q + omega * dt), which is the same rotation when q and omega are both
+    multiplied by one nonzero number (q and -q are one rotation): each side is divided by the length of
+    its own q, and the converted side's sign made that of the source's. Rows where either q has no
+    length (zero, NaN, infinite) are left as they are.
+
+    Parameters
+    ----------
+    qa, qb : (N, 4) float64 ndarray
+        Source and converted rotations.
+    wa, wb : (N, 4) float64 ndarray
+        Source and converted omegas.
+
+    Returns
+    -------
+    ((qa, qb), (wa, wb)) : (N, 4) float64 ndarrays
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        na = np.sqrt((qa * qa).sum(axis=1))
+        nb = np.sqrt((qb * qb).sum(axis=1))
+        dot = (qa * qb).sum(axis=1)
+    ok = (na > 0) & (nb > 0) & np.isfinite(na) & np.isfinite(nb)
+    ka = np.ones_like(na)
+    kb = np.ones_like(nb)
+    np.divide(1.0, na, out=ka, where=ok)
+    np.divide(np.where(dot < 0, -1.0, 1.0), nb, out=kb, where=ok)
+    return (qa * ka[:, None], qb * kb[:, None]), (wa * ka[:, None], wb * kb[:, None])
+
+
 class Comparison:
     """Errors of converted rows against source rows, added a block at a time.
 
@@ -345,8 +377,11 @@ class Comparison:
             ``each(group, a, b)`` with the ``(M, k) float64`` values compared, for a
             caller that counts more of them (``stats``).
         """
+        values = {g: (viewer.group_values(source_cols, g), viewer.group_values(converted_cols, g)) for g in GROUPS}
+        if self.storage["rotation"] == "none":
+            values["rotation"], values["omega"] = _turning_as_drawn(*values["rotation"], *values["omega"])
         for g in GROUPS:
-            a, b = viewer.group_values(source_cols, g), viewer.group_values(converted_cols, g)
+            a, b = values[g]
             e = value_errors(a, b, g, self.storage[g])
             self._errors[g] = self._errors[g].merge(e) if g in self._errors else e
             if each is not None:

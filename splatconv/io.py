@@ -16,7 +16,7 @@ import numpy as np
 from . import viewer
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
 from .files.output import atomic_group, atomic_writer, check_output
-from .formats import REGISTRY, compat_modes, format_for, layouts
+from .formats import REGISTRY, compat_modes, format_for, layouts, qualities
 from .model import COLUMNS, Scene
 from .progress import SILENT
 from .wording import kinds_text, plural
@@ -31,6 +31,8 @@ COLOR_MODES = ("auto", "rgb", "sh")
 COMPAT_MODES = compat_modes()
 #: Record layouts some writer offers (``.ply``: lite, 3dgs).
 LAYOUTS = layouts()
+#: Quality settings some writer offers (``.splatvq``, and ``.html``, which then embeds one), the default first.
+QUALITIES = qualities()
 #: Most bytes a splat takes in memory once read: a float32 for each column of the model.
 SPLAT_MEMORY_BYTES = 4 * len(COLUMNS)
 
@@ -206,7 +208,8 @@ def refuse_empty(fmt, count: int, path, what: str = "no splats to write") -> Non
         raise UnsupportedError(f"{what}; a {fmt.suffixes[0]} file cannot hold an empty scene", path)
 
 
-def check_write_options(path, *, compat: str | None = None, sort: str | None = None, layout: str | None = None):
+def check_write_options(path, *, compat: str | None = None, sort: str | None = None, layout: str | None = None,
+                        quality: str | None = None):
     """Refuse options the output's format does not take; return that format.
 
     Raises
@@ -224,6 +227,13 @@ def check_write_options(path, *, compat: str | None = None, sort: str | None = N
         if not takes:
             raise UsageError(f"unknown layout {layout!r}")
         raise UsageError(f"layout {layout} applies to {', '.join(takes)} output only", path)
+    _choice(quality, QUALITIES, "quality")
+    if quality is not None and quality not in fmt.qualities:
+        takes = [suffix for suffix, f in REGISTRY.items() if quality in f.qualities]
+        raise UsageError(f"--quality {quality} applies to {', '.join(takes)} output only", path)
+    if quality is not None and compat is not None:
+        raise UsageError("--compat and --quality exclude each other (--compat keeps the texture's bytes, "
+                         "--quality embeds the scene quantized)", path)
     return fmt
 
 
@@ -234,7 +244,7 @@ def _suffixes_taking(compat: str) -> list:
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
           force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None,
-          progress=SILENT):
+          quality: str | None = None, progress=SILENT):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -256,6 +266,10 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     layout : str, optional
         A record layout the output's format offers (``layouts``; ``.ply``:
         ``lite`` or ``3dgs``); None: the format's choice for the scene.
+    quality : str, optional
+        A quality setting the output's format offers (``qualities``; ``.splatvq``,
+        and ``.html``, which then embeds the scene as ``.splatvq``); None: the
+        format's default.
     progress : splatconv.progress.Progress
         Told the splats written as they are written, and, for a ``.zst``
         output, the bytes compressed after the last write.
@@ -265,20 +279,22 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     WriteReport
         Counts and ``notes`` describing every lossy step.
     """
-    fmt = check_write_options(path, compat=compat, sort=sort, layout=layout)
+    fmt = check_write_options(path, compat=compat, sort=sort, layout=layout, quality=quality)
     refuse_empty(fmt, scene.count, path)
     check_output(path, inputs, force)
     with atomic_writer(path, replace=force) as stream:
-        return _write_file(stream, fmt, scene, path, compat=compat, sort=sort, layout=layout,
+        return _write_file(stream, fmt, scene, path, compat=compat, sort=sort, layout=layout, quality=quality,
                            zstd_level=zstd_level, progress=progress)
 
 
 def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, sort: str | None = None,
-                layout: str | None = None, zstd_level: int | None = None, progress=SILENT):
+                layout: str | None = None, quality: str | None = None, zstd_level: int | None = None,
+                progress=SILENT):
     """Write ``scene`` in format ``fmt`` to the binary ``stream`` that becomes ``path`` (``.zst``: compressed
     as it is written): what :func:`write` and :func:`write_each` do for each file. Errors name ``path``."""
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
-    extra = {"layout": layout} if layout is not None else {}
+    # Only the options given: a writer that offers none takes none.
+    extra = {key: value for key, value in (("layout", layout), ("quality", quality)) if value is not None}
     try:
         with output_stream(stream, path, level, progress) as out:
             return fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,
@@ -289,8 +305,8 @@ def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, s
         raise type(e)(e.message, path, e.where) from None  # a writer does not know its file's name
 
 
-def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = None, force: bool = False,
-               inputs=(), zstd_level: int | None = None, progress=SILENT) -> list:
+def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = None, quality: str | None = None,
+               force: bool = False, inputs=(), zstd_level: int | None = None, progress=SILENT) -> list:
     """Write several scene files all or nothing: ``scenes[i]`` to ``paths[i]``.
 
     Every output is checked before the first scene is asked for; the scenes may
@@ -302,7 +318,7 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     scenes : iterable of Scene
         As many as ``paths``.
     paths : sequence of path
-    sort, layout, force, inputs, zstd_level
+    sort, layout, quality, force, inputs, zstd_level
         As for :func:`write`.
     progress : splatconv.progress.Progress
         Told each file written.
@@ -312,7 +328,7 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     list of WriteReport
     """
     paths = [os.fspath(p) for p in paths]
-    formats = [check_write_options(p, sort=sort, layout=layout) for p in paths]
+    formats = [check_write_options(p, sort=sort, layout=layout, quality=quality) for p in paths]
     for path in paths:
         check_output(path, inputs, force)
     reports = []
@@ -320,7 +336,7 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
         for fmt, path, scene in zip(formats, paths, scenes):
             refuse_empty(fmt, scene.count, path)
             with group.open(path) as stream:
-                reports.append(_write_file(stream, fmt, scene, path, sort=sort, layout=layout,
+                reports.append(_write_file(stream, fmt, scene, path, sort=sort, layout=layout, quality=quality,
                                            zstd_level=zstd_level))
             advance()
         if len(reports) != len(paths):

@@ -14,23 +14,28 @@ from dataclasses import dataclass, field
 from urllib.parse import quote
 
 from .errors import UnsupportedError, UsageError
-from .formats import format_for, page_format, texture_format
+from .formats import format_for, page_format, playable_format, texture_format
 from .files.inputs import open_input
 from .files.output import atomic_group, check_output
+from .io import check_write_options
 from .io import read as read_scene
 from .zstd import is_compressed, plain_input
 from .web.page import SceneRef, build_page, parse_durations
 
 
-def _played_as(path):
-    """The format whose bytes the page is given for ``path``: its own when the page plays it as it is."""
+def _played_as(path, quality: str | None = None):
+    """The format whose bytes the page is given for ``path``: its own when the page plays it as it is;
+    with a ``quality``, the format the page plays that offers it."""
     fmt = format_for(path, purpose="read")
+    if quality is not None:
+        return playable_format(quality)
     return fmt if fmt.check_playable is not None else texture_format()
 
 
-def page_suffix(path: str | os.PathLike) -> str:
-    """The suffix of the file the page is given for ``path`` (what ``view`` serves, ``--external`` writes)."""
-    return _played_as(path).suffixes[0]
+def page_suffix(path: str | os.PathLike, quality: str | None = None) -> str:
+    """The suffix of the file the page is given for ``path`` (what ``view`` serves, ``--external`` writes),
+    at ``quality`` when given."""
+    return _played_as(path, quality).suffixes[0]
 
 
 def check_playable(path: str | os.PathLike) -> None:
@@ -49,12 +54,15 @@ def is_plain_playable(path: str | os.PathLike) -> bool:
     return format_for(path, purpose="read").check_playable is not None and not is_compressed(path)
 
 
-def page_bytes(path: str | os.PathLike) -> tuple[bytes, list]:
+def page_bytes(path: str | os.PathLike, quality: str | None = None) -> tuple[bytes, list]:
     """The bytes the page plays for any scene file, and notes on what converting it lost.
 
     A file the page plays as it is (the viewer's texture, ``.splatv``; maybe
     ``.zst``) is passed through unchanged; any other format is read and packed
-    in memory as the texture format, exactly as ``convert`` would write it.
+    in memory as the texture format, exactly as ``convert`` would write it. With
+    a ``quality``, every file is read and written in memory as the format the page
+    plays that offers it (:func:`splatconv.formats.playable_format`: a ``.splatvq``
+    at that setting).
 
     Returns
     -------
@@ -63,7 +71,7 @@ def page_bytes(path: str | os.PathLike) -> tuple[bytes, list]:
     """
     path = os.fspath(path)
     fmt = format_for(path, purpose="read")
-    if fmt.check_playable is not None:
+    if fmt.check_playable is not None and quality is None:
         with plain_input(path, declared_size=fmt.declared_size) as plain:
             fmt.check_playable(plain)
             with open_input(plain) as f:
@@ -72,8 +80,12 @@ def page_bytes(path: str | os.PathLike) -> tuple[bytes, list]:
     if scene.count == 0:
         raise UnsupportedError("holds no splats to show", path)
     buffer = io.BytesIO()
-    texture = texture_format()
-    report = texture.write(scene, buffer, sort=texture.default_sort)
+    if quality is not None:
+        played = playable_format(quality)
+        report = played.write(scene, buffer, sort=played.default_sort, quality=quality)
+    else:
+        texture = texture_format()
+        report = texture.write(scene, buffer, sort=texture.default_sort)
     return buffer.getvalue(), list(scene.notes) + list(report.notes)
 
 
@@ -86,7 +98,7 @@ class PublishReport:
 
 
 def publish(inputs, output, *, external: bool = False, force: bool = False,
-            durations: str | None = None) -> PublishReport:
+            durations: str | None = None, quality: str | None = None) -> PublishReport:
     """Write ``output`` (``.html``): the player with ``inputs`` as one clip.
 
     Parameters
@@ -110,6 +122,10 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
         Replace existing outputs (never an input).
     durations : str, optional
         ``"D0,D1,..."``: each segment's share of the timeline (any unit, e.g. frames).
+    quality : str, optional
+        Give the page every scene as a ``.splatvq`` at this setting (:func:`page_bytes`),
+        embedded or, with ``external``, written beside it (``OUT.splatvq``); an input
+        is then never played where it is.
 
     Returns
     -------
@@ -122,12 +138,14 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
         raise UsageError(f"a player page must be written to an {page_ending} file", output)
     if not inputs:
         raise UsageError("give at least one scene file")
+    check_write_options(output, quality=quality)
     shares = parse_durations(durations, len(inputs))
     stem = output[: -len(page_ending)]
-    suffixes = [page_suffix(path) for path in inputs]
+    suffixes = [page_suffix(path, quality) for path in inputs]
     names = [f"{stem}{suffixes[0]}"] if len(inputs) == 1 else [f"{stem}.{i}{s}" for i, s in enumerate(suffixes)]
     # An input that is already the file the page would fetch stays where it is.
-    kept = [external and is_plain_playable(path) and _same_file(path, name) for path, name in zip(inputs, names)]
+    kept = [external and quality is None and is_plain_playable(path) and _same_file(path, name)
+            for path, name in zip(inputs, names)]
     outputs = [output] + ([name for name, keep in zip(names, kept) if not keep] if external else [])
     for path in outputs:
         check_output(path, inputs, force)
@@ -143,7 +161,7 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
                 report.notes.append(f"{name}: the page plays this input where it is")
                 refs.append(SceneRef(name=os.path.basename(name), url=quote(os.path.basename(name)), duration=share))
                 continue
-            data, notes = page_bytes(path)
+            data, notes = page_bytes(path, quality)
             report.notes.extend(f"{path}: {n}" for n in notes)
             if external:
                 with group.open(name) as stream:

@@ -12,7 +12,8 @@ import numpy as np
 from . import viewer
 from .cameras import framing_camera
 from .compare import Comparison, pair
-from .formats import format_for, texture_format
+from .errors import UnsupportedError
+from .formats import format_for, quantized_formats, texture_format
 from .io import reading
 from .model import COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
@@ -131,7 +132,9 @@ def _texture(scene: Scene) -> dict:
 
 #: Version of the ``stats`` JSON (``specs/json.md``); raised when a key changes meaning or goes.
 #: 2: ``time.visible`` leaves out the splats the viewer can never draw (``undrawable``).
-STATS_SCHEMA = "splatconv.stats/2"
+#: 3: ``attributes.rotation`` and ``.omega`` of a file that does not keep the rotation's own values (a
+#: ``.splatvq``) compare them as the viewer turns a splat; ``quantized`` is new.
+STATS_SCHEMA = "splatconv.stats/3"
 #: Time steps at which the number of drawn splats is counted.
 TIME_STEPS = 20
 #: GPU texture size limits the findings check the texture height against.
@@ -312,6 +315,48 @@ def _simulated_conversion(source: Scene, level: int, progress) -> tuple:
     return Scene(columns=columns, cameras=cameras), size, zstd_bytes
 
 
+class _Counter:
+    """A binary stream that keeps nothing but the number of bytes written to it."""
+
+    def __init__(self):
+        self.bytes = 0
+
+    def write(self, data) -> int:
+        n = memoryview(data).nbytes
+        self.bytes += n
+        return n
+
+
+def _quantized_sizes(source: Scene, source_bytes: int, progress) -> tuple:
+    """What ``source`` takes in each format with quality settings, at each setting: encoded in memory by the
+    writer ``convert`` runs, and measured, never stored.
+
+    Returns
+    -------
+    entries : list of dict
+        Keys ``format``, ``quality``, ``splats`` (written: a ``.splatvq`` leaves the undrawable ones
+        out), ``bytes``, ``bytes_per_splat`` (per splat written), ``ratio`` (to ``source_bytes``).
+    notes : list of str
+        Why a format has no entries (a scene it refuses).
+    """
+    entries, notes = [], []
+    for fmt in quantized_formats():
+        with progress.stage(f"sizing {fmt.suffixes[0]}", len(fmt.qualities), "setting") as advance:
+            for quality in fmt.qualities:
+                counter = _Counter()
+                try:
+                    report = fmt.write(source, counter, sort=fmt.default_sort, quality=quality)
+                except UnsupportedError as e:
+                    notes.append(f"no {fmt.suffixes[0]} size: {e.message}")
+                    break
+                entries.append({"format": fmt.name, "quality": quality, "splats": report.count,
+                                "bytes": counter.bytes,
+                                "bytes_per_splat": round(counter.bytes / report.count, 3) if report.count else None,
+                                "ratio": round(counter.bytes / source_bytes, 6) if source_bytes else None})
+                advance()
+    return entries, notes
+
+
 def _viewer_limits(scene: Scene) -> dict:
     """The ``viewer`` checks of the file the viewer would load (``scene``)."""
     # A .splatv's texture is as tall as its header says, whatever it holds;
@@ -414,7 +459,9 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
     With one file, the conversion it would get (default writer) is simulated in
     memory and reported as ``converted``, with ``path`` null; a file the viewer
     loads as it is (a ``.splatv``), or an empty PLY (which ``convert`` refuses), is
-    reported as stored, with no comparison (``attributes`` null).
+    reported as stored, with no comparison (``attributes`` null). With one file,
+    ``quantized`` gives its size in each format with quality settings, at each
+    setting, encoded in memory (null with two files).
 
     Rows are compared a block at a time, so memory beyond the two scenes stays
     a few MB (plus 32 bytes a splat for the motion percentiles).
@@ -430,6 +477,7 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
     """
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     source, src_bytes, src_zstd = _read_measured(source_path, color, level, progress)
+    quantized, notes = None, []
     src_fmt = format_for(source_path)
     files = [_file_entry("source", source_path, src_fmt.name, src_bytes, source.count, src_zstd, level, src_bytes)]
     compare = True
@@ -442,12 +490,15 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         files.append(_file_entry("converted", converted_path, conv_fmt.name, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
     elif src_fmt.stores_texture or source.count == 0:
-        converted, conv_fmt, order, compare, notes = source, src_fmt, None, False, []  # reported as stored
+        converted, conv_fmt, order, compare = source, src_fmt, None, False  # reported as stored
     else:
         converted, size, zstd_bytes = _simulated_conversion(source, level, progress)
         conv_fmt = texture_format()
         order, notes = pair(source, converted, storage=texture_format().storage(converted))
         files.append(_file_entry("converted", None, conv_fmt.name, size, source.count, zstd_bytes, level, src_bytes))
+    if converted_path is None and source.count:
+        quantized, refused = _quantized_sizes(source, src_bytes, progress)
+        notes = notes + refused
     n = converted.count
     tally = _Tally(n, compare, damage=not src_fmt.stores_texture, storage=conv_fmt.storage(converted))
     with progress.stage("comparing" if compare else "reading values", n, "splat") as advance:
@@ -462,6 +513,7 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
     return {
         "schema": STATS_SCHEMA,
         "files": files,
+        "quantized": quantized,
         "count": source.count,
         "undrawable": tally.undrawable_counts(),
         "bounds": tally.bounds(),

@@ -216,6 +216,11 @@ def _stats_tables(data: dict) -> list:
         rows.append([f["role"], name, _num(f["bytes"]), _num(f["bytes_per_splat"], "{:,.2f}"),
                      _num(f["zstd_bytes"]), _num(f["ratio"], "{:.3f}"), _num(f["zstd_ratio"], "{:.3f}")])
     tables.append(("files", ["file", "path", "bytes", "B/splat", f"zstd-{level}", "ratio", "zstd ratio"], rows, 2))
+    for name in dict.fromkeys(q["format"] for q in data.get("quantized") or ()):
+        rows = [[q["quality"], _num(q["splats"]), _num(q["bytes"]), _num(q["bytes_per_splat"], "{:,.2f}"),
+                 _num(q["ratio"], "{:.3f}")] for q in data["quantized"] if q["format"] == name]
+        tables.append((f"{name}, each setting (encoded in memory; B/splat: per drawable splat, the only ones held)",
+                       ["setting", "splats", "bytes", "B/splat", "ratio"], rows, 1))
     m = data["motion"]
     tables.append(("motion and rotation speed (per unit time)", ["magnitude", "p50", "p90", "p99", "max"],
                    [[k, _g(v["p50"]), _g(v["p90"]), _g(v["p99"]), _g(v["max"])] for k, v in m.items()], 1))

@@ -13,6 +13,7 @@ from click.testing import CliRunner
 import splatconv
 from splatconv import io
 from splatconv.cli import main
+from splatconv.formats import splatvq
 from splatconv.formats.splatv_layout import COLOR_WORD
 from splatconv.model import COLUMNS, MOTION, OMEGA, Scene
 
@@ -70,6 +71,9 @@ def snan_files(tmp_path_factory):
     ["convert", "h.splatv", "hr.splatv", "--drop-nonfinite", "--trim", "0.1,0.9", "--scale", "2"],
     # Frame sequences: the same splats (motion fitted) and different ones (counts differ).
     ["convert", "s.ply", "s.ply", "s.ply", "q.splatv"], ["convert", "s.ply", "rest.ply", "hb.ply", "q2.splatv"],
+    # .splatvq: written (by stats too, at each setting), embedded in a page, compared.
+    ["convert", "h.splatv", "h.splatvq"], ["convert", "s.ply", "s.splatvq"], ["stats", "s.ply"],
+    ["convert", "h.splatv", "hq.html", "--quality", splatvq.QUALITIES[-1]], ["stats", "s.splatv", "s.splatvq"],
 ])
 def test_no_command_warns_on_signalling_nans(snan_files, monkeypatch, args):
     monkeypatch.chdir(snan_files)

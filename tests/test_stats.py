@@ -470,7 +470,7 @@ def test_stats_keys_are_documented(tmp_path, lite_ply):
     assert run("convert", lite_ply, conv).exit_code == 0
     data = json.loads(run("stats", lite_ply, conv, "--json", "--zstd-level", "1").stdout)
     assert list(data) == list(spec)
-    assert data["schema"] == "splatconv.stats/2"
+    assert data["schema"] == "splatconv.stats/3"
     for entry in data["files"]:
         assert list(entry) == list(spec["files"])
     assert list(data["time"]) == list(spec["time"])
@@ -763,13 +763,14 @@ def test_progress_stages_cover_the_work(tmp_path, lite_ply):
     assert run("convert", lite_ply, conv).exit_code == 0
     for args, expected in (((lite_ply, conv), ["reading", "zstd-1 scene.ply", "reading", "zstd-1 s.splatv",
                                                "comparing"]),
-                           ((lite_ply,), ["reading", "zstd-1 scene.ply", "zstd-1 (as converted)", "comparing"]),
-                           ((conv,), ["reading", "zstd-1 s.splatv", "reading values"])):
+                           ((lite_ply,), ["reading", "zstd-1 scene.ply", "zstd-1 (as converted)", "sizing .splatvq",
+                                          "comparing"]),
+                           ((conv,), ["reading", "zstd-1 s.splatv", "sizing .splatvq", "reading values"])):
         recorder = Recorder()
         stats_findings(*map(str, args), zstd_level=1, progress=recorder)
         assert [s[0] for s in recorder.stages] == expected
         for label, total, unit, done in recorder.stages:
-            units = {"comparing": "splat", "reading values": "splat", "reading": "file"}
+            units = {"comparing": "splat", "reading values": "splat", "reading": "file", "sizing .splatvq": "setting"}
             assert done == total and unit == units.get(label, "byte")
         assert recorder.stages[-1][1] == 3000
 

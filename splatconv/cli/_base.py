@@ -9,7 +9,7 @@ import os
 import click
 
 from ..errors import SplatconvError, UsageError
-from ..io import COLOR_MODES, noting_undrawable
+from ..io import COLOR_MODES, QUALITIES, noting_undrawable
 from ..wording import plural
 from ..zstd import DEFAULT_LEVEL
 from ._group import Failure, main  # noqa: F401  (command modules import both from here)
@@ -83,6 +83,14 @@ def color_option():
     return click.option("--color", type=click.Choice(COLOR_MODES), default="auto", show_default=True,
                         help="Read PLY f_dc_0..2 as RGB (Spacetime Gaussians lite) or as SH degree 0 (3DGS); "
                              "auto picks by the variant.")
+
+
+def quality_option():
+    return click.option("--quality", type=click.Choice(QUALITIES),
+                        help=f".splatvq OUTPUT: the quantizer's setting, trading size for fidelity "
+                             f"(docs/formats.md) [default: {QUALITIES[0]}]. .html OUTPUT: embed the scene as "
+                             f".splatvq at this setting, a compact page (without it: as the .splatv texture, or a "
+                             f".splatvq INPUT with its own setting).")
 
 
 def quiet_option():

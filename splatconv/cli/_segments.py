@@ -64,16 +64,16 @@ def given(options: dict) -> bool:
             or options["as_json"])
 
 
-def run(inputs, output_path, *, layout, sort, color, force, quiet, durations, leak, budget, check_every, no_check,
-        camera, as_json) -> None:
+def run(inputs, output_path, *, layout, sort, quality, color, force, quiet, durations, leak, budget, check_every,
+        no_check, camera, as_json) -> None:
     """The body of ``merge --segments``."""
     if durations is not None and len(durations) != len(inputs):
         raise Failure(f"--durations gives {plural(len(durations), 'value')} for {plural(len(inputs), 'segment')}", 2)
     if no_check and check_every is not None:
         raise Failure("--check-every and --no-check exclude each other", 2)
     _merged, report, written, checked = merge_segments(
-        inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout, color=color,
-        force=force, check=not no_check, check_every=check_every, camera=camera, progress=progress(quiet),
-        tell=notes)
+        inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout,
+        quality=quality, color=color, force=force, check=not no_check, check_every=check_every, camera=camera,
+        progress=progress(quiet), tell=notes)
     data = segments_findings(report, written, output_path, checked)
     click.echo(to_json(data) if as_json else segments_text(data))

@@ -12,7 +12,7 @@ from ..jobs.merge import merge as merge_job
 from ..ops import make_transform
 from ..wording import plural
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
-                    quiet_option, wrote)
+                    quality_option, quiet_option, wrote)
 from ._edit import FloatList, Rotation
 from ._segments import given as segments_given
 from ._segments import run as run_segments
@@ -104,6 +104,7 @@ def _sort_option():
                  help="File type of the --frames files."),
     _layout_option("3dgs"),
     _sort_option(),
+    quality_option(),
     color_option(),
     click.option("--drop-nonfinite", is_flag=True,
                  help="Also remove baked splats left with a NaN or infinite position, scale or colour, so that every "
@@ -112,7 +113,8 @@ def _sort_option():
     quiet_option(),
 )
 @library_errors
-def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, color, drop_nonfinite, force, quiet):
+def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, quality, color, drop_nonfinite, force,
+         quiet):
     """Write the scene as the viewer shows it at one time, as a static scene.
 
     Positions and rotations at that time, opacity times the temporal opacity,
@@ -131,13 +133,15 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     if (time is None) == (frames is None):
         raise Failure("give either --time T (one moment) or --frames N (a folder of moments)", 2)
     if frames is None:
-        _report, written = bake_job(input_path, output_path, time=time, sort=sort, layout=layout, color=color,
-                                    drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet), tell=notes)
+        _report, written = bake_job(input_path, output_path, time=time, sort=sort, layout=layout, quality=quality,
+                                    color=color, drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet),
+                                    tell=notes)
         wrote(output_path, written)
         return
     names, moments, reports = bake_frames(input_path, output_path, frames=frames, suffix=frame_suffix, sort=sort,
-                                          layout=layout, color=color, drop_nonfinite=drop_nonfinite, force=force,
-                                          progress=progress(quiet), tell=notes)
+                                          layout=layout, quality=quality, color=color,
+                                          drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet),
+                                          tell=notes)
     counts = [r.count for r in reports]
     click.echo(f"wrote {frames} frames to {output_path}: {names[0]} .. {names[-1]} (t = {moments[0]:g} .. "
                f"{moments[-1]:g}), {min(counts):,} to {plural(max(counts), 'splat')} a frame")
@@ -155,6 +159,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
                  help="Scale input N uniformly by S > 0, e.g. --scale 2:0.5."),
     _layout_option("3dgs when every input is plain 3DGS (a 3DGS PLY, a .splat, a baked moment), else lite"),
     _sort_option(),
+    quality_option(),
     color_option(),
     _drop_option("every INPUT"),
     *segment_options(),
@@ -162,7 +167,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, colo
     quiet_option(),
 )
 @library_errors
-def merge(paths, translate, rotate, scale, layout, sort, color, drop_nonfinite, force, quiet, segments,
+def merge(paths, translate, rotate, scale, layout, sort, quality, color, drop_nonfinite, force, quiet, segments,
           **segment):
     """Put several scenes in one file on the same timeline.
 
@@ -194,12 +199,13 @@ def merge(paths, translate, rotate, scale, layout, sort, color, drop_nonfinite, 
         if translate or rotate or scale or drop_nonfinite:
             raise Failure("--translate, --rotate, --scale and --drop-nonfinite apply to merges on one timeline, "
                           "not to --segments", 2)
-        return run_segments(inputs, output_path, layout=layout, sort=sort, color=color, force=force, quiet=quiet,
-                            **segment)
+        return run_segments(inputs, output_path, layout=layout, sort=sort, quality=quality, color=color,
+                            force=force, quiet=quiet, **segment)
     if segments_given(segment):
         raise Failure("--durations, --leak, --budget, --check-every, --no-check, --camera and --json apply to "
                       "--segments only", 2)
     placements = _placements(len(inputs), {"translate": translate, "rotate": rotate, "scale": scale})
-    _report, written = merge_job(inputs, output_path, placements=placements, sort=sort, layout=layout, color=color,
-                                 drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet), tell=notes)
+    _report, written = merge_job(inputs, output_path, placements=placements, sort=sort, layout=layout,
+                                 quality=quality, color=color, drop_nonfinite=drop_nonfinite, force=force,
+                                 progress=progress(quiet), tell=notes)
     wrote(output_path, written)

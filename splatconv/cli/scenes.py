@@ -12,7 +12,7 @@ from ..ops.sequence import SAME_SPLATS_MODES
 from ..text import sequence_text
 from ..publish import publish
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
-                    progress, quiet_option, wrote, zstd_option)
+                    progress, quality_option, quiet_option, wrote, zstd_option)
 from ._edit import edit_options, scene_editor
 
 
@@ -56,8 +56,9 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 @click.argument("output_path", metavar="OUTPUT", type=click.Path(dir_okay=False))
 @options(
     click.option("--external", is_flag=True,
-                 help="For an .html OUTPUT: write the scene beside the page (OUT.splatv) instead of "
-                      "embedding it, for scenes too large to embed; the page must then be served over HTTP."),
+                 help="For an .html OUTPUT: write the scene beside the page (OUT.splatv; OUT.splatvq for a "
+                      ".splatvq INPUT or with --quality) instead of embedding it, for scenes too large to embed; "
+                      "the page must then be served over HTTP."),
     click.option("--durations", metavar="D0,D1,...",
                  help="For several INPUTs to .html: each segment's share of the clip's timeline, e.g. its "
                       "frames [default: equal shares]."),
@@ -73,6 +74,7 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
     click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
                  help="PLY output: lite (Spacetime Gaussians, keeps motion and time) or 3dgs (plain 3DGS, "
                       "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
+    quality_option(),
     color_option(),
     zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
     *sequence_options(),
@@ -81,8 +83,8 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 )
 @edit_options()
 @library_errors
-def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, color, zstd_level,
-            frame_times, same_splats, max_error, force, quiet, **edits):
+def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, quality, color,
+            zstd_level, frame_times, same_splats, max_error, force, quiet, **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
@@ -100,22 +102,24 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
         if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
-            raise Failure("--external and several inputs take no other options but --durations and --force", 2)
-        report = publish(input_paths, output_path, external=external, force=force, durations=durations)
+            raise Failure("--external and several inputs take no other options but --durations, --quality and "
+                          "--force", 2)
+        report = publish(input_paths, output_path, external=external, force=force, durations=durations,
+                         quality=quality)
         notes(report.notes)
         for path, size in report.written:
             click.echo(f"wrote {path}: {size:,} bytes")
         return
     if is_sequence(input_paths):
         _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
-                        color=color, zstd_level=zstd_level, frame_times=frame_times, same_splats=same_splats,
-                        max_error=max_error, force=force, quiet=quiet, edits=edits)
+                        quality=quality, color=color, zstd_level=zstd_level, frame_times=frame_times,
+                        same_splats=same_splats, max_error=max_error, force=force, quiet=quiet, edits=edits)
         return
     if frame_times is not None or same_splats != "auto" or max_error is not None:
         raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
     input_path = input_paths[0]
     _scene, report = convert_scene(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                                   force=force, zstd_level=zstd_level, layout=layout, progress=progress(quiet),
-                                   edit=scene_editor(edits), tell=notes)
+                                   force=force, zstd_level=zstd_level, layout=layout, quality=quality,
+                                   progress=progress(quiet), edit=scene_editor(edits), tell=notes)
     wrote(output_path, report)
 

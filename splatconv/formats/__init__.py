@@ -92,3 +92,29 @@ def compat_modes() -> tuple:
 def layouts() -> tuple:
     """Every record layout some format's writer offers, for option choices (first offered first)."""
     return tuple(dict.fromkeys(name for fmt in FORMATS for name in fmt.layouts))
+
+
+def playable_format(quality: str) -> Format:
+    """The format the player page plays as it is (``check_playable``) whose writer offers ``quality``:
+    what a page at that quality is given.
+
+    Raises
+    ------
+    UsageError
+        When no such format offers ``quality``.
+    """
+    for fmt in FORMATS:
+        if fmt.check_playable is not None and quality in fmt.qualities:
+            return fmt
+    raise UsageError(f"unknown quality {quality!r} (expected one of {', '.join(qualities())})")
+
+
+def quantized_formats() -> tuple:
+    """The scene formats whose writer offers quality settings (``qualities``), the page that embeds one
+    left out: what ``stats`` measures a scene in at each setting."""
+    return tuple(fmt for fmt in FORMATS if fmt.qualities and not fmt.plays_segments)
+
+
+def qualities() -> tuple:
+    """Every quality setting some format's writer offers, for option choices (first offered first)."""
+    return tuple(dict.fromkeys(name for fmt in FORMATS for name in fmt.qualities))

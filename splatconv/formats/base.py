@@ -118,6 +118,8 @@ class Format:
         Byte-identical modes its writer offers (``compat=``).
     layouts : tuple of str
         Record layouts its writer offers (``layout=``).
+    qualities : tuple of str
+        Quality settings its writer offers (``quality=``), the default first.
     declared_size : callable or None
         ``declared_size(head) -> int or None``: the file size the header at the start
         of ``head`` (bytes) declares; bounds the decompression of a ``.zst`` file.
@@ -147,6 +149,7 @@ class Format:
     most_splats: Callable | None = None
     compat_modes: tuple = ()
     layouts: tuple = ()
+    qualities: tuple = ()
     declared_size: Callable | None = None
     texture: Texture | None = None
     plays_segments: bool = False

@@ -7,7 +7,8 @@ size of the ``.splatv``; ``splatconv convert --external`` writes the scene besid
 the page instead (:func:`splatconv.publish.publish`). A scene read from a
 ``.splatvq`` is embedded as ``.splatvq`` (encoded again with its setting: the
 quantizers are projections, so its records come back unchanged), which the page
-decodes itself: about half the bytes.
+decodes itself: about half the bytes. A ``quality`` (a ``.splatvq`` setting) embeds
+any scene as ``.splatvq`` at that setting: a compact page.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ from __future__ import annotations
 import io
 import os
 
+from ..errors import UsageError
 from ..model import Scene
 from ..zstd import inner_name
 from ..web.page import SceneRef, build_page
@@ -23,7 +25,7 @@ from .base import Format
 
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, name: str | None = None,
-          **options):
+          quality: str | None = None, **options):
     """Write the player page with ``scene`` embedded.
 
     Parameters
@@ -34,6 +36,9 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
         As for ``.splatv`` (the embedded texture is exactly what a ``.splatv``
         write would give). A scene read from a ``.splatvq`` (and no ``compat``)
         is embedded as ``.splatvq`` with the setting it was written with.
+    quality : str, optional
+        Embed the scene as ``.splatvq`` with this setting (:data:`splatvq.QUALITIES`),
+        whatever it was read from; not with ``compat``.
     name : str, optional
         The page's file name: its stem titles the page and names the scene.
 
@@ -42,7 +47,12 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     WriteReport
     """
     buffer = io.BytesIO()
-    if scene.variant == splatvq.FORMAT.name and compat is None:
+    if quality is not None:
+        if compat is not None:
+            raise UsageError(f"compat {compat!r} and quality {quality!r} exclude each other: a quality embeds "
+                             ".splatvq, compat the texture bytes")
+        report = splatvq.write(scene, buffer, sort=sort or splatv.FORMAT.default_sort, quality=quality, **options)
+    elif scene.variant == splatvq.FORMAT.name and compat is None:
         setting = scene.meta.get("setting")
         quality = setting if setting in splatvq.QUALITIES else None
         report = splatvq.write(scene, buffer, sort=sort or splatv.FORMAT.default_sort, quality=quality, **options)
@@ -71,6 +81,7 @@ FORMAT = Format(
     read=None,  # a page is a player, not a scene format
     write=write,
     compat_modes=splatv.FORMAT.compat_modes,
+    qualities=splatvq.FORMAT.qualities,  # embeds the scene as .splatvq at that setting
     info_fields=info_fields,
     storage=splatv.storage,  # what the embedded .splatv stores
     # Several scenes given for one page play as the segments of one clip

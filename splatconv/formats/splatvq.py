@@ -102,7 +102,11 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     if (sort or FORMAT.default_sort) == "none":
         order = keep
     else:
-        order = keep[importance_order(codec.quantized_key(records, setting)[keep])]
+        # A signalling NaN half (a .splatv read keeps NaN payloads) raises the invalid flag where the key
+        # widens the halves (codec.quantized_key); its value is the quiet NaN it was.
+        with np.errstate(invalid="ignore"):
+            key = codec.quantized_key(records, setting)
+        order = keep[importance_order(key[keep])]
     starts = range(0, n, codec.BLOCK)
 
     def job(start):
@@ -313,4 +317,6 @@ FORMAT = Format(
     # it in a worker, so it plays a .splatvq's bytes as they are, once its preamble,
     # header and block table check out (the page checks each block as it decodes it).
     check_playable=check,
+    # The quality write option, the default setting first (for the help text).
+    qualities=tuple(sorted(QUALITIES, key=lambda name: name != codec.DEFAULT_SETTING)),
 )

@@ -15,7 +15,7 @@ def silent(lines) -> None:
 
 
 def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: str | None = None,
-              layout: str | None = None):
+              layout: str | None = None, quality: str | None = None):
     """Refuse a job before anything is read: an input of no readable format, an option the output's format
     does not take, an output that would clobber an input or (without ``force``) an existing file.
 
@@ -24,7 +24,7 @@ def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: s
     inputs : sequence of path
     output : path
     force : bool
-    compat, sort, layout
+    compat, sort, layout, quality
         As for :func:`splatconv.io.write`.
 
     Returns
@@ -39,7 +39,7 @@ def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: s
     inputs = [os.fspath(p) for p in inputs]
     for path in inputs:
         format_for(path, purpose="read")
-    fmt = check_write_options(output, compat=compat, sort=sort, layout=layout)
+    fmt = check_write_options(output, compat=compat, sort=sort, layout=layout, quality=quality)
     check_output(output, inputs, force)
     return fmt
 

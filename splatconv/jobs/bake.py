@@ -5,13 +5,13 @@ from __future__ import annotations
 import os
 
 from ..formats import FRAME_SUFFIX
-from ..io import write, write_sequence
+from ..io import check_write_options, write, write_sequence
 from ..ops import bake as bake_ops
 from ..progress import SILENT
 from ._steps import check_job, read_input, silent
 
 
-def bake(source, output, *, time: float, sort=None, layout=None, color: str = "auto",
+def bake(source, output, *, time: float, sort=None, layout=None, quality=None, color: str = "auto",
          drop_nonfinite: bool = False, force: bool = False, progress=SILENT, tell=silent):
     """Bake ``source`` at ``time`` (:func:`splatconv.ops.bake.bake`) and write it to ``output``.
 
@@ -20,7 +20,7 @@ def bake(source, output, *, time: float, sort=None, layout=None, color: str = "a
     source, output : path
     time : float
         In the viewer's [0, 1].
-    sort, layout, force
+    sort, layout, quality, force
         As for :func:`splatconv.io.write`.
     drop_nonfinite : bool
         Also remove baked splats left with a non-finite value.
@@ -31,18 +31,19 @@ def bake(source, output, *, time: float, sort=None, layout=None, color: str = "a
     -------
     (BakeReport, WriteReport)
     """
-    check_job([source], output, force=force, sort=sort, layout=layout)
+    check_job([source], output, force=force, sort=sort, layout=layout, quality=quality)
     scene = read_input(source, color=color, progress=progress)
     tell(scene.notes)
     baked, report = bake_ops.bake(scene, time, drop_nonfinite=drop_nonfinite)
     tell(report.notes)
-    written = write(baked, output, sort=sort, layout=layout, force=force, inputs=[source], progress=progress)
+    written = write(baked, output, sort=sort, layout=layout, quality=quality, force=force, inputs=[source],
+                    progress=progress)
     tell(written.notes)
     return report, written
 
 
 def bake_frames(source, folder, *, frames: int, suffix: str = FRAME_SUFFIX, sort=None, layout=None,
-                color: str = "auto", drop_nonfinite: bool = False, force: bool = False, progress=SILENT,
+                quality=None, color: str = "auto", drop_nonfinite: bool = False, force: bool = False, progress=SILENT,
                 tell=silent):
     """Bake ``frames`` moments of ``source`` into ``folder`` (made if missing), all or nothing.
 
@@ -62,9 +63,12 @@ def bake_frames(source, folder, *, frames: int, suffix: str = FRAME_SUFFIX, sort
     (list of str, list of float, list of WriteReport)
         The frame names, their times, what the writer did for each.
     """
+    names = bake_ops.frame_names(frames, suffix)
+    # The frames' options are checked before the (possibly long) read, as a file's are.
+    if names:
+        check_write_options(os.path.join(folder, names[0]), sort=sort, layout=layout, quality=quality)
     scene = read_input(source, color=color, progress=progress)
     tell(scene.notes)
-    names = bake_ops.frame_names(frames, suffix)
     moments = list(bake_ops.frame_times(frames))
 
     made = bake_ops.bake_frames(scene, frames, drop_nonfinite=drop_nonfinite)  # checks the count at once
@@ -74,8 +78,8 @@ def bake_frames(source, folder, *, frames: int, suffix: str = FRAME_SUFFIX, sort
             tell(f"{name}: {line}" for line in report.notes)
             yield frame
 
-    reports = write_sequence(baked(), folder, names, sort=sort, layout=layout, force=force, inputs=[source],
-                             progress=progress)
+    reports = write_sequence(baked(), folder, names, sort=sort, layout=layout, quality=quality, force=force,
+                             inputs=[source], progress=progress)
     for name, report in zip(names, reports):
         tell(f"{name}: {line}" for line in report.notes)
     stale = bake_ops.other_frames(os.listdir(folder), names, suffix)

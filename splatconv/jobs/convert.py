@@ -12,7 +12,8 @@ from ._steps import check_job, read_input, silent
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
-            zstd_level: int | None = None, layout: str | None = None, progress=SILENT, edit=None, tell=silent):
+            zstd_level: int | None = None, layout: str | None = None, quality: str | None = None, progress=SILENT,
+            edit=None, tell=silent):
     """Read ``source`` and write it to ``output``; formats by suffix.
 
     Parameters
@@ -22,7 +23,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     edit : callable, optional
         ``edit(scene) -> scene``, applied after reading (and after ``cameras``)
         and before writing, e.g. :func:`splatconv.ops.apply_edits` with a plan.
-    compat, sort, force, zstd_level, layout
+    compat, sort, force, zstd_level, layout, quality
         As for :func:`splatconv.io.write`.
     progress : splatconv.progress.Progress
         Told the reading (a "reading" stage, and the bytes of a ``.zst`` input
@@ -37,7 +38,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         ``edit`` did when it says so) and the write report.
     """
     # The output is checked before the (possibly long) read: fail fast, touch nothing.
-    fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout)
+    fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout, quality=quality)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     scene = read_input(source, color=color, progress=progress)
     refuse_empty(fmt, scene.count, source, "holds no splats")
@@ -46,7 +47,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     if edit is not None:
         scene = edit(scene)
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
-                   layout=layout, progress=progress)
+                   layout=layout, quality=quality, progress=progress)
     tell(scene.notes)
     tell(report.notes)
     return scene, report

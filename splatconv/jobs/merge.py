@@ -10,7 +10,7 @@ from ..progress import SILENT
 from ._steps import check_job, read_input, silent
 
 
-def merge(inputs, output, *, placements=None, sort=None, layout=None, color: str = "auto",
+def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=None, color: str = "auto",
           drop_nonfinite: bool = False, force: bool = False, progress=SILENT, tell=silent):
     """Read ``inputs``, place each (:func:`splatconv.ops.apply_transform`), overlay them
     (:func:`splatconv.ops.merge.overlay`) and write the result to ``output``.
@@ -23,7 +23,7 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, color: str
         Input number (1 for the first) -> the transform that moves it.
     drop_nonfinite : bool
         Remove every input's non-finite splats first (:func:`splatconv.ops.drop_nonfinite`).
-    sort, layout, force
+    sort, layout, quality, force
         As for :func:`splatconv.io.write`.
     tell : callable
         ``tell(lines)``: each input's notes once read and placed (``input N (PATH): ...``), the merge's, then
@@ -35,7 +35,7 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, color: str
     """
     inputs = list(inputs)
     placements = placements or {}
-    check_job(inputs, output, force=force, sort=sort, layout=layout)
+    check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality)
     scenes = []
     for number, path in enumerate(inputs, 1):
         scene = read_input(path, color=color, progress=progress)
@@ -47,6 +47,7 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, color: str
         scenes.append(scene)
     merged, report = overlay(scenes)
     tell(report.notes)
-    written = write(merged, output, sort=sort, layout=layout, force=force, inputs=inputs, progress=progress)
+    written = write(merged, output, sort=sort, layout=layout, quality=quality, force=force, inputs=inputs,
+                    progress=progress)
     tell(written.notes)
     return report, written
