@@ -102,11 +102,7 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     if (sort or FORMAT.default_sort) == "none":
         order = keep
     else:
-        # A signalling NaN half (a .splatv read keeps NaN payloads) raises the invalid flag where the key
-        # widens the halves (codec.quantized_key); its value is the quiet NaN it was.
-        with np.errstate(invalid="ignore"):
-            key = codec.quantized_key(records, setting)
-        order = keep[importance_order(key[keep])]
+        order = keep[importance_order(codec.quantized_key(records, setting)[keep])]
     starts = range(0, n, codec.BLOCK)
 
     def job(start):

@@ -372,9 +372,10 @@ def quantized_key(records: np.ndarray, setting: Setting) -> np.ndarray:
     The order between blocks then depends on quantized values only, so that the
     blocks of a decoded file come back the same when it is encoded again.
     """
-    lin = packing.HALF_TO_FLOAT[_scale_decoded(_halves_of(records, SCALE_AT), setting.scale_step)].astype(np.float64)
     alpha = (records[:, COLOR_WORD] >> np.uint32(24)).astype(np.float64)
+    # A signalling NaN half (a .splatv read keeps payloads) warns when widened: its splat is kept verbatim anyway.
     with np.errstate(invalid="ignore", over="ignore"):
+        lin = packing.HALF_TO_FLOAT[_scale_decoded(_halves_of(records, SCALE_AT), setting.scale_step)].astype(np.float64)
         return lin[:, 0] * lin[:, 1] * lin[:, 2] * alpha
 
 
