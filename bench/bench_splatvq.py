@@ -126,27 +126,30 @@ class _BytesFile:
         return self.data[self.at - k:self.at]
 
 
-def quality_table(n: int) -> None:
-    scene = make_scene(n)
-    drawable = int(np.count_nonzero(~undrawable(scene.columns)))
-    print(f"scene: {n:,} splats, {drawable:,} drawable; camera 640x480; t = {', '.join(map(str, TIMES))}")
-    print(f"{'setting':<9} {'B/splat':>8} {'worst dB':>9} {'mean dB':>8} {'raw':>6} {'zstd-19 B':>10} "
-          f"{'zstd-9 B':>9} {'inflate s':>10} {'zstd s':>7}")
+def quality_table(n: int, seeds) -> None:
+    print(f"scenes: {n:,} splats, seeds {', '.join(map(str, seeds))}; camera 640x480; t = {', '.join(map(str, TIMES))}")
+    print(f"{'setting':<9} {'seed':>4} {'drawable':>9} {'B/splat':>8} {'worst dB':>9} {'mean dB':>8} {'raw':>6} "
+          f"{'zstd-19 B':>10} {'zstd-9 B':>9} {'inflate s':>10} {'zstd s':>7}")
+    scenes = [make_scene(n, seed) for seed in seeds]
     for name in codec.SETTINGS:
-        data, _report = splatvq.encode(scene, quality=name)
-        path = os.path.join(WORK, f"q_{name}.splatvq")
-        with open(path, "wb") as f:
-            f.write(data)
-        decoded = splatvq.read(path)
-        worst, mean = fidelity(scene, decoded)
-        sizes = coders(data)
-        header = len(data) - sizes["deflate"][0]
-        raw = sizes["raw"]
-        print(f"{name:<9} {len(data) / drawable:8.2f} {worst:9.2f} {mean:8.2f} {raw:6d} "
-              f"{(sizes['zstd-19'][0] + header) / drawable:10.2f} {(sizes['zstd-9'][0] + header) / drawable:9.2f} "
-              f"{sizes['deflate'][1]:10.3f} {sizes['zstd-19'][1]:7.3f}")
-    splatv_bytes = 64 * drawable
-    print(f"(.splatv of the drawable splats: {splatv_bytes / drawable:.0f} B/splat)")
+        rows = []
+        for seed, scene in zip(seeds, scenes):
+            drawable = int(np.count_nonzero(~undrawable(scene.columns)))
+            data, _report = splatvq.encode(scene, quality=name)
+            path = os.path.join(WORK, f"q_{name}_{seed}.splatvq")
+            with open(path, "wb") as f:
+                f.write(data)
+            decoded = splatvq.read(path)
+            worst, mean = fidelity(scene, decoded)
+            sizes = coders(data)
+            header = len(data) - sizes["deflate"][0]
+            rows.append((len(data) / drawable, worst))
+            print(f"{name:<9} {seed:>4} {drawable:>9,} {len(data) / drawable:8.2f} {worst:9.2f} {mean:8.2f} "
+                  f"{sizes['raw']:6d} {(sizes['zstd-19'][0] + header) / drawable:10.2f} "
+                  f"{(sizes['zstd-9'][0] + header) / drawable:9.2f} {sizes['deflate'][1]:10.3f} {sizes['zstd-19'][1]:7.3f}")
+        print(f"{name:<9} {'all':>4} {'':>9} {max(b for b, _ in rows):8.2f} {min(w for _, w in rows):9.2f}   "
+              "(largest size, worst frame)")
+    print("(.splatv: 64 B a splat)")
 
 
 def cost_table(n: int) -> None:
@@ -175,11 +178,12 @@ def main(argv=None) -> int:
     global WORK
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--splats", type=int, default=200_000)
+    p.add_argument("--seeds", default="0,1,2", help="scenes to measure, by seed (comma-separated)")
     p.add_argument("--timing-splats", type=int, default=1_000_000)
     p.add_argument("--keep")
     args = p.parse_args(argv)
     with _harness.work_folder(args.keep) as WORK:
-        quality_table(args.splats)
+        quality_table(args.splats, [int(x) for x in args.seeds.split(",")])
         if args.timing_splats:
             cost_table(args.timing_splats)
     return 0
