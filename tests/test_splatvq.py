@@ -285,3 +285,60 @@ def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path
     refused = f"SOURCE has {scene.count:,} splats but CONVERTED has {len(keep) - 1:,}"
     with pytest.raises(UnsupportedError, match=refused):
         pair(scene, short, storage=splatv.FORMAT.storage(converted))
+
+
+EDITS = [
+    ["--drop-undrawable"], ["--drop-nonfinite"], ["--trim", "0.2,0.7"], ["--crop", "-1,-1,-1,1,1,1"],
+    ["--min-opacity", "0.3"], ["--max-splats", "100"], ["--translate", "1,2,3"], ["--rotate", "y:30,x:-10"],
+    ["--scale", "2"], ["--trim", "0.1,0.6", "--crop", "-2,-2,-2,2,2,2", "--scale", "0.5", "--max-splats", "300"],
+]
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory, real):
+    """A .splatvq and the .splatv of what it decodes to (the same texture words)."""
+    folder = tmp_path_factory.mktemp("vqedit")
+    vq = folder / "scene.splatvq"
+    assert run("convert", real_scene_ply(folder, real), vq).exit_code == 0
+    decoded = folder / "decoded.splatv"
+    assert run("convert", vq, decoded, "--sort", "none").exit_code == 0
+    assert (splatv.read_records(decoded)[0] == splatvq.decode(vq)).all()
+    return vq, decoded
+
+
+def real_scene_ply(folder, real):
+    path = folder / "real.ply"
+    io.write(real[0], path)
+    return path
+
+
+@pytest.mark.parametrize("edit", EDITS, ids=[" ".join(e) for e in EDITS])
+def test_every_edit_on_a_splatvq_input_is_the_edit_of_what_it_decodes_to(tmp_path, pair, edit):
+    """Each edit reads a .splatvq as the scene its texture words hold: the same output, byte for byte, as the
+    same edit of a .splatv holding those words (whose edits are proved by pixels in test_edit*.py)."""
+    vq, decoded = pair
+    a, b = tmp_path / "from_vq.splatv", tmp_path / "from_splatv.splatv"
+    ra, rb = run("convert", vq, a, *edit), run("convert", decoded, b, *edit)
+    assert ra.exit_code == rb.exit_code == 0, (ra.output, rb.output)
+    assert a.read_bytes() == b.read_bytes()
+
+
+@pytest.mark.parametrize("args", [["--time", "0.35"], ["--frames", "3"]], ids=["time", "frames"])
+def test_bake_and_merge_on_a_splatvq_input(tmp_path, pair, args):
+    vq, decoded = pair
+    if "--time" in args:
+        outs = [tmp_path / "vq.ply", tmp_path / "v.ply"]
+    else:
+        outs = [tmp_path / "vq", tmp_path / "v"]
+    ra, rb = run("bake", vq, outs[0], *args), run("bake", decoded, outs[1], *args)
+    assert ra.exit_code == rb.exit_code == 0, (ra.output, rb.output)
+    if "--time" in args:
+        assert outs[0].read_bytes() == outs[1].read_bytes()
+    else:
+        names = sorted(p.name for p in outs[0].iterdir())
+        assert len(names) == 3 and names == sorted(p.name for p in outs[1].iterdir())
+        assert all((outs[0] / n).read_bytes() == (outs[1] / n).read_bytes() for n in names)
+    ma, mb = tmp_path / "m_vq.splatv", tmp_path / "m_v.splatv"
+    assert run("merge", vq, decoded, ma).exit_code == 0
+    assert run("merge", decoded, decoded, mb).exit_code == 0
+    assert ma.read_bytes() == mb.read_bytes()
