@@ -13,6 +13,7 @@ from splatconv import io
 from splatconv.cli import main
 from splatconv.errors import UsageError
 from splatconv.formats import splatv, splatvq
+from splatconv.model import Scene
 from splatconv.formats import splatvq_codec as codec
 from splatconv.viewer import undrawable
 from tests.ops_helpers import CAMERA, draw, psnr
@@ -106,6 +107,18 @@ def test_values_the_codes_cannot_hold_are_kept_verbatim(tmp_path, real):
     for picked in (rows.huge_position, rows.zero_rotation_spinning):
         want = {r.tobytes() for r in source[picked]}
         assert want <= {r.tobytes() for r in words}
+
+
+def test_a_block_of_verbatim_splats_only(tmp_path, real):
+    """Every splat of the block kept verbatim (an omega past the half range): no coded splat, no empty plane
+    trouble, the records back as they were."""
+    columns = real[0].take(np.flatnonzero(~undrawable(real[0].columns))[:5])
+    columns["omega_0"][:] = 1e6
+    scene = Scene(columns, cameras=real[0].cameras)
+    path, report = written(tmp_path, scene)
+    assert any("5 splats kept verbatim" in n for n in report.notes), report.notes
+    want = sorted_records(splatv.encode(scene, sort="none")[0][:5])
+    assert (sorted_records(splatvq.decode(path)) == want).all()
 
 
 def test_flat_splats_and_infinite_temporal_scales_keep_their_infinities(tmp_path, real):

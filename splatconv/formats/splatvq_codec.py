@@ -384,7 +384,7 @@ def _planes(values: np.ndarray, dtype) -> list:
     a = np.ascontiguousarray(np.asarray(values).astype(dtype).T)  # (k, n)
     width = a.dtype.itemsize
     planes = np.ascontiguousarray(a.view(np.uint8).reshape(a.shape[0], -1, width).transpose(0, 2, 1))
-    return [p.tobytes() for p in planes.reshape(-1, a.shape[1])]
+    return [p.tobytes() for p in planes.reshape(a.shape[0] * width, a.shape[1])]
 
 
 def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: np.ndarray | None = None
