@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import base64
 import http.server
-import struct
 import threading
 import zlib
 from functools import partial

@@ -375,7 +375,8 @@ def quantized_key(records: np.ndarray, setting: Setting) -> np.ndarray:
     alpha = (records[:, COLOR_WORD] >> np.uint32(24)).astype(np.float64)
     # A signalling NaN half (a .splatv read keeps payloads) warns when widened: its splat is kept verbatim anyway.
     with np.errstate(invalid="ignore", over="ignore"):
-        lin = packing.HALF_TO_FLOAT[_scale_decoded(_halves_of(records, SCALE_AT), setting.scale_step)].astype(np.float64)
+        lin = packing.HALF_TO_FLOAT[_scale_decoded(_halves_of(records, SCALE_AT), setting.scale_step)]
+        lin = lin.astype(np.float64)
         return lin[:, 0] * lin[:, 1] * lin[:, 2] * alpha
 
 
@@ -493,9 +494,9 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
     # (some log2(256!) / 256 = 6.6 bits a splat) that independent codes spend again.
     pos_code = pos_code.astype(np.int64)
     order = np.lexsort((np.arange(n), np.ldexp(pos_code[:, 0].astype(np.float64), k), chunk_of))
-    big, rot_code, omega_code, s_code, colour = big[order], rot_code[order], omega_code[order], s_code[order], colour[order]
-    centre_code, t_code, e, motion_code = centre_code[order], t_code[order], e[order], motion_code[order]
-    pos_code, k = pos_code[order], k[order]
+    big, rot_code, omega_code, s_code = big[order], rot_code[order], omega_code[order], s_code[order]
+    colour, centre_code, t_code, e = colour[order], centre_code[order], t_code[order], e[order]
+    motion_code, pos_code, k = motion_code[order], pos_code[order], k[order]
     pos_code[:, 0] = x_steps(pos_code[:, 0], k)
     parts = [
         np.ascontiguousarray(base, dtype="<f8").tobytes()
