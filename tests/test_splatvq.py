@@ -147,23 +147,26 @@ def _parts(data: bytes):
     return fields, table_at, entries, body_at
 
 
-def _with_entry(data, coded=None, raw=None, stored=None, body=None):
+def _with_entry(data, coded=None, raw=None, payload=None, stored=None, body=None):
     fields, table_at, entries, body_at = _parts(data)
-    c, r, s = entries[0]
-    entry = splatvq.BLOCK_ENTRY.pack(c if coded is None else coded, r if raw is None else raw,
-                                     s if stored is None else stored)
+    old = entries[0]
+    entry = splatvq.BLOCK_ENTRY.pack(*(o if v is None else v for o, v in zip(old, (coded, raw, payload, stored))))
     rest = data[body_at:] if body is None else body
     return data[:table_at] + entry + rest
 
 
 def _payload(data):
     _, _, entries, body_at = _parts(data)
-    return zlib.decompress(data[body_at:body_at + entries[0][2]], -15)
+    return zlib.decompress(data[body_at:body_at + entries[0][3]], -15)
 
 
 def _deflate(payload: bytes) -> bytes:
     c = zlib.compressobj(9, zlib.DEFLATED, -15)
     return c.compress(payload) + c.flush()
+
+
+def _with_payload(data, payload: bytes) -> bytes:
+    return _with_entry(data, payload=len(payload), stored=len(d := _deflate(payload)), body=d)
 
 
 def _set_count(data: bytes, count) -> bytes:
@@ -174,34 +177,52 @@ def _set_count(data: bytes, count) -> bytes:
     return splatvq.PREAMBLE.pack(*fields[:-2], len(text), fields[-1]) + text + data[table_at:]
 
 
-def _more_raw(data, extra):
-    """The block table and count say ``extra`` more verbatim splats than the block holds."""
-    coded, raw, _ = _parts(data)[2][0]
-    return _set_count(_with_entry(data, raw=raw + extra), coded + raw + extra)
+def _with_codes(data, change):
+    """The first block's codes changed by ``change(tables, fields)`` and packed again (a damaged encoder)."""
+    coded, raw = _parts(data)[2][0][:2]
+    tables, fields, raw_words = codec.unpack_payload(_payload(data), coded, raw, "x", ())
+    tables = {k: v.copy() for k, v in tables.items()}
+    fields = {k: v.copy() for k, v in fields.items()}
+    change(tables, fields)
+    return _with_payload(data, b"".join(codec.payload_parts(tables, fields, raw_words)))
 
 
-def _bad_rotation_index(data):
-    payload = bytearray(_payload(data))
-    coded = _parts(data)[2][0][0]
-    at = -(-coded // codec.CHUNK) * codec.CHUNK_BYTES + coded * 12  # after the position planes
-    payload[at] = 7
-    return _with_entry(data, stored=len(d := _deflate(bytes(payload))), body=d)
+def _bad_window(tables, fields):
+    fields["window_index"][0] = (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 4
 
 
-def _bad_position_step(data):
+def _bad_position_step(tables, fields):
     """The first two splats' x steps at their largest: the second's code passes 2**32 - 1."""
+    fields["x_step"][:2] = 2 ** 32 - 1
+
+
+def _bad_rotation(tables, fields):
+    fields["rotation"][3, 1] = 1 << 12
+
+
+def _bad_scale(tables, fields):
+    fields["scale"][5, 2] = 1 << 20
+
+
+def _bad_width(data):
     payload = bytearray(_payload(data))
     coded = _parts(data)[2][0][0]
-    at = -(-coded // codec.CHUNK) * codec.CHUNK_BYTES  # the x planes, lowest byte first
-    for plane in range(4):
-        payload[at + plane * coded:at + plane * coded + 2] = b"\xff\xff"
-    return _with_entry(data, stored=len(d := _deflate(bytes(payload))), body=d)
+    payload[-(-coded // codec.CHUNK) * codec.CHUNK_BYTES] = 5  # the x step's escape width
+    return _with_payload(data, bytes(payload))
+
+
+def _short_payload(data):
+    """The yz planes' width one more than they hold: the payload ends early."""
+    payload = bytearray(_payload(data))
+    coded = _parts(data)[2][0][0]
+    payload[-(-coded // codec.CHUNK) * codec.CHUNK_BYTES + 1] += 2
+    return _with_payload(data, bytes(payload))
 
 
 BAD = [
     ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (25-byte preamble)"),
     ("magic", lambda d: b"XXXX" + d[4:], "not a .splatvq file: magic b'XXXX', expected b'SPVQ'"),
-    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (2)"),
+    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (3)"),
     ("coder", lambda d: d[:5] + b"\x02" + d[6:], "coder 2 is not one this reader knows (1: raw deflate)"),
     ("setting", lambda d: d[:7] + b"\x00" + d[8:], "setting 'rotation_bits' is 0, outside [2, 16]"),
     ("truncated", lambda d: d[:-5], "block 0: declares {stored} bytes but the file ends {short} bytes after its "
@@ -210,16 +231,26 @@ BAD = [
     ("count lies", lambda d: _set_count(d, 5), "header 'count' is 5 but the blocks hold {count} splats"),
     ("table lies: more splats", lambda d: _with_entry(d, coded=70000), "block 0: holds {big} splats; a block "
      "holds 1 to 65536"),
-    ("table lies: decoded size", lambda d: _more_raw(d, 3), "block 0: decodes to {payload} bytes, not the "
-     "{more} declared"),
+    ("table lies: decoded size", lambda d: _with_entry(d, payload=_parts(d)[2][0][2] + 10),
+     "block 0: decodes to {payload} bytes, not the {payload10} declared"),
+    ("table lies: size out of bounds", lambda d: _with_entry(d, payload=5), "block 0: declares 5 decoded bytes; "
+     "{coded} coded and {raw} verbatim splats take {fewest} to {most}"),
     ("decodes to more", lambda d: _with_entry(d, stored=len(x := _deflate(_payload(d) + bytes(64))), body=x),
      "block 0: decodes to more than the {payload} bytes declared"),
-    ("ratio", lambda d: _with_entry(d, coded=65000, stored=5, body=b"\0" * 5), "block 0: declares {ratio} decoded "
-     "bytes from 5 stored, more than deflate can give"),
+    ("ratio", lambda d: _with_entry(d, coded=65000, raw=0, payload=codec.payload_bounds(65000, 0)[0], stored=5,
+                                    body=b"\0" * 5),
+     "block 0: declares {ratio} decoded bytes from 5 stored, more than deflate can give"),
     ("corrupt stream", lambda d: _with_entry(d, body=b"\xff" * len(d[_parts(d)[3]:])), "block 0: compressed data "
      "is corrupt (Error -3 while decompressing data: invalid block type)"),
-    ("rotation index", _bad_rotation_index, "block 0: a rotation index is past 3"),
-    ("position step", _bad_position_step, "block 0: a position code is past 2**32 - 1"),
+    ("window", lambda d: _with_codes(d, _bad_window), "block 0: a window exponent is past 30"),
+    ("position step", lambda d: _with_codes(d, _bad_position_step), "block 0: a position code is past 2**32 - 1"),
+    ("rotation code", lambda d: _with_codes(d, _bad_rotation), "block 0: a rotation code is past 255"),
+    ("scale code", lambda d: _with_codes(d, _bad_scale), "block 0: a scale code decodes past the half range"),
+    ("width", _bad_width, "block 0: a column width of 5 bytes (at most 4)"),
+    ("payload ends early", _short_payload, "block 0: its payload ends before its last record (its widths or "
+     "escapes name more bytes than it holds)"),
+    ("payload has more", lambda d: _with_payload(d, _payload(d) + b"\0" * 64), "block 0: its payload has 64 bytes "
+     "after its last record"),
 ]
 
 
@@ -227,14 +258,15 @@ BAD = [
 def test_bad_input_gives_one_error_line_and_writes_nothing(tmp_path, name, mutate, message):
     good = _good(tmp_path)
     _, _, entries, body_at = _parts(good)
-    coded, raw, stored = entries[0]
+    coded, raw, payload, stored = entries[0]
     bad = mutate(good)
     path = tmp_path / "bad.splatvq"
     path.write_bytes(bad)
-    payload = codec.payload_bytes(coded, raw)
+    fewest, most = codec.payload_bounds(coded, raw)
     message = message.format(stored=stored, short=stored - 5, size=len(good), size1=len(good) + 1,
-                             count=coded + raw, big=70000 + raw, payload=payload,
-                             more=codec.payload_bytes(coded, raw + 3), ratio=codec.payload_bytes(65000, raw))
+                             count=coded + raw, big=70000 + raw, payload=payload, payload10=payload + 10,
+                             coded=coded, raw=raw, fewest=fewest, most=most,
+                             ratio=codec.payload_bounds(65000, 0)[0])
     r = run("convert", path, tmp_path / "out.splatv")
     assert (r.exit_code, r.stderr) == (1, f"Error: {path}: {message}\n"), r.output
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.splatvq"]

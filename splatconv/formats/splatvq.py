@@ -42,11 +42,11 @@ STORAGE = {"position": "none", "rotation": "none", "scale": "none", "color": "by
            "motion": "none", "omega": "none", "trbf": "none"}
 
 MAGIC = b"SPVQ"
-VERSION = 2
+VERSION = 3
 #: magic, version, coder, the setting's ten numbers, chunk size (log2), JSON length, block count.
 PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBII")
-#: One block table entry: splats quantized, splats verbatim, stored (compressed) bytes.
-BLOCK_ENTRY = struct.Struct("<III")
+#: One block table entry: splats quantized, splats verbatim, payload (inflated) bytes, stored (compressed) bytes.
+BLOCK_ENTRY = struct.Struct("<IIII")
 #: Largest JSON header read.
 MAX_JSON_BYTES = 64 << 20
 #: Most splats a file holds: as many as a ``.splatv`` texture (65536 rows of 1024).
@@ -122,13 +122,13 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
                       ensure_ascii=False, allow_nan=False).encode("utf-8")
     values = [getattr(setting, f) for f in SETTING_ORDER]
     head = PREAMBLE.pack(MAGIC, VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2, len(text), len(blocks))
-    table = b"".join(BLOCK_ENTRY.pack(coded, raw, len(stored)) for stored, coded, raw in blocks)
-    data = b"".join([head, text, table] + [stored for stored, _, _ in blocks])
+    table = b"".join(BLOCK_ENTRY.pack(coded, raw, payload, len(stored)) for stored, coded, raw, payload in blocks)
+    data = b"".join([head, text, table] + [stored for stored, _, _, _ in blocks])
     if dropped.any():
         what = kinds_text({kind: int(c) for kind, c in zip(UNDRAWABLE_KINDS, dropped)})
         report.notes.append(f"left out {plural(int(dropped.sum()), 'undrawable splat')} ({what}): "
                             "no frame the viewer draws changes")
-    raw = sum(r for _, _, r in blocks)
+    raw = sum(r for _, _, r, _ in blocks)
     report.notes.append(f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat); "
                         f"{plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else
                         f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat)")
@@ -154,7 +154,7 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
 
 
 def _header(f, path: str, file_size: int):
-    """Read and check the preamble, JSON and block table; the blocks' (coded, raw, stored, offset)."""
+    """Read and check the preamble, JSON and block table; the blocks' (coded, raw, stored, offset, payload)."""
     if file_size < PREAMBLE.size:
         raise FormatError(f"{file_size} bytes is too short for a .splatvq file ({PREAMBLE.size}-byte preamble)",
                           path)
@@ -188,18 +188,21 @@ def _header(f, path: str, file_size: int):
     offset = table_at + block_count * BLOCK_ENTRY.size
     blocks = []
     total = 0
-    for i, (coded, raw, stored) in enumerate(BLOCK_ENTRY.iter_unpack(table)):
+    for i, (coded, raw, payload, stored) in enumerate(BLOCK_ENTRY.iter_unpack(table)):
         where = (f"block {i}",)
         if coded + raw > codec.BLOCK or coded + raw == 0:
             raise FormatError(f"holds {coded + raw} splats; a block holds 1 to {codec.BLOCK}", path, where)
         if offset + stored > file_size:
             raise FormatError(f"declares {stored} bytes but the file ends {file_size - offset} bytes after its "
                               "start: file truncated?", path, where)
-        expected = codec.payload_bytes(coded, raw)
-        if expected > codec.MAX_RATIO * stored + 64:
-            raise FormatError(f"declares {expected} decoded bytes from {stored} stored, more than deflate can give",
+        fewest, most = codec.payload_bounds(coded, raw)
+        if not fewest <= payload <= most:
+            raise FormatError(f"declares {payload} decoded bytes; {coded} coded and {raw} verbatim splats take "
+                              f"{fewest} to {most}", path, where)
+        if payload > codec.MAX_RATIO * stored + 64:
+            raise FormatError(f"declares {payload} decoded bytes from {stored} stored, more than deflate can give",
                               path, where)
-        blocks.append((coded, raw, stored, offset))
+        blocks.append((coded, raw, stored, offset, payload))
         offset += stored
         total += coded + raw
     if offset != file_size:
@@ -231,13 +234,13 @@ def read_records(path: str | os.PathLike):
     with open_input(path) as f:
         file_size = os.fstat(f.fileno()).st_size
         setting, meta, blocks = _header(f, path, file_size)
-        records = np.empty((sum(c + r for c, r, _, _ in blocks), WORDS_PER_SPLAT), dtype="<u4")
+        records = np.empty((sum(c + r for c, r, *_ in blocks), WORDS_PER_SPLAT), dtype="<u4")
         at = 0
-        for i, (coded, raw, stored, offset) in enumerate(blocks):
+        for i, (coded, raw, stored, offset, size) in enumerate(blocks):
             f.seek(offset)
             data = f.read(stored)
             where = (f"block {i}",)
-            payload = codec.inflate(data, codec.payload_bytes(coded, raw), path, where)
+            payload = codec.inflate(data, size, path, where)
             records[at:at + coded + raw] = codec.decode_block(payload, coded, raw, setting, path, where)
             at += coded + raw
     info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
@@ -265,7 +268,7 @@ def splat_count(path: str | os.PathLike) -> int | None:
             _setting, _meta, blocks = _header(f, path, os.fstat(f.fileno()).st_size)
     except FormatError:
         return None
-    return sum(c + r for c, r, _, _ in blocks)
+    return sum(c + r for c, r, *_ in blocks)
 
 
 def most_splats(path: str | os.PathLike) -> int:

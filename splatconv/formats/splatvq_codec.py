@@ -36,8 +36,8 @@ CHUNK_LOG2 = 8
 CHUNK = 1 << CHUNK_LOG2
 #: Splats a block at most (one independently decodable unit, importance order between blocks).
 BLOCK = 1 << 16
-#: Bias of the stored window exponent byte: e = byte - WINDOW_BIAS.
-WINDOW_BIAS = 128
+#: Bias of the stored window exponent: window_index = (e + WINDOW_BIAS) * 4 + rotation index.
+WINDOW_BIAS = 30
 #: Window exponents kept: W = 2**e, clipped to this range.
 WINDOW_MIN, WINDOW_MAX = -30, 30
 #: Reserved scale codes: 0 -> half +0 (a linear scale of 0), 1 -> half +inf.
@@ -119,36 +119,68 @@ CHUNK_FIELDS = (
     ("scale_base", "<u2", 3),       # lowest scale lattice index of each axis
     ("trbf_scale_base", "<u2", 1),  # lowest temporal scale lattice index
 )
-#: The per-splat fields of a block payload, in order: name, dtype, values per splat.
-#: Each value column is stored as byte planes, lowest byte first.
-SPLAT_FIELDS = (
-    ("position", "<u4", 3),         # (p - base) / 2**k
-    ("rotation_index", "u1", 1),    # which component of q is largest (dropped)
-    ("rotation", "<u2", 3),         # the other three, in order
-    ("omega", "<u2", 4),            # zigzag
-    ("scale", "<u2", 3),            # reserved codes, then lattice index - base + 2
-    ("color", "u1", 4),             # the RGBA8 word's bytes as they are
-    ("trbf_center", "<u4", 1),      # zigzag
-    ("trbf_scale", "<u2", 1),       # as scale
-    ("window", "u1", 1),            # e + WINDOW_BIAS
-    ("motion", "<u4", 9),           # zigzag
-)
 CHUNK_BYTES = sum(np.dtype(t).itemsize * k for _, t, k in CHUNK_FIELDS)
-SPLAT_BYTES = sum(np.dtype(t).itemsize * k for _, t, k in SPLAT_FIELDS)
+
+#: How a per-splat value column is stored. ``byte``: one plane of bytes.
+#: ``plain``: ``w`` byte planes, lowest first (``w``, 0 to 4, from the block's width table).
+#: ``saturating``: one plane of min(v, 255); then, for the splats whose byte is 255 (in
+#: plane order), v - 255 in ``w`` byte planes: most codes take one byte and no plane is
+#: mostly zeros (deflate's Huffman codes spend at least a bit a byte).
+BYTE, PLAIN, SATURATING = "byte", "plain", "saturating"
+#: A saturating plane's escape byte.
+SATURATED = 255
+#: The per-splat fields of a block payload, in order: name, values per splat, coding.
+SPLAT_FIELDS = (
+    ("x_step", 1, SATURATING),     # x code as a step from the splat before (see x_steps)
+    ("yz", 2, PLAIN),              # y and z codes
+    ("window_index", 1, BYTE),     # (e + WINDOW_BIAS) * 4 + the dropped quaternion component
+    ("rotation", 3, PLAIN),        # the other three components, in order
+    ("scale", 3, SATURATING),      # reserved codes, then lattice index - base + 2
+    ("color", 4, BYTE),            # the RGBA8 word's bytes as they are
+    ("trbf_center", 1, PLAIN),     # zigzag
+    ("trbf_scale", 1, SATURATING),  # as scale
+    ("motion", 9, SATURATING),     # zigzag
+    ("omega", 4, SATURATING),      # zigzag
+)
+#: Value columns with a width (plain and saturating), in payload order: one width byte each.
+WIDTH_COLUMNS = tuple(f"{name}[{j}]" for name, k, coding in SPLAT_FIELDS if coding != BYTE for j in range(k))
+#: Most bytes a value column's width names.
+MAX_WIDTH = 4
+#: Largest value a column holds: 32 bits (a saturating one: 255 more).
+VALUE_MAX = (1 << 32) - 1
+#: Fewest and most payload bytes a coded splat takes.
+SPLAT_BYTES_MIN = sum(k for _, k, coding in SPLAT_FIELDS if coding != PLAIN)
+SPLAT_BYTES_MAX = sum(k * (1 if coding == BYTE else MAX_WIDTH + (coding == SATURATING))
+                      for _, k, coding in SPLAT_FIELDS)
 RAW_BYTES = 4 * WORDS_PER_SPLAT
+
+#: Classes of a splat's motion: the planes of later motion and omega codes are stored
+#: sorted by the class of motion codes decoded before them (stably), each class a deflate
+#: block of its own, so that fast and slow splats get Huffman codes of their own.
+#: A zigzag code u is of class 0 below 8, 1 below 32, 2 below 128, 3 below 512, else 4.
+CLASS_LIMITS = (8, 32, 128, 512)
+#: For each classed value column, the motion values whose largest zigzag code gives its class.
+CLASSED_BY = {("motion", 1): (0,), ("motion", 2): (0, 1),
+              **{("motion", j): (0, 1, 2) for j in range(3, 9)},
+              **{("omega", j): (0, 1, 2) for j in range(4)}}
+
 #: Largest position code: 32 bits.
-POSITION_CODE_MAX = (1 << 32) - 1
+POSITION_CODE_MAX = VALUE_MAX
 #: Degree of each motion coefficient (motion_0..8: three velocity, three acceleration, three jerk terms).
 MOTION_DEGREE = np.repeat(np.arange(1, 4), 3)
 
 _SQRT1_2 = np.sqrt(0.5)
+#: 2**x for the step exponents a decoder meets (|x| < 400: every setting, window and size within its limits).
+_POW2_BIAS = 400
+_POW2 = np.ldexp(1.0, np.arange(-_POW2_BIAS, _POW2_BIAS + 1))
 #: The other three components of a quaternion, by the index of the one dropped.
 _OTHERS = np.array([[j for j in range(4) if j != i] for i in range(4)])
 
 
-def payload_bytes(coded: int, raw: int) -> int:
-    """Bytes of a block payload holding ``coded`` quantized and ``raw`` verbatim records."""
-    return -(-coded // CHUNK) * CHUNK_BYTES + coded * SPLAT_BYTES + raw * RAW_BYTES
+def payload_bounds(coded: int, raw: int) -> tuple[int, int]:
+    """Fewest and most bytes of a block payload holding ``coded`` quantized and ``raw`` verbatim records."""
+    fixed = -(-coded // CHUNK) * CHUNK_BYTES + len(WIDTH_COLUMNS) + raw * RAW_BYTES
+    return fixed + coded * SPLAT_BYTES_MIN, fixed + coded * SPLAT_BYTES_MAX
 
 
 # --------------------------------------------------------------------------
@@ -157,12 +189,18 @@ def payload_bytes(coded: int, raw: int) -> int:
 
 def _zigzag(v: np.ndarray, dtype) -> np.ndarray:
     v = v.astype(np.int64)
-    return ((v << 1) ^ (v >> 63)).astype(dtype)
+    u = v << 1
+    u ^= v >> 63
+    return u.astype(dtype, copy=False)
 
 
 def _unzigzag(u: np.ndarray) -> np.ndarray:
     u = u.astype(np.int64)
-    return (u >> 1) ^ -(u & 1)
+    v = u >> 1
+    u &= 1
+    np.negative(u, out=u)
+    v ^= u
+    return v
 
 
 def _half(values: np.ndarray) -> np.ndarray:
@@ -380,16 +418,28 @@ def quantized_key(records: np.ndarray, setting: Setting) -> np.ndarray:
         return lin[:, 0] * lin[:, 1] * lin[:, 2] * alpha
 
 
-def _planes(values: np.ndarray, dtype) -> list:
-    """``(n, k)`` values as byte planes, component by component, lowest byte first: a list of ``n``-byte planes."""
-    a = np.ascontiguousarray(np.asarray(values).astype(dtype).T)  # (k, n)
-    width = a.dtype.itemsize
-    planes = np.ascontiguousarray(a.view(np.uint8).reshape(a.shape[0], -1, width).transpose(0, 2, 1))
-    return [p.tobytes() for p in planes.reshape(a.shape[0] * width, a.shape[1])]
+def value_class(codes: np.ndarray) -> np.ndarray:
+    """The class of each splat's largest zigzag code among ``codes`` ``(N, m)``: ``(N,) uint8``, 0 to
+    ``len(CLASS_LIMITS)``: how many of :data:`CLASS_LIMITS` it reaches."""
+    return np.searchsorted(np.asarray(CLASS_LIMITS, dtype=np.int64), codes.max(axis=1).astype(np.int64),
+                           side="right").astype(np.uint8)
+
+
+def _width(values: np.ndarray) -> int:
+    """Bytes the largest of ``values`` takes (0 when every value is 0)."""
+    top = int(values.max()) if len(values) else 0
+    return -(-top.bit_length() // 8)
+
+
+def _byte_planes(values: np.ndarray, width: int):
+    """``(n,)`` non-negative integers as ``width`` byte planes, lowest first."""
+    v = values.astype("<u4")
+    for b in range(width):
+        yield ((v >> np.uint32(8 * b)) & np.uint32(0xFF)).astype(np.uint8).tobytes()
 
 
 def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: np.ndarray | None = None
-                 ) -> tuple[bytes, int, int]:
+                 ) -> tuple[bytes, int, int, int]:
     """Quantize and compress one block of records (importance order).
 
     Parameters
@@ -403,20 +453,75 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
         The block as stored (raw deflate of the payload).
     coded, raw : int
         Records quantized, records kept verbatim (decoded after the coded ones).
+    payload : int
+        Bytes of the payload (what ``stored`` inflates to).
     """
     esc = escapes(records)
     if forced is not None:
         esc |= forced
-    raw_records = records[esc]
     kept = np.flatnonzero(~esc)
     # Chunks in Morton order (stable: within a cell, importance order).
     kept = kept[np.argsort(_morton(records[kept, :3].view(np.float32)), kind="stable")]
+    tables, fields, kept, too_big = _quantize(records, kept, setting)
+    # Records whose codes do not fit go raw after all: the block is made again with them forced raw.
+    if too_big.any():
+        esc[kept[too_big]] = True
+        return encode_block(records, setting, level, esc)
+    # Run-length matching only: byte planes hold few long matches; it is some thirty
+    # times faster than level 9's search for 1.3% more bytes (bench/README.md).
+    # Each plane (and each class of a classed plane) ends a deflate block (Z_BLOCK: no
+    # padding, no marker), so each gets Huffman codes of its own.
+    comp = zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
+    out, size = [], 0
+    for part in payload_parts(tables, fields, records[esc]):
+        size += len(part)
+        out.append(comp.compress(part))
+        out.append(comp.flush(zlib.Z_BLOCK))
+    out.append(comp.flush())
+    return b"".join(out), len(kept), int(np.count_nonzero(esc)), size
+
+
+def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
+    """The codes of the records ``kept`` names (in Morton order).
+
+    Returns
+    -------
+    tables, fields : dict
+        What :func:`payload_parts` stores.
+    kept : (n,) int64 ndarray
+        The records in the order they are coded (inside each chunk, by decoded x).
+    too_big : (n,) bool ndarray
+        Records (in that order) whose codes do not fit their fields.
+    """
+    n = len(kept)
+    starts = np.arange(0, n, CHUNK)
+    chunk_of = np.arange(n) // CHUNK
+
+    # Scales, alpha coarsening and each splat's position step 2**k, k = its size exponent + position_shift + c
+    # (see size_exponent); positions coded from their chunk's base, a multiple of every step in the chunk.
+    scale_h = _halves_of(records[kept, 5:7], ((0, 0), (0, 1), (1, 0)))
+    coarse = alpha_coarsening(records[kept, COLOR_WORD] >> np.uint32(24), setting.alpha_levels)
+    k = size_exponent(_scale_decoded(scale_h, setting.scale_step)) + setting.position_shift + coarse
+    pos = records[kept, :3].view(np.float32).astype(np.float64)
+    if n:
+        lo = np.minimum.reduceat(pos, starts, axis=0)
+        k_top = np.maximum.reduceat(k, starts)
+    else:
+        lo, k_top = np.zeros((0, 3)), np.zeros(0, np.int64)
+    base = np.ldexp(np.floor(np.ldexp(lo, -k_top[:, None])), k_top[:, None])
+    pos_code = np.rint(np.ldexp(pos - base[chunk_of], -k[:, None]))
+    del pos
+    # Inside each chunk, splats in order of their decoded x (ties in Morton order), x
+    # stored as the step from the one before: the order itself carries information
+    # (some log2(256!) / 256 = 6.6 bits a splat) that independent codes spend again.
+    order = np.lexsort((np.arange(n), np.ldexp(pos_code[:, 0], k), chunk_of))
+    kept, k, coarse, pos_code, scale_h = kept[order], k[order], coarse[order], pos_code[order], scale_h[order]
+    del order
     rec = records[kept]
-    n = len(rec)
     h = rec.view(np.uint16)
+
     # Temporal centre and scale, quantized first: the window W is that of the decoded values.
-    centre = h[:, 30].copy()
-    centre_f = packing.HALF_TO_FLOAT[centre].astype(np.float64)
+    centre_f = packing.HALF_TO_FLOAT[h[:, 30]].astype(np.float64)
     centre_code = np.rint(np.ldexp(centre_f, setting.time_shift)).astype(np.int64)
     centre_dec = packing.HALF_TO_FLOAT[_half(np.ldexp(centre_code.astype(np.float64), -setting.time_shift))]
     tsh = h[:, 31]
@@ -432,48 +537,35 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
     e = np.full(n, WINDOW_MIN, dtype=np.int64)
     pos_w = window > 0
     e[pos_w] = np.clip(_ceil_log2(window[pos_w]), WINDOW_MIN, WINDOW_MAX)
+    del centre_f, centre_dec, reach, c, t0, t1, window
 
     # Rotation: unit quaternion, largest component positive and dropped; omega / |q| * sign * W.
     q = packing.HALF_TO_FLOAT[_halves_of(rec, ROT_AT)].astype(np.float64)
     norm = np.sqrt((q * q).sum(axis=1))
     big = np.argmax(np.abs(q), axis=1)
-    sign = np.where(q[np.arange(n), big] < 0, -1.0, 1.0)
-    unit = q * (sign / norm)[:, None]
+    sign = np.where(q[np.arange(n), big] < 0, -1.0, 1.0) / norm
     rmax = (1 << setting.rotation_bits) - 1
-    others = _OTHERS[big]
-    small3 = np.take_along_axis(unit, others, axis=1)
+    small3 = np.take_along_axis(q, _OTHERS[big], axis=1) * sign[:, None]
     rot_code = np.clip(np.rint((small3 / _SQRT1_2 + 1.0) * 0.5 * rmax), 0, rmax)
-    rot_code = _keep_largest(rot_code, big, rmax)
-    omega = packing.HALF_TO_FLOAT[_halves_of(rec, OMEGA_AT)].astype(np.float64)
-    coarse = alpha_coarsening(rec[:, COLOR_WORD] >> np.uint32(24), setting.alpha_levels)
-    omega_shift = (e + setting.omega_shift - coarse)[:, None]
-    omega_code = np.rint(np.ldexp(omega * (sign / norm)[:, None], omega_shift))
-
-    # Positions: each splat on the lattice 2**k, k = its size exponent + position_shift
-    # (see size_exponent), coded from its chunk's base, a multiple of every step in the chunk.
-    scale_h = _halves_of(rec, SCALE_AT)
-    k = size_exponent(_scale_decoded(scale_h, setting.scale_step)) + setting.position_shift + coarse
-    starts = np.arange(0, n, CHUNK)
-    chunk_of = np.arange(n) // CHUNK
-    pos = rec[:, :3].view(np.float32).astype(np.float64)
-    if n:
-        lo = np.minimum.reduceat(pos, starts, axis=0)
-        k_top = np.maximum.reduceat(k, starts)
-    else:
-        lo, k_top = np.zeros((0, 3)), np.zeros(0, np.int64)
-    base = np.ldexp(np.floor(np.ldexp(lo, -k_top[:, None])), k_top[:, None])
-    pos_code = np.rint(np.ldexp(pos - base[chunk_of], -k[:, None]))
-
-    motion = packing.HALF_TO_FLOAT[_halves_of(rec, MOTION_AT)].astype(np.float64)
-    motion_shift = e[:, None] * MOTION_DEGREE[None, :] - k[:, None] - motion_exponents(setting)[None, :]
-    motion_code = np.rint(np.ldexp(motion, motion_shift))
-
-    # Records whose codes do not fit go raw after all: the block is made again with them forced raw.
-    too_big = ((pos_code > POSITION_CODE_MAX).any(axis=1) | (np.abs(omega_code) >= 1 << 15).any(axis=1)
-               | (np.abs(motion_code) >= 2.0 ** 31).any(axis=1) | (np.abs(centre_code) >= 1 << 31))
-    if too_big.any():
-        esc[kept[too_big]] = True
-        return encode_block(records, setting, level, esc)
+    rot_code = _keep_largest(rot_code, big, rmax).astype(np.uint16)
+    del q, small3, norm
+    # Omega and motion, a column at a time as zigzag codes (uint32: their widest): few temporaries.
+    omega_u = np.empty((n, 4), np.uint32)
+    fits = np.ones(n, bool)
+    for j, (w, i) in enumerate(OMEGA_AT):
+        v = np.rint(np.ldexp(packing.HALF_TO_FLOAT[h[:, 2 * w + i]] * sign, e + setting.omega_shift - coarse))
+        fits &= np.abs(v) < 1 << 15
+        omega_u[:, j] = _zigzag(np.where(fits, v, 0), np.uint32)
+    motion_u = np.empty((n, 9), np.uint32)
+    exps = motion_exponents(setting)
+    for j, (w, i) in enumerate(MOTION_AT):
+        v = np.rint(np.ldexp(packing.HALF_TO_FLOAT[h[:, 2 * w + i]].astype(np.float64),
+                             e * MOTION_DEGREE[j] - k - exps[j]))
+        fits &= np.abs(v) < 2.0 ** 31
+        motion_u[:, j] = _zigzag(np.where(fits, v, 0), np.uint32)
+    del v, sign
+    too_big = ~fits | (pos_code > POSITION_CODE_MAX).any(axis=1) | (np.abs(centre_code) >= 1 << 31)
+    pos_code = np.where(too_big[:, None], 0, pos_code).astype(np.int64)
 
     s_special = (scale_h == 0) | (scale_h == packing.HALF_INF_BITS)
     s_lat = scale_lattice(scale_h, setting.scale_step)
@@ -481,50 +573,79 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
     s_base = (np.minimum.reduceat(np.where(s_special, big_lat, s_lat), starts, axis=0) if n
               else np.zeros((0, 3), np.int64))
     s_base = np.where(s_base == big_lat, 0, s_base)
-    s_code = np.where(scale_h == 0, SCALE_ZERO,
-                      np.where(scale_h == packing.HALF_INF_BITS, SCALE_INF, s_lat - s_base[chunk_of] + SCALE_FIRST))
+    s_code = np.where(scale_h == 0, SCALE_ZERO, np.where(scale_h == packing.HALF_INF_BITS, SCALE_INF,
+                                                         s_lat - s_base[chunk_of] + SCALE_FIRST)).astype(np.uint16)
+    del s_lat, s_special
     t_base = (np.minimum.reduceat(np.where(t_special, big_lat, t_lat), starts) if n else np.zeros(0, np.int64))
     t_base = np.where(t_base == big_lat, 0, t_base)
-    t_code = np.where(tsh == 0, SCALE_ZERO,
-                      np.where(tsh == packing.HALF_INF_BITS, SCALE_INF, t_lat - t_base[chunk_of] + SCALE_FIRST))
+    t_code = np.where(tsh == 0, SCALE_ZERO, np.where(tsh == packing.HALF_INF_BITS, SCALE_INF,
+                                                     t_lat - t_base[chunk_of] + SCALE_FIRST)).astype(np.uint16)
 
-    colour = rec[:, COLOR_WORD:COLOR_WORD + 1].copy().view(np.uint8)
-    # Inside each chunk, splats in order of their decoded x (ties in Morton order), x
-    # stored as the step from the one before: the order itself carries information
-    # (some log2(256!) / 256 = 6.6 bits a splat) that independent codes spend again.
-    pos_code = pos_code.astype(np.int64)
-    order = np.lexsort((np.arange(n), np.ldexp(pos_code[:, 0].astype(np.float64), k), chunk_of))
-    big, rot_code, omega_code, s_code = big[order], rot_code[order], omega_code[order], s_code[order]
-    colour, centre_code, t_code, e = colour[order], centre_code[order], t_code[order], e[order]
-    motion_code, pos_code, k = motion_code[order], pos_code[order], k[order]
-    pos_code[:, 0] = x_steps(pos_code[:, 0], k)
-    parts = [
-        np.ascontiguousarray(base, dtype="<f8").tobytes()
-        + np.ascontiguousarray(s_base, dtype="<u2").tobytes()
-        + np.ascontiguousarray(t_base, dtype="<u2").tobytes(),
-        *_planes(pos_code, "<u4"),
-        *_planes(big[:, None], "u1"),
-        *_planes(rot_code, "<u2"),
-        *_planes(_zigzag(omega_code, np.uint16), "<u2"),
-        *_planes(s_code, "<u2"),
-        *_planes(colour, "u1"),
-        *_planes(_zigzag(centre_code, np.uint32)[:, None], "<u4"),
-        *_planes(t_code[:, None], "<u2"),
-        *_planes((e + WINDOW_BIAS)[:, None], "u1"),
-        *_planes(_zigzag(motion_code, np.uint32), "<u4"),
-        np.ascontiguousarray(raw_records, dtype="<u4").tobytes(),
-    ]
-    # Run-length matching only: byte planes hold few long matches; it is some thirty
-    # times faster than level 9's search for 1.3% more bytes (bench/README.md).
-    # Each plane ends a deflate block (Z_BLOCK: no padding, no marker), so each gets
-    # Huffman codes of its own: a plane's byte statistics differ from its neighbours'.
-    comp = zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
-    out = []
-    for part in parts:
-        out.append(comp.compress(part))
-        out.append(comp.flush(zlib.Z_BLOCK))
-    out.append(comp.flush())
-    return b"".join(out), n, len(raw_records)
+    tables = {"position_base": base, "scale_base": s_base, "trbf_scale_base": t_base[:, None]}
+    fields = {
+        "x_step": x_steps(pos_code[:, 0], k)[:, None], "yz": pos_code[:, 1:],
+        "window_index": ((e + WINDOW_BIAS) * 4 + big).astype(np.uint8)[:, None], "rotation": rot_code,
+        "scale": s_code, "color": rec[:, COLOR_WORD:COLOR_WORD + 1].copy().view(np.uint8),
+        "trbf_center": _zigzag(np.where(too_big, 0, centre_code), np.uint32)[:, None],
+        "trbf_scale": t_code[:, None], "motion": motion_u, "omega": omega_u,
+    }
+    return tables, fields, kept, too_big
+
+
+def _class_orders(motion: np.ndarray) -> dict:
+    """For each classed column's sources (:data:`CLASSED_BY`): each splat's class, the stable order of splats by it."""
+    out = {}
+    for by in set(CLASSED_BY.values()):
+        classes = value_class(motion[:, list(by)])
+        out[by] = np.argsort(classes, kind="stable"), classes
+    return out
+
+
+def _escapes(values: np.ndarray) -> np.ndarray:
+    """What a saturating column stores past its plane: v - 255 of the values of 255 and more, in order."""
+    return values[values >= SATURATED] - SATURATED
+
+
+def payload_parts(tables: dict, fields: dict, raw: np.ndarray):
+    """A block payload from its codes, as byte strings (each ends a deflate block), one at a time.
+
+    Parameters
+    ----------
+    tables : dict
+        :data:`CHUNK_FIELDS` by name, ``(chunks, k)`` each.
+    fields : dict
+        :data:`SPLAT_FIELDS` by name, ``(n, k)`` non-negative integers each (zigzag codes where signed).
+    raw : (R, 16) uint32 ndarray
+        Records kept verbatim.
+    """
+    orders = _class_orders(fields["motion"])
+    yield b"".join(np.ascontiguousarray(tables[name], dtype=dtype).tobytes() for name, dtype, _ in CHUNK_FIELDS)
+    widths = [_width(fields[name][:, j] if coding == PLAIN else _escapes(fields[name][:, j].astype(np.int64)))
+              for name, count, coding in SPLAT_FIELDS if coding != BYTE for j in range(count)]
+    yield bytes(widths)
+    widths = iter(widths)
+    for name, count, coding in SPLAT_FIELDS:
+        for j in range(count):
+            values = fields[name][:, j].astype(np.int64)
+            if coding == BYTE:
+                yield values.astype(np.uint8).tobytes()
+                continue
+            width = next(widths)
+            if coding == PLAIN:
+                yield from _byte_planes(values, width)
+                continue
+            by = CLASSED_BY.get((name, j))
+            if by is not None:
+                order, classes = orders[by]
+                values = values[order]
+            plane = np.minimum(values, SATURATED).astype(np.uint8)
+            if by is None:
+                yield plane.tobytes()
+            else:
+                for part in np.split(plane, np.cumsum(np.bincount(classes, minlength=len(CLASS_LIMITS) + 1))[:-1]):
+                    yield part.tobytes()
+            yield from _byte_planes(_escapes(values), width)
+    yield np.ascontiguousarray(raw, dtype="<u4").tobytes()
 
 
 # --------------------------------------------------------------------------
@@ -548,55 +669,107 @@ def inflate(stored: bytes, expected: int, path: str, where: tuple) -> bytes:
     return out
 
 
-def _take(buf: memoryview, at: int, dtype, count: int):
-    size = np.dtype(dtype).itemsize * count
-    return np.frombuffer(buf, dtype=dtype, count=count, offset=at), at + size
+class _Reader:
+    """Walks a block payload, refusing to read past its end."""
+
+    def __init__(self, payload: bytes, path: str, where: tuple):
+        self.buf, self.at, self.path, self.where = memoryview(payload), 0, path, where
+
+    def take(self, dtype, count: int) -> np.ndarray:
+        size = np.dtype(dtype).itemsize * count
+        if self.at + size > len(self.buf):
+            raise FormatError("its payload ends before its last record (its widths or escapes name more bytes "
+                              "than it holds)", self.path, self.where)
+        out = np.frombuffer(self.buf, dtype=dtype, count=count, offset=self.at)
+        self.at += size
+        return out
+
+    def planes(self, count: int, width: int) -> np.ndarray:
+        """``width`` byte planes of ``count`` values, lowest first: ``(count,) int64``."""
+        v = np.zeros(count, np.int64)
+        for b in range(width):
+            v |= self.take(np.uint8, count).astype(np.int64) << (8 * b)
+        return v
 
 
-def _unplane(buf, at: int, dtype, n: int, k: int):
-    dt = np.dtype(dtype)
-    raw, at = _take(buf, at, np.uint8, n * k * dt.itemsize)
-    # (k, width, n) planes -> (n, k) values
-    vals = np.ascontiguousarray(raw.reshape(k, dt.itemsize, n).transpose(2, 0, 1)).view(dt).reshape(n, k)
-    return vals, at
+def unpack_payload(payload: bytes, coded: int, raw: int, path: str, where: tuple) -> tuple:
+    """A block payload (inflated) -> its codes: the inverse of :func:`payload_parts`.
+
+    Returns
+    -------
+    tables : dict
+        :data:`CHUNK_FIELDS` by name, ``(chunks, k)`` each.
+    fields : dict
+        :data:`SPLAT_FIELDS` by name, ``(coded, k) int64`` each.
+    raw : (raw, 16) uint32 ndarray
+
+    Raises
+    ------
+    FormatError
+        Where a width is past :data:`MAX_WIDTH` or the payload ends before or after its last record.
+    """
+    r = _Reader(payload, path, where)
+    n = coded
+    chunks = -(-n // CHUNK)
+    tables = {name: r.take(dtype, chunks * k).reshape(chunks, k) for name, dtype, k in CHUNK_FIELDS}
+    widths = r.take(np.uint8, len(WIDTH_COLUMNS))
+    if (widths > MAX_WIDTH).any():
+        raise FormatError(f"a column width of {int(widths.max())} bytes (at most {MAX_WIDTH})", path, where)
+    widths = iter(widths.tolist())
+    fields, orders = {}, {}
+    for name, count, coding in SPLAT_FIELDS:
+        values = fields[name] = np.empty((n, count), np.int64)
+        for j in range(count):
+            if coding == BYTE:
+                values[:, j] = r.take(np.uint8, n)
+                continue
+            width = next(widths)
+            if coding == PLAIN:
+                values[:, j] = r.planes(n, width)
+                continue
+            v = r.take(np.uint8, n).astype(np.int64)
+            escaped = np.flatnonzero(v == SATURATED)
+            v[escaped] += r.planes(len(escaped), width)
+            by = CLASSED_BY.get((name, j))
+            if by is None:
+                values[:, j] = v
+                continue
+            if by not in orders:  # the motion values it names are decoded by now
+                orders[by] = np.argsort(value_class(fields["motion"][:, list(by)]), kind="stable")
+            values[orders[by], j] = v
+    raw_words = r.take("<u4", raw * WORDS_PER_SPLAT).reshape(raw, WORDS_PER_SPLAT)
+    if r.at != len(payload):
+        raise FormatError(f"its payload has {len(payload) - r.at} bytes after its last record", path, where)
+    return tables, fields, raw_words
 
 
 def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: str, where: tuple) -> np.ndarray:
     """A block payload (inflated) -> its records, ``(coded + raw, 16) uint32``: the texture words."""
-    buf = memoryview(payload)
-    chunks = -(-coded // CHUNK)
-    table = {}
-    at = 0
-    for name, dtype, k in CHUNK_FIELDS:
-        v, at = _take(buf, at, dtype, chunks * k)
-        table[name] = v.reshape(chunks, k)
-    fields = {}
-    for name, dtype, k in SPLAT_FIELDS:
-        fields[name], at = _unplane(buf, at, dtype, coded, k)
-    raw_words, at = _take(buf, at, "<u4", raw * WORDS_PER_SPLAT)
+    table, fields, raw_words = unpack_payload(payload, coded, raw, path, where)
     n = coded
     chunk_of = np.arange(n) // CHUNK
     out = np.zeros((n + raw, WORDS_PER_SPLAT), dtype="<u4")
-    out[n:] = raw_words.reshape(raw, WORDS_PER_SPLAT)
+    out[n:] = raw_words
     if not n:
         return out
     base = table["position_base"]
     if not np.isfinite(base).all():
         raise FormatError("a chunk's position base is not finite", path, where)
     scale = _scale_halves(fields["scale"], table["scale_base"][chunk_of], setting.scale_step, path, where)
-    colour = np.ascontiguousarray(fields["color"]).view("<u4")[:, 0]
+    colour = np.ascontiguousarray(fields["color"].astype(np.uint8)).view("<u4")[:, 0]
     coarse = alpha_coarsening(colour >> np.uint32(24), setting.alpha_levels)
     k = size_exponent(scale) + setting.position_shift + coarse
-    code = fields["position"].astype(np.int64)
-    code[:, 0] = x_codes(code[:, 0], k, path, where)
+    code = np.concatenate([x_codes(fields["x_step"][:, 0], k, path, where)[:, None], fields["yz"]], axis=1)
+    if (code > POSITION_CODE_MAX).any():
+        raise FormatError("a position code is past 2**32 - 1", path, where)
     with np.errstate(over="ignore", invalid="ignore"):
         pos = base[chunk_of] + np.ldexp(code.astype(np.float64), k[:, None])
         out[:n, :3] = pos.astype(np.float32).view(np.uint32)
-    e = fields["window"][:, 0].astype(np.int64) - WINDOW_BIAS
+    head = fields["window_index"][:, 0]
+    if (head > (WINDOW_MAX + WINDOW_BIAS) * 4 + 3).any():
+        raise FormatError(f"a window exponent is past {WINDOW_MAX}", path, where)
+    e, index = (head >> 2) - WINDOW_BIAS, head & 3
     # Rotation.
-    index = fields["rotation_index"][:, 0]
-    if (index > 3).any():
-        raise FormatError("a rotation index is past 3", path, where)
     rmax = (1 << setting.rotation_bits) - 1
     if (fields["rotation"] > rmax).any():
         raise FormatError(f"a rotation code is past {rmax}", path, where)
@@ -604,19 +777,20 @@ def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: s
     tscale = _scale_halves(fields["trbf_scale"], table["trbf_scale_base"][chunk_of], setting.trbf_scale_step,
                            path, where)[:, 0]
     centre = np.ldexp(_unzigzag(fields["trbf_center"][:, 0]).astype(np.float64), -setting.time_shift)
-    with np.errstate(over="ignore"):  # a damaged window byte may scale a code past the double range: inf
-        omega = np.ldexp(_unzigzag(fields["omega"]).astype(np.float64), -(e + setting.omega_shift - coarse)[:, None])
-        motion = np.ldexp(_unzigzag(fields["motion"]).astype(np.float64),
-                          k[:, None] + motion_exponents(setting)[None, :] - e[:, None] * MOTION_DEGREE[None, :])
     half = out[:n].view(np.uint16)
     for j, (w, i) in enumerate(ROT_AT):
         half[:, 2 * w + i] = quat_halves[:, j]
-    for j, (w, i) in enumerate(OMEGA_AT):
-        half[:, 2 * w + i] = _half(omega[:, j])
     for j, (w, i) in enumerate(SCALE_AT):
         half[:, 2 * w + i] = scale[:, j]
+    # Omega and motion a column at a time: code * 2**x, the power from a table (exact: |x| is small).
+    step = _POW2[_POW2_BIAS - (e + setting.omega_shift - coarse)]
+    for j, (w, i) in enumerate(OMEGA_AT):
+        half[:, 2 * w + i] = _half(_unzigzag(fields["omega"][:, j]) * step)
+    exps = motion_exponents(setting)
     for j, (w, i) in enumerate(MOTION_AT):
-        half[:, 2 * w + i] = _half(motion[:, j])
+        if j % 3 == 0:
+            step = _POW2[_POW2_BIAS + k + exps[j] - e * MOTION_DEGREE[j]]
+        half[:, 2 * w + i] = _half(_unzigzag(fields["motion"][:, j]) * step)
     half[:, 2 * TRBF_CENTER_AT[0] + TRBF_CENTER_AT[1]] = _half(centre)
     half[:, 2 * TRBF_SCALE_AT[0] + TRBF_SCALE_AT[1]] = tscale
     out[:n, COLOR_WORD] = colour
