@@ -54,27 +54,53 @@ def test_preamble_table_is_the_struct():
     names = [r[2] for r in fixed]
     assert names[3:3 + len(splatvq.SETTING_ORDER)] == list(splatvq.SETTING_ORDER)
     assert offset == splatvq.PREAMBLE.size
-    assert "12 `B`" in SPEC and splatvq.BLOCK_ENTRY.size == 12
+    assert "16 `B`" in SPEC and splatvq.BLOCK_ENTRY.size == 16
+    assert "`coded`, `raw`, `payload`, `stored`, four uint32" in SPEC and splatvq.BLOCK_ENTRY.format == "<IIII"
     assert "the bytes `SPVQ` (`MAGIC`)" in SPEC and splatvq.MAGIC == b"SPVQ"
-    assert "| 4 | 1 | version | 2 (`VERSION`) |" in SPEC and splatvq.VERSION == 2
+    assert "| 4 | 1 | version | 3 (`VERSION`) |" in SPEC and splatvq.VERSION == 3
     assert "1: raw deflate (`CODER_DEFLATE_RAW`)" in SPEC and codec.CODER_DEFLATE_RAW == 1
     assert "8: 256 splats a chunk (`CHUNK_LOG2`)" in SPEC and codec.CHUNK == 256
 
 
-@pytest.mark.parametrize("title, fields", [("table | type | per chunk", codec.CHUNK_FIELDS),
-                                           ("field | type | per splat", codec.SPLAT_FIELDS)])
-def test_payload_tables_are_the_codec_layout(title, fields):
+def test_chunk_table_is_the_codec_layout():
     text = _section("## The block payload")
-    _, table = _table(text[text.index(title) - 2:])
-    rows = [(name, TYPES[kind], int(k)) for name, kind, k, _ in table]
-    assert rows == list(fields)
+    _, table = _table(text[text.index("table | type | per chunk") - 2:])
+    assert [(name, TYPES[kind], int(k)) for name, kind, k, _ in table] == list(codec.CHUNK_FIELDS)
 
 
-def test_payload_size_sentence():
-    sentence = re.search(r"(\d+) · ceil\(coded / (\d+)\) \+ (\d+) · coded \+ (\d+) · raw bytes", SPEC)
-    chunk_bytes, chunk, splat_bytes, raw_bytes = map(int, sentence.groups())
-    assert (chunk_bytes, chunk, splat_bytes, raw_bytes) == (codec.CHUNK_BYTES, codec.CHUNK, codec.SPLAT_BYTES,
-                                                           codec.RAW_BYTES)
+def test_field_table_is_the_codec_layout():
+    text = _section("## The block payload")
+    _, table = _table(text[text.index("field | per splat | coding") - 2:])
+    assert [(name, int(k), coding) for name, k, coding, _ in table] == list(codec.SPLAT_FIELDS)
+    assert f"in order ({len(codec.WIDTH_COLUMNS)} bytes, `WIDTH_COLUMNS`)" in text
+    assert len(codec.WIDTH_COLUMNS) == sum(int(k) for _, k, coding, _ in table if coding != "byte")
+
+
+def test_payload_bounds_sentence():
+    sentence = re.search(r"(\d+) · ceil\(coded / (\d+)\) \+ (\d+) \+ (\d+) · raw, plus (\d+) · coded at\s+the "
+                         r"fewest and (\d+) · coded at the most", SPEC)
+    chunk_bytes, chunk, widths, raw_bytes, fewest, most = map(int, sentence.groups())
+    assert (chunk_bytes, chunk, widths, raw_bytes, fewest, most) == (
+        codec.CHUNK_BYTES, codec.CHUNK, len(codec.WIDTH_COLUMNS), codec.RAW_BYTES, codec.SPLAT_BYTES_MIN,
+        codec.SPLAT_BYTES_MAX)
+    for coded, raw in ((0, 1), (1, 0), (300, 7), (65536, 0)):
+        chunks = -(-coded // chunk)
+        assert codec.payload_bounds(coded, raw) == (chunks * chunk_bytes + widths + raw * raw_bytes + fewest * coded,
+                                                    chunks * chunk_bytes + widths + raw * raw_bytes + most * coded)
+
+
+def test_classed_planes_are_as_written():
+    text = " ".join(_section("## The block payload").split())
+    assert "how many of 8, 32, 128, 512 (`CLASS_LIMITS`) it reaches" in text
+    assert codec.CLASS_LIMITS == (8, 32, 128, 512)
+    assert codec.value_class(np.array([[0], [7], [8], [31], [32], [511], [512], [2 ** 32 - 1]])).tolist() == [
+        0, 0, 1, 1, 2, 3, 4, 4]
+    assert "The plane of motion_1 is stored in the order of the splats sorted by the class of their motion_0 code" in text
+    assert "motion_2 by the class of the larger of motion_0 and motion_1" in text
+    assert "motion_3..8 and omega_0..3 by the class of the largest of motion_0..2 (`CLASSED_BY`)" in text
+    assert codec.CLASSED_BY == {("motion", 1): (0,), ("motion", 2): (0, 1),
+                                **{("motion", j): (0, 1, 2) for j in range(3, 9)},
+                                **{("omega", j): (0, 1, 2) for j in range(4)}}
 
 
 def test_settings_table_is_the_code():
@@ -87,7 +113,12 @@ def test_settings_table_is_the_code():
 
 @pytest.mark.parametrize("text, value", [
     ("1 to 65536 in all (`BLOCK`)", codec.BLOCK == 65536),
-    ("e + 128 (`WINDOW_BIAS`)", codec.WINDOW_BIAS == 128),
+    ("(e + 30) · 4 + which quaternion component is dropped (0–3: rot_0..rot_3) (`WINDOW_BIAS`)",
+     codec.WINDOW_BIAS == 30),
+    ("e = (window_index >> 2) − 30, from −30 to 30 (a window_index past\n  243 is refused)",
+     (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 3 == 243),
+    ("each at most 4\n(`MAX_WIDTH`)", codec.MAX_WIDTH == 4),
+    ("min(v, 255) of each splat\n  (`SATURATED`)", codec.SATURATED == 255),
     ("clamped to [−30, 30]", (codec.WINDOW_MIN, codec.WINDOW_MAX) == (-30, 30)),
     ("code 0 is +0", codec.SCALE_ZERO == 0),
     ("code 1 is +inf\n  (`SCALE_INF`)", codec.SCALE_INF == 1),
@@ -124,10 +155,17 @@ def test_the_test_vector_decodes_as_written():
     prose = " ".join(section[:section.index("```")].split())
     stated = dict(re.findall(r"(\w+) (−?\d+)[,.]", prose[prose.index("setting"):]))
     setting = codec.Setting(**{name: int(stated[name].replace("−", "-")) for name in splatvq.SETTING_ORDER})
-    assert len(payload) == codec.payload_bytes(2, 0)
+    assert f"The payload ({len(payload)} bytes, hex" in section
+    fewest, most = codec.payload_bounds(2, 0)
+    assert fewest <= len(payload) <= most
     out = codec.decode_block(payload, 2, 0, setting, "<spec>", ())
     assert out.reshape(-1).tolist() == words
     # The numbers the prose gives are in the payload and the words.
     assert struct.unpack_from("<3d", payload) == (1.0, 2.0, -0.5)
     assert out[:, 0].view(np.float32).tolist() == [32.25, 38.5]
     assert codec.x_steps(np.array([1000, 300]), np.array([-5, -3])).tolist() == [1000, 50]
+    tables, fields, raw = codec.unpack_payload(payload, 2, 0, "<spec>", ())
+    assert fields["x_step"][:, 0].tolist() == [1000, 50] and fields["window_index"][:, 0].tolist() == [116, 122]
+    assert fields["motion"][:, :2].tolist() == [[10, 9], [0, 0]] and len(raw) == 0
+    # The vector is what the encoder's own packing gives for these codes.
+    assert b"".join(codec.payload_parts(tables, fields, raw)) == payload

@@ -474,9 +474,10 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
     comp = zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
     out, size = [], 0
     for part in payload_parts(tables, fields, records[esc]):
-        size += len(part)
-        out.append(comp.compress(part))
-        out.append(comp.flush(zlib.Z_BLOCK))
+        if part:  # an empty class group: no block of its own
+            size += len(part)
+            out.append(comp.compress(part))
+            out.append(comp.flush(zlib.Z_BLOCK))
     out.append(comp.flush())
     return b"".join(out), len(kept), int(np.count_nonzero(esc)), size
 
