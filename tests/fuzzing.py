@@ -23,13 +23,15 @@ import tempfile
 import time
 import tracemalloc
 import warnings
+import zlib
 
 import numpy as np
 import zstandard
 from click.testing import CliRunner
 
 from splatconv.cli import main
-from splatconv.formats import ply
+from splatconv.formats import ply, splatvq
+from splatconv.formats import splatvq_codec as vq_codec
 
 from .conftest import GS_PROPS, lite_columns_with_normals, random_columns, write_ply
 
@@ -84,18 +86,20 @@ def make_seeds(folder) -> list:
         f.write(("\n".join(header) + "\n").encode() + rows + faces)
     paths.append(listed)
     sv = os.path.join(folder, "scene.splatv")
+    vq = os.path.join(folder, "scene.splatvq")
     runner = CliRunner()
     cams = os.path.join(folder, "cameras.json")
     with open(cams, "w") as f:
         json.dump([_camera(0), _camera(1)], f)
     splat = os.path.join(folder, "scene.splat")
     for args in (["convert", paths[0], sv, "--cameras", cams], ["convert", paths[3], splat],
+                 ["convert", paths[0], vq, "--cameras", cams], ["convert", paths[0], vq + ".zst", "--zstd-level", "3"],
                  ["convert", paths[0], sv + ".zst", "--zstd-level", "3"],
                  ["convert", paths[3], os.path.join(folder, "gs.ply.zst"), "--zstd-level", "3"]):
         result = runner.invoke(main, [str(a) for a in args])
         assert result.exit_code == 0, result.output
     os.unlink(cams)
-    paths += [sv, sv + ".zst", os.path.join(folder, "gs.ply.zst"), splat]
+    paths += [sv, sv + ".zst", os.path.join(folder, "gs.ply.zst"), splat, vq, vq + ".zst"]
     return [os.fspath(p) for p in paths]
 
 
@@ -103,10 +107,24 @@ def make_seeds(folder) -> list:
 # Mutators: each takes (rng, content bytes, file name) and returns new content.
 
 
+def _is_splatvq(name: str) -> bool:
+    return name.lower().replace(".zst", "").endswith(".splatvq")
+
+
+def _splatvq_parts(data: bytes):
+    """(JSON length, block count, where the block table starts) of a .splatvq, or None if too short."""
+    if len(data) < splatvq.PREAMBLE.size:
+        return None
+    fields = splatvq.PREAMBLE.unpack_from(data)
+    return fields[-2], fields[-1], splatvq.PREAMBLE.size + fields[-2]
+
+
 def _header_len(data: bytes) -> int:
     end = data.find(b"end_header")
     if data.startswith(b"ply") and end >= 0:
         return end + len(b"end_header\n")
+    if data.startswith(splatvq.MAGIC) and (parts := _splatvq_parts(data)):
+        return min(len(data), parts[2] + parts[1] * splatvq.BLOCK_ENTRY.size)
     if len(data) >= 8:
         return min(len(data), 8 + struct.unpack_from("<I", data, 4)[0])
     return len(data)
@@ -237,14 +255,92 @@ def _splatv_header_edit(rng, data):
     return struct.pack("<II", struct.unpack_from("<I", data)[0], declared & 0xFFFFFFFF) + text + body
 
 
+def _splatvq_header_edit(rng, data):
+    parts = _splatvq_parts(data)
+    if parts is None:
+        return data
+    json_len, blocks, table_at = parts
+    try:
+        meta = json.loads(data[splatvq.PREAMBLE.size:table_at])
+    except (ValueError, RecursionError, UnicodeDecodeError):
+        return bit_flips(rng, data, "")
+    text = _hostile_json(rng, meta).encode()
+    declared = len(text) if rng.random() < 0.85 else rng.choice(INTERESTING_INTS[:20])
+    preamble = bytearray(data[:splatvq.PREAMBLE.size])
+    struct.pack_into("<I", preamble, splatvq.PREAMBLE.size - 8, declared & 0xFFFFFFFF)
+    if rng.random() < 0.3:  # a setting byte at an edge of its range or past it
+        preamble[rng.randrange(6, 16)] = rng.choice([0, 1, 2, 8, 16, 30, 31, 127, 128, 255])
+    return bytes(preamble) + text + data[table_at:]
+
+
 def header_edit(rng, data, name):
     if name.lower().replace(".zst", "").endswith(".ply"):
         return _ply_header_edit(rng, data)
+    if _is_splatvq(name):
+        return _splatvq_header_edit(rng, data)
     return _splatv_header_edit(rng, data)
+
+
+def _splatvq_huge_count(rng, data):
+    """A block table entry (coded, raw, payload or stored) or the header count that lies."""
+    parts = _splatvq_parts(data)
+    if parts is None or not parts[1]:
+        return data
+    json_len, blocks, table_at = parts
+    out = bytearray(data)
+    at = table_at + rng.randrange(blocks) * splatvq.BLOCK_ENTRY.size + 4 * rng.randrange(4)
+    if at + 4 > len(out):
+        return data
+    old = struct.unpack_from("<I", out, at)[0]
+    value = rng.choice(INTERESTING_INTS[:22] + [old + 1, old - 1, old * 2, old + 64])
+    struct.pack_into("<I", out, at, value & 0xFFFFFFFF)
+    return bytes(out)
+
+
+def splatvq_payload(rng, data, name):
+    """A .splatvq block's payload damaged inside (bytes changed, widths raised, cut or lengthened) and deflated
+    again, its table entry made to agree (or not): the decoder's own checks, past the deflate layer."""
+    parts = _splatvq_parts(data) if _is_splatvq(name) else None
+    if parts is None or not parts[1]:
+        return bit_flips(rng, data, name)
+    json_len, blocks, table_at = parts
+    entries = [list(splatvq.BLOCK_ENTRY.unpack_from(data, table_at + i * splatvq.BLOCK_ENTRY.size))
+               for i in range(blocks) if table_at + (i + 1) * splatvq.BLOCK_ENTRY.size <= len(data)]
+    body_at = table_at + blocks * splatvq.BLOCK_ENTRY.size
+    if len(entries) != blocks or body_at + sum(e[3] for e in entries) != len(data):
+        return bit_flips(rng, data, name)
+    i = rng.randrange(blocks)
+    start = body_at + sum(e[3] for e in entries[:i])
+    try:
+        payload = bytearray(zlib.decompress(data[start:start + entries[i][3]], -15))
+    except zlib.error:
+        return bit_flips(rng, data, name)
+    coded = entries[i][0]
+    widths_at = -(-coded // vq_codec.CHUNK) * vq_codec.CHUNK_BYTES
+    choice = rng.randrange(4)
+    if choice == 0 and payload:
+        for _ in range(rng.randint(1, 6)):
+            payload[rng.randrange(len(payload))] = rng.choice([0, 1, 3, 4, 5, 0x7F, 0xF3, 0xF4, 0xFE, 0xFF])
+    elif choice == 1 and len(payload) >= widths_at + len(vq_codec.WIDTH_COLUMNS):
+        payload[widths_at + rng.randrange(len(vq_codec.WIDTH_COLUMNS))] = rng.choice([0, 1, 2, 3, 4, 5, 255])
+    elif choice == 2:
+        del payload[rng.randrange(len(payload) + 1):]
+    else:
+        payload += bytes(rng.choice([1, 7, 64, 500]))
+    deflate = zlib.compressobj(6, zlib.DEFLATED, -15)
+    stored = deflate.compress(bytes(payload)) + deflate.flush()
+    end = start + entries[i][3]
+    if rng.random() < 0.8:
+        entries[i][2] = len(payload)
+    entries[i][3] = len(stored)
+    table = b"".join(splatvq.BLOCK_ENTRY.pack(*e) for e in entries)
+    return data[:table_at] + table + data[body_at:start] + stored + data[end:]
 
 
 def huge_count(rng, data, name):
     """Counts that declare far more (or fewer, or negative) rows or texture than the file holds."""
+    if _is_splatvq(name):
+        return _splatvq_huge_count(rng, data)
     if name.lower().replace(".zst", "").endswith(".ply"):
         end = _header_len(data)
         head = data[:end]
@@ -270,7 +366,7 @@ def huge_count(rng, data, name):
 
 
 MUTATORS = {"bit_flips": bit_flips, "byte_values": byte_values, "truncate": truncate, "extend": extend,
-            "header_edit": header_edit, "huge_count": huge_count}
+            "header_edit": header_edit, "huge_count": huge_count, "splatvq_payload": splatvq_payload}
 
 
 def _compress(rng, content: bytes, extra_zeros: int = 0) -> bytes:
@@ -337,7 +433,8 @@ class Outcome:
 def _commands(path: str, work: str) -> list:
     """Every command run on a mutant, and the output file each writes (None: writes none)."""
     out = functools.partial(os.path.join, work)
-    converts = [(["convert", path, out(name)], out(name)) for name in ("out.splatv", "out.ply", "out.splat", "out.html")]
+    converts = [(["convert", path, out(name)], out(name))
+                for name in ("out.splatv", "out.ply", "out.splat", "out.html", "out.splatvq")]
     return [(["info", path], None), (["info", "--json", path], None), (["stats", path, "--zstd-level", "1"], None),
             *converts, (["bake", path, out("moment.ply"), "--time", "0.5"], out("moment.ply")),
             (["render", path, out("frame.png"), "--size", "32x18", "--time", "0.5"], out("frame.png")),

@@ -25,5 +25,6 @@ def test_fuzz_campaign(tmp_path):
     codes = Counter(code for o in outcomes for code in o.exit_codes)
     assert codes[0] > 50 and codes[1] > 200
     kinds = Counter(k for o in outcomes for k in o.kind.split("+"))
-    assert {"bit_flips", "byte_values", "truncate", "extend", "header_edit", "huge_count"} <= set(kinds)
+    assert {"bit_flips", "byte_values", "truncate", "extend", "header_edit", "huge_count", "splatvq_payload"} <= set(kinds)
+    assert sum(o.name.startswith("scene.splatvq") for o in outcomes) >= 20
     assert any(o.kind.startswith("zstd bomb") for o in outcomes)
