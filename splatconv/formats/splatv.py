@@ -79,7 +79,7 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
             pool.shutdown(cancel_futures=True)
     padding = report.texheight * SPLATS_PER_ROW - n
     stream.write(bytes(padding * RECORD_BYTES))
-    report.notes.extend(_write_notes(report, is_compat))
+    report.notes.extend(write_notes(report, is_compat))
     return report
 
 
@@ -105,11 +105,11 @@ def encode(scene: Scene, *, compat: str | None = None, sort: str | None = None):
     finally:
         if pool is not None:
             pool.shutdown(cancel_futures=True)
-    report.notes.extend(_write_notes(report, is_compat))
+    report.notes.extend(write_notes(report, is_compat))
     return records, report
 
 
-def _write_notes(report: WriteReport, compat: bool) -> list:
+def write_notes(report: WriteReport, compat: bool) -> list:
     notes = []
     for name, c in report.half.items():
         if c.overflow:

@@ -14,9 +14,11 @@ writing: every frame the viewer draws is unchanged by it; the notes say how many
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
 import struct
+import threading
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -30,6 +32,7 @@ from ..progress import SILENT
 from ..viewer import UNDRAWABLE_KINDS, importance_order, undrawable_kinds
 from ..wording import kinds_text, plural
 from . import splatv
+from . import splatv_engine as engine
 from . import splatvq_codec as codec
 from .base import Format, WriteReport
 from .splatv_layout import SPLATS_PER_ROW, WORDS_PER_SPLAT
@@ -97,22 +100,44 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     if n == 0:
         raise UnsupportedError(f"none of the {plural(scene.count, 'splat')} can be drawn by the viewer; "
                                "a .splatvq file holds drawable splats only")
-    # Every record packed once, in input order; the undrawable ones are skipped by index, not copied out.
-    records, packed = splatv.encode(scene, sort="none")
-    if (sort or FORMAT.default_sort) == "none":
-        order = keep
-    else:
-        order = keep[importance_order(codec.quantized_key(records, setting)[keep])]
+    # Records are packed a block of rows at a time, as the .splatv writer packs them (never the
+    # whole texture at once: a block's records are all the memory a block needs).
+    source = engine.RowSource(scene.columns)
+    local = threading.local()
+
+    def packed(rows):
+        if not hasattr(local, "scratch"):
+            local.scratch = engine.Scratch()
+        out = np.empty((len(rows), WORDS_PER_SPLAT), dtype="<u4")
+        counts = engine.new_counts()
+        engine.pack_rows(source, rows, out, False, counts, local.scratch)
+        return out, counts
+
     starts = range(0, n, codec.BLOCK)
+    with ThreadPoolExecutor(max_workers=2) if len(starts) > 1 else contextlib.nullcontext() as pool:
+        each = pool.map if pool is not None else map
+        if (sort or FORMAT.default_sort) == "none":
+            order = keep
+        else:
+            key = np.empty(n)
 
-    def job(start):
-        return codec.encode_block(records[order[start:start + codec.BLOCK]], setting, level)
+            def key_job(start):
+                key[start:start + codec.BLOCK] = codec.quantized_key(packed(keep[start:start + codec.BLOCK])[0],
+                                                                     setting)
 
-    if len(starts) > 1:
-        with ThreadPoolExecutor(max_workers=2) as pool:
-            blocks = list(pool.map(job, starts))
-    else:
-        blocks = [job(s) for s in starts]
+            list(each(key_job, starts))
+            order = keep[importance_order(key)]
+            del key
+
+        def job(start):
+            records, counts = packed(order[start:start + codec.BLOCK])
+            return codec.encode_block(records, setting, level), counts
+
+        blocks = list(each(job, starts))
+    counts = engine.new_counts()
+    for _, part in blocks:
+        engine.merge_counts(counts, part)
+    blocks = [block for block, _ in blocks]
     cameras = scene.cameras
     report = WriteReport(count=n)
     if not cameras:
@@ -132,10 +157,8 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     report.notes.append(f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat); "
                         f"{plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else
                         f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat)")
-    # The records were packed before the undrawable splats were left out, so the
-    # packing's counts may include some of those.
-    report.notes.extend(packed.notes if not dropped.any() else
-                        [f"{note} (counted before undrawable splats were left out)" for note in packed.notes])
+    # What packing the drawable splats' records changed, as the .splatv writer says it.
+    report.notes.extend(splatv.write_notes(counts, False))
     return data, report
 
 

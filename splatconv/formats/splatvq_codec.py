@@ -521,6 +521,19 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     rec = records[kept]
     h = rec.view(np.uint16)
 
+    # Rotation: unit quaternion, largest component positive and dropped; omega / |q| * sign * W
+    # (first: the fewest arrays are alive).
+    q = packing.HALF_TO_FLOAT[_halves_of(rec, ROT_AT)].astype(np.float64)
+    norm = np.sqrt((q * q).sum(axis=1))
+    big = np.argmax(np.abs(q), axis=1)
+    sign = np.where(q[np.arange(n), big] < 0, -1.0, 1.0) / norm
+    rmax = (1 << setting.rotation_bits) - 1
+    small3 = np.take_along_axis(q, _OTHERS[big], axis=1) * sign[:, None]
+    rot_code = np.clip(np.rint((small3 / _SQRT1_2 + 1.0) * 0.5 * rmax), 0, rmax)
+    rot_code = _keep_largest(rot_code, big, rmax).astype(np.uint16)
+    del q, small3, norm
+
+
     # Temporal centre and scale, quantized first: the window W is that of the decoded values.
     centre_f = packing.HALF_TO_FLOAT[h[:, 30]].astype(np.float64)
     centre_code = np.rint(np.ldexp(centre_f, setting.time_shift)).astype(np.int64)
@@ -540,16 +553,6 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     e[pos_w] = np.clip(_ceil_log2(window[pos_w]), WINDOW_MIN, WINDOW_MAX)
     del centre_f, centre_dec, reach, c, t0, t1, window
 
-    # Rotation: unit quaternion, largest component positive and dropped; omega / |q| * sign * W.
-    q = packing.HALF_TO_FLOAT[_halves_of(rec, ROT_AT)].astype(np.float64)
-    norm = np.sqrt((q * q).sum(axis=1))
-    big = np.argmax(np.abs(q), axis=1)
-    sign = np.where(q[np.arange(n), big] < 0, -1.0, 1.0) / norm
-    rmax = (1 << setting.rotation_bits) - 1
-    small3 = np.take_along_axis(q, _OTHERS[big], axis=1) * sign[:, None]
-    rot_code = np.clip(np.rint((small3 / _SQRT1_2 + 1.0) * 0.5 * rmax), 0, rmax)
-    rot_code = _keep_largest(rot_code, big, rmax).astype(np.uint16)
-    del q, small3, norm
     # Omega and motion, a column at a time as zigzag codes (uint32: their widest): few temporaries.
     omega_u = np.empty((n, 4), np.uint32)
     fits = np.ones(n, bool)
