@@ -101,10 +101,10 @@ class Setting:
 
 #: Quality settings by name, best first. The bench (``bench/bench_splatvq.py``) measures them.
 SETTINGS = {
-    "default": Setting(position_shift=-6, rotation_bits=8, scale_step=32, trbf_scale_step=32, time_shift=11,
+    "default": Setting(position_shift=-6, rotation_bits=8, scale_step=16, trbf_scale_step=32, time_shift=11,
                        omega_shift=6, motion_shift=2, acceleration_shift=1, jerk_shift=1, alpha_levels=2),
-    "small": Setting(position_shift=-5, rotation_bits=6, scale_step=64, trbf_scale_step=64, time_shift=10,
-                     omega_shift=4, motion_shift=3, acceleration_shift=0, jerk_shift=1, alpha_levels=3),
+    "small": Setting(position_shift=-5, rotation_bits=6, scale_step=72, trbf_scale_step=80, time_shift=10,
+                     omega_shift=4, motion_shift=3, acceleration_shift=0, jerk_shift=0, alpha_levels=4),
 }
 DEFAULT_SETTING = "default"
 #: Limits a header's setting is checked against.
