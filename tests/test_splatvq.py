@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import zlib
 
 import numpy as np
 import pytest
@@ -17,6 +16,7 @@ from splatconv.model import Scene
 from splatconv.formats import splatvq_codec as codec
 from splatconv.viewer import undrawable
 from tests.ops_helpers import CAMERA, draw, psnr
+from tests import splatvq_files as damage
 from tests.real_scenes import real_scene
 
 TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
@@ -138,85 +138,12 @@ def _good(tmp_path) -> bytes:
     return splatvq.encode(scene)[0]
 
 
-def _parts(data: bytes):
-    fields = splatvq.PREAMBLE.unpack_from(data)
-    json_len, blocks = fields[-2], fields[-1]
-    table_at = splatvq.PREAMBLE.size + json_len
-    entries = [splatvq.BLOCK_ENTRY.unpack_from(data, table_at + i * splatvq.BLOCK_ENTRY.size) for i in range(blocks)]
-    body_at = table_at + blocks * splatvq.BLOCK_ENTRY.size
-    return fields, table_at, entries, body_at
-
-
-def _with_entry(data, coded=None, raw=None, payload=None, stored=None, body=None):
-    fields, table_at, entries, body_at = _parts(data)
-    old = entries[0]
-    entry = splatvq.BLOCK_ENTRY.pack(*(o if v is None else v for o, v in zip(old, (coded, raw, payload, stored))))
-    rest = data[body_at:] if body is None else body
-    return data[:table_at] + entry + rest
-
-
-def _payload(data):
-    _, _, entries, body_at = _parts(data)
-    return zlib.decompress(data[body_at:body_at + entries[0][3]], -15)
-
-
-def _deflate(payload: bytes) -> bytes:
-    c = zlib.compressobj(9, zlib.DEFLATED, -15)
-    return c.compress(payload) + c.flush()
-
-
-def _with_payload(data, payload: bytes) -> bytes:
-    return _with_entry(data, payload=len(payload), stored=len(d := _deflate(payload)), body=d)
-
-
-def _set_count(data: bytes, count) -> bytes:
-    fields, table_at, _, _ = _parts(data)
-    meta = json.loads(data[splatvq.PREAMBLE.size:table_at])
-    meta["count"] = count
-    text = json.dumps(meta).encode()
-    return splatvq.PREAMBLE.pack(*fields[:-2], len(text), fields[-1]) + text + data[table_at:]
-
-
-def _with_codes(data, change):
-    """The first block's codes changed by ``change(tables, fields)`` and packed again (a damaged encoder)."""
-    coded, raw = _parts(data)[2][0][:2]
-    tables, fields, raw_words = codec.unpack_payload(_payload(data), coded, raw, "x", ())
-    tables = {k: v.copy() for k, v in tables.items()}
-    fields = {k: v.copy() for k, v in fields.items()}
-    change(tables, fields)
-    return _with_payload(data, b"".join(codec.payload_parts(tables, fields, raw_words)))
-
-
-def _bad_window(tables, fields):
-    fields["window_index"][0] = (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 4
-
-
-def _bad_position_step(tables, fields):
-    """The first two splats' x steps at their largest: the second's code passes 2**32 - 1."""
-    fields["x_step"][:2] = 2 ** 32 - 1
-
-
 def _bad_rotation(tables, fields):
     fields["rotation"][3, 1] = 1 << 12
 
 
 def _bad_scale(tables, fields):
     fields["scale"][5, 2] = 1 << 20
-
-
-def _bad_width(data):
-    payload = bytearray(_payload(data))
-    coded = _parts(data)[2][0][0]
-    payload[-(-coded // codec.CHUNK) * codec.CHUNK_BYTES] = 5  # the x step's escape width
-    return _with_payload(data, bytes(payload))
-
-
-def _short_payload(data):
-    """The yz planes' width one more than they hold: the payload ends early."""
-    payload = bytearray(_payload(data))
-    coded = _parts(data)[2][0][0]
-    payload[-(-coded // codec.CHUNK) * codec.CHUNK_BYTES + 1] += 2
-    return _with_payload(data, bytes(payload))
 
 
 BAD = [
@@ -228,37 +155,39 @@ BAD = [
     ("truncated", lambda d: d[:-5], "block 0: declares {stored} bytes but the file ends {short} bytes after its "
      "start: file truncated?"),
     ("extra bytes", lambda d: d + b"\0", "the blocks end at byte {size} but the file has {size1}"),
-    ("count lies", lambda d: _set_count(d, 5), "header 'count' is 5 but the blocks hold {count} splats"),
-    ("table lies: more splats", lambda d: _with_entry(d, coded=70000), "block 0: holds {big} splats; a block "
+    ("count lies", lambda d: damage.with_count(d, 5), "header 'count' is 5 but the blocks hold {count} splats"),
+    ("table lies: more splats", lambda d: damage.with_entry(d, coded=70000), "block 0: holds {big} splats; a block "
      "holds 1 to 65536"),
-    ("table lies: decoded size", lambda d: _with_entry(d, payload=_parts(d)[2][0][2] + 10),
+    ("table lies: decoded size", lambda d: damage.with_entry(d, payload=damage.layout(d)[1][0][2] + 10),
      "block 0: decodes to {payload} bytes, not the {payload10} declared"),
-    ("table lies: size out of bounds", lambda d: _with_entry(d, payload=5), "block 0: declares 5 decoded bytes; "
+    ("table lies: size out of bounds", lambda d: damage.with_entry(d, payload=5), "block 0: declares 5 decoded bytes; "
      "{coded} coded and {raw} verbatim splats take {fewest} to {most}"),
-    ("decodes to more", lambda d: _with_entry(d, stored=len(x := _deflate(_payload(d) + bytes(64))), body=x),
+    ("decodes to more", lambda d: damage.with_entry(d, stored=len(x := damage.deflate(damage.payload(d) + bytes(64))),
+                                                    body=x),
      "block 0: decodes to more than the {payload} bytes declared"),
-    ("ratio", lambda d: _with_entry(d, coded=65000, raw=0, payload=codec.payload_bounds(65000, 0)[0], stored=5,
-                                    body=b"\0" * 5),
+    ("ratio", lambda d: damage.with_entry(d, coded=65000, raw=0, payload=codec.payload_bounds(65000, 0)[0],
+                                          stored=5, body=b"\0" * 5),
      "block 0: declares {ratio} decoded bytes from 5 stored, more than deflate can give"),
-    ("corrupt stream", lambda d: _with_entry(d, body=b"\xff" * len(d[_parts(d)[3]:])), "block 0: compressed data "
+    ("corrupt stream", lambda d: damage.with_entry(d, body=b"\xff" * len(d[damage.layout(d)[2]:])),
+     "block 0: compressed data "
      "is corrupt (Error -3 while decompressing data: invalid block type)"),
-    ("window", lambda d: _with_codes(d, _bad_window), "block 0: a window exponent is past 30"),
-    ("position step", lambda d: _with_codes(d, _bad_position_step), "block 0: a position code is past 2**32 - 1"),
-    ("rotation code", lambda d: _with_codes(d, _bad_rotation), "block 0: a rotation code is past 255"),
-    ("scale code", lambda d: _with_codes(d, _bad_scale), "block 0: a scale code decodes past the half range"),
-    ("width", _bad_width, "block 0: a column width of 5 bytes (at most 4)"),
-    ("payload ends early", _short_payload, "block 0: its payload ends before its last record (its widths or "
-     "escapes name more bytes than it holds)"),
-    ("payload has more", lambda d: _with_payload(d, _payload(d) + b"\0" * 64), "block 0: its payload has 64 bytes "
-     "after its last record"),
+    ("window", lambda d: damage.with_codes(d, damage.bad_window), "block 0: a window exponent is past 30"),
+    ("position step", lambda d: damage.with_codes(d, damage.bad_position_step),
+     "block 0: a position code is past 2**32 - 1"),
+    ("rotation code", lambda d: damage.with_codes(d, _bad_rotation), "block 0: a rotation code is past 255"),
+    ("scale code", lambda d: damage.with_codes(d, _bad_scale), "block 0: a scale code decodes past the half range"),
+    ("width", lambda d: damage.with_width(d, "x_step[0]", 5), "block 0: a column width of 5 bytes (at most 4)"),
+    ("payload ends early", lambda d: damage.with_width(d, "rotation[0]", codec.MAX_WIDTH),
+     "block 0: its payload ends before its last record (its widths or escapes name more bytes than it holds)"),
+    ("payload has more", lambda d: damage.with_payload(d, damage.payload(d) + b"\0" * 64),
+     "block 0: its payload has 64 bytes after its last record"),
 ]
 
 
 @pytest.mark.parametrize("name, mutate, message", BAD, ids=[b[0] for b in BAD])
 def test_bad_input_gives_one_error_line_and_writes_nothing(tmp_path, name, mutate, message):
     good = _good(tmp_path)
-    _, _, entries, body_at = _parts(good)
-    coded, raw, payload, stored = entries[0]
+    coded, raw, payload, stored = damage.layout(good)[1][0]
     bad = mutate(good)
     path = tmp_path / "bad.splatvq"
     path.write_bytes(bad)

@@ -12,7 +12,6 @@ from __future__ import annotations
 import base64
 import http.server
 import threading
-import zlib
 from functools import partial
 from pathlib import Path
 
@@ -20,6 +19,7 @@ import numpy as np
 import pytest
 
 import splatconv
+from splatconv import packing
 from splatconv.errors import FormatError
 from splatconv.formats import splatvq
 from splatconv.formats import splatvq_codec as codec
@@ -27,6 +27,7 @@ from splatconv.web.page import SceneRef, build_page
 from splatconv.publish import publish
 from splatconv.server import ViewServer
 
+from . import splatvq_files as damage
 from .real_scenes import real_scene
 from .test_web import W, H, assert_matches, rendered
 from .web_support import capture, launched, open_page, serving, wait_settled
@@ -154,7 +155,8 @@ def test_the_first_block_is_drawn_before_the_file_has_arrived(browser, large):
         head = splatvq.PREAMBLE.unpack(f.read(splatvq.PREAMBLE.size))
     json_length = head[-2]
     table_at = splatvq.PREAMBLE.size + json_length
-    (coded0, raw0, stored0), _ = splatvq.BLOCK_ENTRY.iter_unpack(data[table_at:table_at + 2 * splatvq.BLOCK_ENTRY.size])
+    (coded0, raw0, _, stored0), _ = splatvq.BLOCK_ENTRY.iter_unpack(
+        data[table_at:table_at + 2 * splatvq.BLOCK_ENTRY.size])
     first_end = table_at + 2 * splatvq.BLOCK_ENTRY.size + stored0
     release = threading.Event()
 
@@ -201,68 +203,42 @@ def test_the_first_block_is_drawn_before_the_file_has_arrived(browser, large):
 # ---------------------------------------------------------------------------- bad files
 
 
-def _parts(data: bytes):
-    json_length, blocks = splatvq.PREAMBLE.unpack_from(data)[-2:]
-    table_at = splatvq.PREAMBLE.size + json_length
-    return table_at, blocks
-
-
-def _with_entry(data: bytes, i: int, coded=None, raw=None, stored=None) -> bytes:
-    table_at, _ = _parts(data)
-    at = table_at + i * splatvq.BLOCK_ENTRY.size
-    c, r, s = splatvq.BLOCK_ENTRY.unpack_from(data, at)
-    entry = splatvq.BLOCK_ENTRY.pack(c if coded is None else coded, r if raw is None else raw,
-                                     s if stored is None else stored)
-    return data[:at] + entry + data[at + splatvq.BLOCK_ENTRY.size:]
-
-
 def _corrupt_deflate(data: bytes) -> bytes:
-    table_at, blocks = _parts(data)
-    start = table_at + blocks * splatvq.BLOCK_ENTRY.size
+    _, _, start = damage.layout(data)
     # A stored block type of 3 (reserved): no inflater accepts it.
     return data[:start] + bytes([0x07]) + data[start + 1:]
 
 
 def _wrong_size_block(data: bytes) -> bytes:
     """A valid deflate stream, one byte shorter than its table declares."""
-    table_at, blocks = _parts(data)
-    start = table_at + blocks * splatvq.BLOCK_ENTRY.size
-    coded, raw, stored = splatvq.BLOCK_ENTRY.unpack_from(data, table_at)
-    payload = codec.inflate(data[start:start + stored], codec.payload_bytes(coded, raw), "x", ())
-    comp = zlib.compressobj(9, zlib.DEFLATED, -15)
-    again = comp.compress(payload[:-1]) + comp.flush()
-    data = _with_entry(data, 0, stored=len(again))
-    return data[:start] + again + data[start + stored:]
-
-
-def _bad_position_step(data: bytes) -> bytes:
-    """The first two splats' x steps at their largest: the second's code passes 2**32 - 1."""
-    table_at, blocks = _parts(data)
-    start = table_at + blocks * splatvq.BLOCK_ENTRY.size
-    coded, raw, stored = splatvq.BLOCK_ENTRY.unpack_from(data, table_at)
-    payload = bytearray(codec.inflate(data[start:start + stored], codec.payload_bytes(coded, raw), "x", ()))
-    at = -(-coded // codec.CHUNK) * codec.CHUNK_BYTES
-    for plane in range(4):
-        payload[at + plane * coded:at + plane * coded + 2] = b"\xff\xff"
-    comp = zlib.compressobj(9, zlib.DEFLATED, -15)
-    again = comp.compress(bytes(payload)) + comp.flush()
-    data = _with_entry(data, 0, stored=len(again))
-    return data[:start] + again + data[start + stored:]
+    payload = damage.payload(data)
+    return damage.with_payload(data, payload[:-1], declared=len(payload))
 
 
 BAD = [
     ("truncated in its last block", lambda d: d[:-100], "the file is truncated: it ends inside block 1 of 1"),
     ("truncated in its header", lambda d: d[:30], "the file is truncated: it ends inside its header"),
-    ("a block of no splats", lambda d: _with_entry(d, 0, coded=0, raw=0), "its block table is damaged"),
-    ("a count that is not the blocks' sum", lambda d: _with_entry(d, 0, coded=1), "its header is damaged"),
-    ("a block that claims too much", lambda d: _with_entry(d, 0, stored=10), "more than deflate can give"),
+    ("a block of no splats", lambda d: damage.with_entry(d, 0, coded=0, raw=0), "its block table is damaged"),
+    ("a count that is not the blocks' sum", lambda d: damage.with_count(d, 5), "its header is damaged (its count 5 is"),
+    ("a block that claims too much", lambda d: damage.with_entry(d, 0, stored=10), "more than deflate can give"),
+    ("a payload size outside its bounds", lambda d: damage.with_entry(d, 0, payload=5),
+     "its block table is damaged (block 1 claims 5 decoded bytes, but its"),
     ("bytes after the last block", lambda d: d + b"\0" * 7, "bytes after its last block"),
     ("corrupt deflate data", _corrupt_deflate, "block 1 of 1 is corrupt"),
     ("a block shorter than declared", _wrong_size_block, "block 1 of 1 is damaged: it decodes to"),
-    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 2"),
+    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 3"),
     ("a setting out of range", lambda d: d[:7] + b"\x00" + d[8:], "setting rotation_bits is 0"),
-    ("a position step past the code range", _bad_position_step,
+    ("a position step past the code range", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 1 of 1 is damaged (a position code past 2^32 - 1)"),
+    ("a width past 4", lambda d: damage.with_width(d, "x_step[0]", 5),
+     "block 1 of 1 is damaged (a column of its values is 5 bytes wide; at most 4)"),
+    ("a window byte past 243", lambda d: damage.with_codes(d, damage.bad_window),
+     "block 1 of 1 is damaged (a window exponent past 30)"),
+    ("a payload that ends before its last record", lambda d: damage.with_width(d, "rotation[0]", codec.MAX_WIDTH),
+     "block 1 of 1 is damaged (its data ends before its last splat)"),
+    ("a payload with bytes after its last record",
+     lambda d: damage.with_payload(d, damage.payload(d) + bytes(64)),
+     "block 1 of 1 is damaged (it has 64 bytes after its last splat)"),
 ]
 
 
@@ -283,6 +259,50 @@ def test_bad_splatvq_shows_a_message(browser, small, tmp_path, what, damage, mes
     page.close()
     assert text.startswith("Cannot show bad.splatvq: "), text
     assert message in text, text
+
+
+def _every_path(tables, fields):
+    """Valid codes (the default setting's) that take the codings' rare paths: escapes in every saturating
+    column, up to 4 bytes wide (codes past 2**32 in motion and omega), plain columns 4 bytes
+    wide, window bytes up to 243. Each splat keeps its step exponent and its position codes stay in range:
+    only a scale's largest axis grows, and only the last x step of a chunk."""
+    rng = np.random.default_rng(3)
+    n = len(fields["x_step"])
+    some = rng.random(n) < 0.05
+    chunk = np.arange(n) // codec.CHUNK
+    for name in ("motion", "omega"):
+        fields[name][some] = rng.integers(0, 2 ** 32, (int(some.sum()), fields[name].shape[1]))
+        fields[name][np.flatnonzero(some)[:2]] = codec.VALUE_MAX + codec.SATURATED - np.arange(2)[:, None]
+    fields["trbf_center"][some, 0] = rng.integers(0, 2 ** 32, int(some.sum()))
+    fields["yz"][some, 1] = rng.integers(0, 2 ** 32, int(some.sum()))
+    fields["window_index"][some, 0] = rng.integers(0, (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 4, int(some.sum()))
+    last = np.unique(np.r_[np.arange(codec.CHUNK - 1, n, codec.CHUNK), n - 1])
+    fields["x_step"][last, 0] += rng.integers(0, 2 ** 30, len(last))
+    setting = codec.SETTINGS[codec.DEFAULT_SETTING]
+    # The highest code of each axis that stays in the half range, from its chunk's base.
+    top = packing.HALF_INF_BITS // setting.scale_step - tables["scale_base"][chunk].astype(np.int64) + codec.SCALE_FIRST
+    widest = np.argmax(fields["scale"], axis=1)
+    pick = (fields["scale"].min(axis=1) >= codec.SCALE_FIRST) & (top[np.arange(n), widest] >= codec.SATURATED)
+    fields["scale"][pick, widest[pick]] = np.maximum(fields["scale"][pick, widest[pick]], top[pick, widest[pick]])
+    top = (packing.HALF_INF_BITS // setting.trbf_scale_step - tables["trbf_scale_base"][chunk, 0].astype(np.int64)
+           + codec.SCALE_FIRST)
+    fields["trbf_scale"][some, 0] = top[some]
+
+
+def test_every_coding_path_decodes_to_the_words_python_decodes(browser, small, tmp_path):
+    data = damage.with_codes(small.read_bytes(), _every_path)
+    path = tmp_path / "every.splatvq"
+    path.write_bytes(data)
+    _, fields, _ = codec.unpack_payload(damage.payload(data), *damage.layout(data)[1][0][:2], "x", ())
+    saturating = [name for name, _, coding in codec.SPLAT_FIELDS if coding == codec.SATURATING]
+    assert all((fields[name] > codec.SATURATED).any() for name in saturating)
+    assert fields["motion"].max() > codec.VALUE_MAX and fields["yz"].max() > 1 << 24
+    page_path = tmp_path / "every.html"
+    page_path.write_bytes(build_page([SceneRef(name="every.splatvq", data=data)]))
+    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
+    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
+    assert_same_words(page, path)
+    page.close()
 
 
 def test_drop_a_splatvq_file(browser, small, tmp_path):
@@ -316,7 +336,7 @@ def test_view_server_serves_the_splatvq_as_it_is(small):
 def test_a_damaged_splatvq_is_refused_not_published(small, tmp_path, external):
     """`view` and `--external` pass a .splatvq on as it is, after checking its header and block table."""
     bad = tmp_path / "bad.splatvq"
-    bad.write_bytes(_with_entry(small.read_bytes(), 0, coded=0, raw=0))
+    bad.write_bytes(damage.with_entry(small.read_bytes(), 0, coded=0, raw=0))
     with pytest.raises(FormatError, match="holds 0 splats"):
         publish([bad], tmp_path / "page.html", external=external)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.splatvq"]

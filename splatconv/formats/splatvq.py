@@ -2,8 +2,8 @@
 
 Layout (see ``specs/splatvq.md``): a fixed preamble (magic, version, coder and
 the quantizer's setting), a UTF-8 JSON object (count, cameras), a block table
-(per block: splats quantized, splats verbatim, stored bytes), then each block's
-raw-deflate stream. Blocks follow the importance order of a ``.splatv``, so a
+(per block: splats quantized, splats verbatim, payload bytes, stored bytes), then
+each block's raw-deflate stream. Blocks follow the importance order of a ``.splatv``, so a
 player draws the most important splats first. A block decodes to ``.splatv``
 texture records exactly (:mod:`splatconv.formats.splatvq_codec`); reading then
 decodes those records as a ``.splatv`` reader does, so every command reads it.

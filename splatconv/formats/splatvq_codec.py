@@ -170,8 +170,11 @@ POSITION_CODE_MAX = VALUE_MAX
 MOTION_DEGREE = np.repeat(np.arange(1, 4), 3)
 
 _SQRT1_2 = np.sqrt(0.5)
-#: 2**x for the step exponents a decoder meets (|x| < 400: every setting, window and size within its limits).
-_POW2_BIAS = 400
+#: 2**x for every step exponent a decoder meets: |x| is at most the sum of the largest size exponent (16),
+#: position shift, alpha coarsening, motion shift, acceleration or jerk shift, omega shift and three windows.
+_POW2_BIAS = (16 + 3 * max(-WINDOW_MIN, WINDOW_MAX)
+              + sum(max(abs(lo), abs(hi)) for name, (lo, hi) in SETTING_LIMITS.items()
+                    if name in ("position_shift", "alpha_levels", "motion_shift", "jerk_shift", "omega_shift")))
 _POW2 = np.ldexp(1.0, np.arange(-_POW2_BIAS, _POW2_BIAS + 1))
 #: The other three components of a quaternion, by the index of the one dropped.
 _OTHERS = np.array([[j for j in range(4) if j != i] for i in range(4)])
@@ -533,7 +536,6 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     rot_code = _keep_largest(rot_code, big, rmax).astype(np.uint16)
     del q, small3, norm
 
-
     # Temporal centre and scale, quantized first: the window W is that of the decoded values.
     centre_f = packing.HALF_TO_FLOAT[h[:, 30]].astype(np.float64)
     centre_code = np.rint(np.ldexp(centre_f, setting.time_shift)).astype(np.int64)
@@ -763,9 +765,8 @@ def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: s
     colour = np.ascontiguousarray(fields["color"].astype(np.uint8)).view("<u4")[:, 0]
     coarse = alpha_coarsening(colour >> np.uint32(24), setting.alpha_levels)
     k = size_exponent(scale) + setting.position_shift + coarse
+    # x_codes refuses an x code past POSITION_CODE_MAX; y and z are at most 4 bytes wide.
     code = np.concatenate([x_codes(fields["x_step"][:, 0], k, path, where)[:, None], fields["yz"]], axis=1)
-    if (code > POSITION_CODE_MAX).any():
-        raise FormatError("a position code is past 2**32 - 1", path, where)
     with np.errstate(over="ignore", invalid="ignore"):
         pos = base[chunk_of] + np.ldexp(code.astype(np.float64), k[:, None])
         out[:n, :3] = pos.astype(np.float32).view(np.uint32)

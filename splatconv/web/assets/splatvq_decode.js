@@ -7,8 +7,9 @@
 // block's .splatv texture records, 16 uint32 a splat), then {type: "done"} -- or
 // {type: "error", message} with a plain-language reason, and nothing more.
 //
-// Every byte is as specs/splatvq.md says, and the arithmetic is that of
-// splatconv/formats/splatvq_codec.py's decode_block, operation for operation, in
+// Every byte is as specs/splatvq.md says (version 3), refused where
+// splatconv/formats/splatvq.py and splatvq_codec.py refuse it, and the arithmetic is
+// that of splatvq_codec.py's decode_block, operation for operation, in
 // doubles (products with exact powers of two, one sum, one square root, one
 // division), rounded to float32 (Math.fround) and then to a half by round to nearest
 // even, saturating at +-65504: the words are Python's, bit for bit (tests check).
@@ -17,18 +18,43 @@
 "use strict";
 
 const MAGIC = "SPVQ";
-const VERSION = 2;
+const VERSION = 3;
 const CODER_DEFLATE_RAW = 1;
 const CHUNK_LOG2 = 8;
 const CHUNK = 1 << CHUNK_LOG2;
 const BLOCK = 1 << 16;
 const PREAMBLE = 25;           // magic, version, coder, 10 setting bytes, chunk_log2, json_length, block_count
-const ENTRY = 12;              // coded, raw, stored: three uint32
+const ENTRY = 16;              // coded, raw, payload (inflated bytes), stored: four uint32
 const MAX_JSON = 64 << 20;
 const MAX_RATIO = 1032;        // deflate gives at most this many bytes a stored byte
 const MAX_SPLATS = 65536 * 1024;
-const CHUNK_BYTES = 32, SPLAT_BYTES = 80, RAW_BYTES = 64, WORDS = 16;
-const WINDOW_BIAS = 128;
+const CHUNK_BYTES = 32, RAW_BYTES = 64, WORDS = 16;
+// The per-splat value columns of a payload, in order (SPLAT_FIELDS in splatvq_codec.py):
+// name, values per splat, coding. BYTE: one plane. PLAIN: w byte planes, lowest first
+// (w from the block's width table; none: every value 0). SATURATING: one plane of
+// min(v, 255), then, for the splats whose byte is 255 (in plane order), v - 255 in w planes.
+const BYTE = 0, PLAIN = 1, SATURATING = 2;
+const SPLAT_FIELDS = [
+  ["x_step", 1, SATURATING], ["yz", 2, PLAIN], ["window_index", 1, BYTE], ["rotation", 3, PLAIN],
+  ["scale", 3, SATURATING], ["color", 4, BYTE], ["trbf_center", 1, PLAIN], ["trbf_scale", 1, SATURATING],
+  ["motion", 9, SATURATING], ["omega", 4, SATURATING],
+];
+const MAX_WIDTH = 4, SATURATED = 255;
+const sumFields = (bytes) => SPLAT_FIELDS.reduce((sum, [, count, coding]) => sum + count * bytes(coding), 0);
+// One width byte for each plain or saturating column; the fewest and most bytes a coded splat takes.
+const WIDTH_COLUMNS = sumFields((coding) => (coding === BYTE ? 0 : 1));
+const SPLAT_BYTES_MIN = sumFields((coding) => (coding === PLAIN ? 0 : 1));
+const SPLAT_BYTES_MAX = sumFields((coding) => (coding === BYTE ? 1 : MAX_WIDTH + (coding === SATURATING ? 1 : 0)));
+// The class of a zigzag code u: how many of CLASS_LIMITS it reaches. Motion and omega
+// planes after motion_0 are stored in the stable order of the splats by the class of
+// the motion codes decoded before them (CLASSED_BY in splatvq_codec.py).
+const CLASS_LIMITS = [8, 32, 128, 512];
+const CLASS_TOP = CLASS_LIMITS[CLASS_LIMITS.length - 1];
+const CLASS_OF = new Uint8Array(CLASS_TOP);  // the class of each code below the last limit
+CLASS_LIMITS.forEach((limit) => { for (let u = limit; u < CLASS_TOP; u++) CLASS_OF[u]++; });
+// window_index = (e + WINDOW_BIAS) * 4 + the dropped quaternion component, e <= WINDOW_MAX.
+const WINDOW_BIAS = 30, WINDOW_MAX = 30;
+const WINDOW_INDEX_MAX = (WINDOW_MAX + WINDOW_BIAS) * 4 + 3;
 const SCALE_ZERO = 0, SCALE_INF = 1, SCALE_FIRST = 2;
 const HALF_INF = 0x7c00;
 const POSITION_CODE_MAX = 4294967295;
@@ -194,14 +220,14 @@ function schedule(block, stored, i) {
     const own = stored.byteOffset === 0 && stored.byteLength === stored.buffer.byteLength ? stored : stored.slice();
     result = new Promise((resolve, reject) => jobs.set(id, {resolve, reject}));
     helpers[nextHelper++ % helpers.length].postMessage(
-      {type: "decode", id, stored: own, coded: block.coded, raw: block.raw, expected: block.expected,
+      {type: "decode", id, stored: own, coded: block.coded, raw: block.raw, payload: block.payload,
        setting: file.setting, which}, [own.buffer]);
     result.catch(() => {}); // reported in order below
   }
   posted = posted.then(async () => {
     if (failed) return;
     try {
-      const {words, ms, inflateMs} = await (result || decodeBlock(stored, block.coded, block.raw, block.expected,
+      const {words, ms, inflateMs} = await (result || decodeBlock(stored, block.coded, block.raw, block.payload,
                                                        file.setting, which));
       if (failed) return;
       self.postMessage({type: "block", start: block.start, count: block.coded + block.raw, words, ms, inflateMs},
@@ -281,17 +307,23 @@ function readTable(bytes) {
   let total = 0;
   for (let i = 0; i < file.blockCount; i++) {
     const coded = dv.getUint32(ENTRY * i, true), raw = dv.getUint32(ENTRY * i + 4, true);
-    const stored = dv.getUint32(ENTRY * i + 8, true);
+    const payload = dv.getUint32(ENTRY * i + 8, true), stored = dv.getUint32(ENTRY * i + 12, true);
     const n = coded + raw;
     if (n === 0 || n > BLOCK) {
       throw new Refusal(`its block table is damaged (block ${i + 1} claims ${n} splats; a block holds 1 to ${BLOCK}).`);
     }
-    const expected = Math.ceil(coded / CHUNK) * CHUNK_BYTES + coded * SPLAT_BYTES + raw * RAW_BYTES;
-    if (expected > MAX_RATIO * stored + 64) {
-      throw new Refusal(`its block table is damaged (block ${i + 1} claims ${expected} decoded bytes from ` +
+    // As payload_bounds: the chunk tables, the width table and the raw records, and each coded splat's bytes.
+    const fixed = Math.ceil(coded / CHUNK) * CHUNK_BYTES + WIDTH_COLUMNS + raw * RAW_BYTES;
+    const fewest = fixed + coded * SPLAT_BYTES_MIN, most = fixed + coded * SPLAT_BYTES_MAX;
+    if (payload < fewest || payload > most) {
+      throw new Refusal(`its block table is damaged (block ${i + 1} claims ${payload} decoded bytes, but its ` +
+                        `${n} splats take ${fewest} to ${most}).`);
+    }
+    if (payload > MAX_RATIO * stored + 64) {
+      throw new Refusal(`its block table is damaged (block ${i + 1} claims ${payload} decoded bytes from ` +
                         `${stored} stored, more than deflate can give).`);
     }
-    file.blocks.push({coded, raw, stored, expected, start: total});
+    file.blocks.push({coded, raw, payload, stored, start: total});
     total += n;
   }
   const count = file.meta.count;
@@ -335,101 +367,233 @@ async function inflate(stored, expected, which) {
   return out;
 }
 
-async function decodeBlock(stored, coded, raw, expected, setting, which) {
+async function decodeBlock(stored, coded, raw, size, setting, which) {
   const t0 = performance.now();
-  const payload = await inflate(stored, expected, which);
+  const payload = await inflate(stored, size, which);
   const t1 = performance.now();
   const words = decodePayload(payload, coded, raw, setting, which);
   return {words, ms: performance.now() - t0, inflateMs: t1 - t0};
 }
 
-// A zigzag code (uint32 or uint16) -> its integer: 0, -1, 1, -2, ...
+// A zigzag code -> its integer: 0, -1, 1, -2, ... Codes may pass 2^32 (a saturating
+// column's byte 255 plus a 32-bit escape): those in doubles (exact below 2^53).
 function unzigzag(u) {
-  return u & 1 ? -((u >>> 1) + 1) : u >>> 1;
+  if (u < 0x80000000) return (u >>> 1) ^ -(u & 1);
+  return u & 1 ? -(u + 1) / 2 : u / 2;
+}
+
+// Where a payload's value columns lie, as unpack_payload reads them, checked against
+// the payload's length: for each column (SPLAT_FIELDS order) its coding, its first
+// plane, its width and, for a saturating one, how many escapes it has and where.
+function layout(p, n, raw, which) {
+  const short = () => new Refusal(`${which} is damaged (its data ends before its last splat).`);
+  let at = Math.ceil(n / CHUNK) * CHUNK_BYTES;
+  if (at + WIDTH_COLUMNS > p.length) throw short();
+  const widths = p.subarray(at, at + WIDTH_COLUMNS);
+  const widest = Math.max(...widths);
+  if (widest > MAX_WIDTH) {
+    throw new Refusal(`${which} is damaged (a column of its values is ${widest} bytes wide; at most ${MAX_WIDTH}).`);
+  }
+  at += WIDTH_COLUMNS;
+  const columns = {};
+  let w = 0;
+  for (const [name, count, coding] of SPLAT_FIELDS) {
+    const list = columns[name] = [];
+    for (let j = 0; j < count; j++) {
+      const column = {coding, at, width: coding === BYTE ? 1 : widths[w++], escapes: 0, escapesAt: 0};
+      if (coding === SATURATING) {
+        // Its escapes are counted only where they take bytes (with a width of 0 each is 255).
+        if (at + n > p.length) throw short();
+        let m = 0;
+        if (column.width) for (let t = at; t < at + n; t++) m += (p[t] + 1) >> 8; // 1 for a byte of 255
+        column.escapes = m;
+        column.escapesAt = at + n;
+        at += n + column.width * m;
+      } else {
+        at += column.width * n;
+      }
+      if (at > p.length) throw short();
+      list.push(column);
+    }
+  }
+  const rawAt = at;
+  at += raw * RAW_BYTES;
+  if (at > p.length) throw short();
+  if (at !== p.length) throw new Refusal(`${which} is damaged (it has ${p.length - at} bytes after its last splat).`);
+  return {columns, rawAt};
+}
+
+// A plain column's values, in splat order, into `out` (a Uint32Array of n): byte plane
+// after byte plane.
+function plainValues(p, n, column, out) {
+  const {at, width} = column;
+  if (width === 0) return out.fill(0, 0, n);
+  out.set(p.subarray(at, at + n));
+  for (let b = 1; b < width; b++) {
+    const plane = at + b * n, shift = 8 * b;
+    for (let i = 0; i < n; i++) out[i] |= p[plane + i] << shift;
+  }
+  return out;
+}
+
+// The x-th escaped value of a saturating column: 255 plus its escape's bytes (lowest first,
+// a plane of as many bytes as the column has escapes each).
+function escaped(p, column, x) {
+  let v = SATURATED;
+  for (let b = 0, at = column.escapesAt + x; b < column.width; b++, at += column.escapes) {
+    v += p[at] * POW2[POW2_BIAS + 8 * b];
+  }
+  return v;
+}
+
+// A saturating column's values, in its plane's order, into `out` (a Float64Array of n:
+// a value may pass 2^32).
+function saturatingValues(p, n, column, out) {
+  const plane = p.subarray(column.at, column.at + n);
+  out.set(plane);
+  if (column.width === 0) return out; // every escape is 255 itself
+  for (let t = plane.indexOf(SATURATED), x = 0; t !== -1; t = plane.indexOf(SATURATED, t + 1)) {
+    out[t] = escaped(p, column, x++);
+  }
+  return out;
+}
+
+// Where each splat's value lies in a classed plane: the splats in the stable order of
+// their classes (a counting sort: numpy's stable argsort of the classes, inverted).
+function classRanks(cls, n, rank) {
+  const next = new Int32Array(CLASS_LIMITS.length + 1);
+  for (let i = 0; i < n; i++) next[cls[i]]++;
+  for (let c = 0, sum = 0; c < next.length; c++) {
+    const count = next[c];
+    next[c] = sum;
+    sum += count;
+  }
+  for (let i = 0; i < n; i++) rank[i] = next[cls[i]]++;
+  return rank;
 }
 
 // A block payload -> its records. Field by field over all splats (short loops over
-// contiguous byte planes run several times faster than one loop doing everything).
+// contiguous byte planes run several times faster than one loop doing everything),
+// a function a field (each gets its own type feedback, so that the first blocks a
+// worker decodes are not slowed by one large function optimized and dropped again).
+// Refusals come in the order decode_block makes them.
 function decodePayload(p, n, raw, s, which) {
+  const {columns, rawAt} = layout(p, n, raw, which);
   const out = new Uint32Array((n + raw) * WORDS);
-  const chunks = Math.ceil(n / CHUNK);
-  const rawAt = chunks * CHUNK_BYTES + n * SPLAT_BYTES;
   new Uint8Array(out.buffer, n * WORDS * 4).set(p.subarray(rawAt, rawAt + raw * RAW_BYTES));
   if (!n) return out;
+  const chunks = Math.ceil(n / CHUNK);
   const posBase = new Float64Array(p.buffer, p.byteOffset, 3 * chunks);
-  const scaleBase = new Uint16Array(p.buffer, p.byteOffset + 24 * chunks, 3 * chunks);
-  const trbfBase = new Uint16Array(p.buffer, p.byteOffset + 30 * chunks, chunks);
   for (let j = 0; j < 3 * chunks; j++) {
     if (!Number.isFinite(posBase[j])) throw new Refusal(`${which} is damaged (a chunk's position base is not finite).`);
   }
-  // Plane offsets (SPLAT_FIELDS order): each value's bytes, lowest first, n bytes a plane.
-  let at = 32 * chunks;
-  const planes = (count) => { const first = at; at += count * n; return first; };
-  const POS = planes(12), RIDX = planes(1), ROT = planes(6), OMEGA = planes(8), SCALE = planes(6);
-  const COLOR = planes(4), CENTER = planes(4), TSCALE = planes(2), WINDOW = planes(1), MOTION = planes(36);
-  const floats = new Float32Array(out.buffer, 0, n * WORDS);
-  const halves = new Uint16Array(out.buffer, 0, n * WORDS * 2);
-  const bytes = new Uint8Array(out.buffer, 0, n * WORDS * 4);
-
-  // Scales (words 5-6, half slots 10-12) and the temporal scale (slot 31): integers only.
-  const scaleField = (plane, slot, base, stride, offset, step) => {
-    const lo = plane, hi = plane + n;
-    for (let i = 0; i < n; i++) {
-      const code = p[lo + i] | (p[hi + i] << 8);
-      let h;
-      if (code === SCALE_ZERO) h = 0;
-      else if (code === SCALE_INF) h = HALF_INF;
-      else {
-        h = (base[stride * (i >>> CHUNK_LOG2) + offset] + code - SCALE_FIRST) * step;
-        if (h > HALF_INF) throw new Refusal(`${which} is damaged (a scale code decodes past the half range).`);
-      }
-      halves[32 * i + slot] = h;
-    }
+  const b = {
+    p, n, s, which, columns, posBase,
+    scaleBase: new Uint16Array(p.buffer, p.byteOffset + 24 * chunks, 3 * chunks),
+    trbfBase: new Uint16Array(p.buffer, p.byteOffset + 30 * chunks, chunks),
+    floats: new Float32Array(out.buffer, 0, n * WORDS),
+    halves: new Uint16Array(out.buffer, 0, n * WORDS * 2),
+    // Each splat's step exponent k, window exponent e and alpha coarsening c.
+    k: new Int32Array(n), e: new Int32Array(n), c: new Int32Array(n),
+    // A column's values, one column at a time (the rotation's three together).
+    plain: [new Uint32Array(n), new Uint32Array(n), new Uint32Array(n)], values: new Float64Array(n),
   };
-  for (let j = 0; j < 3; j++) scaleField(SCALE + 2 * j * n, 10 + j, scaleBase, 3, j, s.scale_step);
-  scaleField(TSCALE, 31, trbfBase, 1, 0, s.trbf_scale_step);
-  // Each splat's coarsening c from its alpha byte (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))),
-  // step exponent k (from its middle scale, plus c) and window exponent e.
-  const k = new Int32Array(n), e = new Int32Array(n), c = new Int32Array(n);
-  const alphaPlane = COLOR + 3 * n;
+  for (let j = 0; j < 3; j++) scaleField(b, columns.scale[j], 10 + j, b.scaleBase, 3, j, s.scale_step);
+  stepExponents(b);
+  positions(b);
+  windowExponents(b);
+  rotations(b);
+  scaleField(b, columns.trbf_scale[0], 31, b.trbfBase, 1, 0, s.trbf_scale_step);
+  // Colour and opacity (word 7): the four bytes as they are.
+  const bytes = new Uint8Array(out.buffer, 0, n * WORDS * 4);
+  for (let j = 0; j < 4; j++) {
+    const plane = columns.color[j].at;
+    for (let i = 0; i < n; i++) bytes[64 * i + 28 + j] = p[plane + i];
+  }
+  motionAndOmega(b);
+  temporalCentres(b);
+  return out;
+}
+
+// Scales (words 5-6, half slots 10-12) and the temporal scale (slot 31): integers only.
+function scaleField(b, column, slot, base, stride, offset, step) {
+  const {p, n, halves} = b, plane = column.at;
+  for (let i = 0, x = 0; i < n; i++) {
+    let u = p[plane + i];
+    if (u === SATURATED) u = escaped(p, column, x++);
+    let h;
+    if (u === SCALE_ZERO) h = 0;
+    else if (u === SCALE_INF) h = HALF_INF;
+    else {
+      h = (base[stride * (i >>> CHUNK_LOG2) + offset] + u - SCALE_FIRST) * step;
+      if (h > HALF_INF) throw new Refusal(`${b.which} is damaged (a scale code decodes past the half range).`);
+    }
+    halves[32 * i + slot] = h;
+  }
+}
+
+// Each splat's coarsening c from its alpha byte (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))),
+// and step exponent k (from its middle scale, plus c).
+function stepExponents(b) {
+  const {p, n, s, halves, k, c} = b, alphaPlane = b.columns.color[3].at;
   for (let i = 0; i < n; i++) {
     const s0 = halves[32 * i + 10], s1 = halves[32 * i + 11], s2 = halves[32 * i + 12];
     const middle = Math.max(Math.min(s0, s1), Math.min(Math.max(s0, s1), s2));
     c[i] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, p[alphaPlane + i]))));
     k[i] = Math.min(16, Math.max(-15, (middle >> 10) - 15)) + s.position_shift + c[i];
-    e[i] = p[WINDOW + i] - WINDOW_BIAS;
   }
-  // Positions (words 0-2): f32(base + code * 2^k). Inside a chunk x is stored as the step
-  // from floor(previous code * 2^(previous k - k)), the chunk's first splat as its code.
-  for (let j = 0; j < 3; j++) {
-    const b0 = POS + 4 * j * n, b1 = b0 + n, b2 = b1 + n, b3 = b2 + n;
-    let previous = 0;
+}
+
+// Positions (words 0-2): f32(base + code * 2^k). Inside a chunk x is stored as the step
+// from floor(previous code * 2^(previous k - k)), the chunk's first splat as its code.
+function positions(b) {
+  const {p, n, floats, posBase, k, columns} = b;
+  const steps = saturatingValues(p, n, columns.x_step[0], b.values);
+  let previous = 0;
+  for (let i = 0; i < n; i++) {
+    let code = steps[i];
+    if ((i & (CHUNK - 1)) !== 0) {
+      const predicted = Math.floor(previous * POW2[POW2_BIAS + k[i - 1] - k[i]]);
+      if (predicted > POSITION_CODE_MAX) throw new Refusal(`${b.which} is damaged (a position code past 2^32 - 1).`);
+      code += predicted;
+    }
+    if (code > POSITION_CODE_MAX) throw new Refusal(`${b.which} is damaged (a position code past 2^32 - 1).`);
+    previous = code;
+    floats[16 * i] = posBase[3 * (i >>> CHUNK_LOG2)] + code * POW2[POW2_BIAS + k[i]];
+  }
+  for (let j = 1; j < 3; j++) {
+    const code = plainValues(p, n, columns.yz[j - 1], b.plain[0]);
     for (let i = 0; i < n; i++) {
-      let code = (p[b0 + i] | (p[b1 + i] << 8) | (p[b2 + i] << 16) | (p[b3 + i] << 24)) >>> 0;
-      if (j === 0 && (i & (CHUNK - 1)) !== 0) {
-        const predicted = Math.floor(previous * POW2[POW2_BIAS + k[i - 1] - k[i]]);
-        code += predicted;
-        if (predicted > POSITION_CODE_MAX || code > POSITION_CODE_MAX) {
-          throw new Refusal(`${which} is damaged (a position code past 2^32 - 1).`);
-        }
-      }
-      previous = code;
-      floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code * POW2[POW2_BIAS + k[i]];
+      floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code[i] * POW2[POW2_BIAS + k[i]];
     }
   }
-  // Rotation (words 3-4, half slots 6-9): three kept components, the dropped one from them.
-  const M = (1 << s.rotation_bits) - 1;
-  const rotValue = new Float64Array(M + 1), rotHalf = new Uint16Array(M + 1);
-  for (let c = 0; c <= M; c++) { // a kept component depends on its code alone
-    rotValue[c] = ((2 * c - M) / M) * Math.SQRT1_2;
-    rotHalf[c] = half(rotValue[c]);
-  }
+}
+
+// Window exponent e, from the byte that also holds the rotation index.
+function windowExponents(b) {
+  const {p, n, e} = b, plane = b.columns.window_index[0].at;
   for (let i = 0; i < n; i++) {
-    const index = p[RIDX + i];
-    if (index > 3) throw new Refusal(`${which} is damaged (a rotation index past 3).`);
-    const c0 = p[ROT + i] | (p[ROT + n + i] << 8), c1 = p[ROT + 2 * n + i] | (p[ROT + 3 * n + i] << 8);
-    const c2 = p[ROT + 4 * n + i] | (p[ROT + 5 * n + i] << 8);
-    if (c0 > M || c1 > M || c2 > M) throw new Refusal(`${which} is damaged (a rotation code past ${M}).`);
+    const v = p[plane + i];
+    if (v > WINDOW_INDEX_MAX) throw new Refusal(`${b.which} is damaged (a window exponent past ${WINDOW_MAX}).`);
+    e[i] = (v >> 2) - WINDOW_BIAS;
+  }
+}
+
+// Rotation (words 3-4, half slots 6-9): three kept components, the dropped one from them.
+function rotations(b) {
+  const {p, n, halves, columns, plain} = b, plane = columns.window_index[0].at;
+  const M = (1 << b.s.rotation_bits) - 1;
+  const rotValue = new Float64Array(M + 1), rotHalf = new Uint16Array(M + 1);
+  for (let r = 0; r <= M; r++) { // a kept component depends on its code alone
+    rotValue[r] = ((2 * r - M) / M) * Math.SQRT1_2;
+    rotHalf[r] = half(rotValue[r]);
+  }
+  const r0 = plainValues(p, n, columns.rotation[0], plain[0]), r1 = plainValues(p, n, columns.rotation[1], plain[1]);
+  const r2 = plainValues(p, n, columns.rotation[2], plain[2]);
+  for (let i = 0; i < n; i++) {
+    const index = p[plane + i] & 3;
+    const c0 = r0[i], c1 = r1[i], c2 = r2[i];
+    if (c0 > M || c1 > M || c2 > M) throw new Refusal(`${b.which} is damaged (a rotation code past ${M}).`);
     const a0 = rotValue[c0], a1 = rotValue[c1], a2 = rotValue[c2];
     const q = 32 * i + 6;
     // The kept three fill the other slots in order.
@@ -438,38 +602,59 @@ function decodePayload(p, n, raw, s, which) {
     halves[q + (index <= 2 ? 3 : 2)] = rotHalf[c2];
     halves[q + index] = half(Math.sqrt(Math.max(0, 1 - ((a0 * a0 + a1 * a1) + a2 * a2))));
   }
-  // Colour and opacity (word 7): the four bytes as they are.
-  for (let j = 0; j < 4; j++) {
-    const plane = COLOR + j * n;
-    for (let i = 0; i < n; i++) bytes[64 * i + 28 + j] = p[plane + i];
-  }
-  // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice
-  // 2^(k + motion_shift + (0, acceleration_shift, jerk_shift)[d - 1] - e d).
+}
+
+// Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice
+// 2^(k + motion_shift + (0, acceleration_shift, jerk_shift)[d - 1] - e d); omega (words
+// 13-14, half slots 26-29) on the lattice 2^-(e + omega_shift - c). motion_0's plane is in
+// splat order; motion_1's in the order of the class of motion_0, motion_2's of the larger
+// of motion_0..1, every later one's and omega's of the largest of motion_0..2 (CLASSED_BY):
+// cls holds each splat's class so far (the class of a maximum is the largest of the classes),
+// rank where its value lies in the plane.
+function motionAndOmega(b) {
+  const {p, n, s, k, e, c, columns} = b;
+  const cls = new Uint8Array(n), rank = new Int32Array(n), exponent = new Int32Array(n);
+  for (let i = 0; i < n; i++) rank[i] = i;
+  // A column without escape bytes is read from its plane as it is.
+  const source = (column) => (column.width === 0 ? [p, column.at] : [saturatingValues(p, n, column, b.values), 0]);
   for (let j = 0; j < 9; j++) {
-    const d = 1 + ((j / 3) | 0), slot = 16 + j;
-    const b0 = MOTION + 4 * j * n, b1 = b0 + n, b2 = b1 + n, b3 = b2 + n;
-    const shift = POW2_BIAS + s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1];
-    for (let i = 0; i < n; i++) {
-      const u = (p[b0 + i] | (p[b1 + i] << 8) | (p[b2 + i] << 16) | (p[b3 + i] << 24)) >>> 0;
-      if (u !== 0) halves[32 * i + slot] = half(unzigzag(u) * POW2[shift + k[i] - e[i] * d]);
+    const d = 1 + ((j / 3) | 0);
+    if (j % 3 === 0) for (let i = 0; i < n; i++) exponent[i] = k[i] - e[i] * d;
+    if (j >= 1 && j <= 3) classRanks(cls, n, rank);
+    const [src, at] = source(columns.motion[j]);
+    termAt(b, src, at, rank, 16 + j, s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1], exponent);
+    if (j < 3) {
+      for (let i = 0; i < n; i++) {
+        const v = src[at + rank[i]], vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
+        if (vc > cls[i]) cls[i] = vc;
+      }
     }
   }
-  // Omega (words 13-14, half slots 26-29) on the lattice 2^-(e + omega_shift - c).
+  for (let i = 0; i < n; i++) exponent[i] = c[i] - e[i];
   for (let j = 0; j < 4; j++) {
-    const b0 = OMEGA + 2 * j * n, b1 = b0 + n, slot = 26 + j, shift = POW2_BIAS - s.omega_shift;
-    for (let i = 0; i < n; i++) {
-      const u = p[b0 + i] | (p[b1 + i] << 8);
-      if (u !== 0) halves[32 * i + slot] = half(unzigzag(u) * POW2[shift - e[i] + c[i]]);
-    }
+    const [src, at] = source(columns.omega[j]);
+    termAt(b, src, at, rank, 26 + j, -s.omega_shift, exponent);
   }
-  // Temporal centre (half slot 30) on the lattice 2^-time_shift.
-  const timeScale = POW2[POW2_BIAS - s.time_shift];
+}
+
+// One motion or omega column into half slot `slot`: half(unzigzag(code) * 2^(shift + exponent[i]))
+// for splat i, its code at src[at + rank[i]].
+function termAt(b, src, at, rank, slot, shift, exponent) {
+  const {n, halves} = b, x = POW2_BIAS + shift;
   for (let i = 0; i < n; i++) {
-    const u = (p[CENTER + i] | (p[CENTER + n + i] << 8) | (p[CENTER + 2 * n + i] << 16)
-               | (p[CENTER + 3 * n + i] << 24)) >>> 0;
+    const v = src[at + rank[i]];
+    if (v !== 0) halves[32 * i + slot] = half(unzigzag(v) * POW2[x + exponent[i]]);
+  }
+}
+
+// Temporal centre (half slot 30) on the lattice 2^-time_shift.
+function temporalCentres(b) {
+  const {p, n, halves} = b, timeScale = POW2[POW2_BIAS - b.s.time_shift];
+  const centre = plainValues(p, n, b.columns.trbf_center[0], b.plain[0]);
+  for (let i = 0; i < n; i++) {
+    const u = centre[i];
     if (u !== 0) halves[32 * i + 30] = half(unzigzag(u) * timeScale);
   }
-  return out;
 }
 
 // The page's worker gets {type: "init", source} (its own source, for helpers),
@@ -483,7 +668,7 @@ self.onmessage = (event) => {
   }
   if (helperMode) {
     // One block at a time, so that each block's time is its own work.
-    queue = queue.then(() => decodeBlock(msg.stored, msg.coded, msg.raw, msg.expected, msg.setting, msg.which)).then(
+    queue = queue.then(() => decodeBlock(msg.stored, msg.coded, msg.raw, msg.payload, msg.setting, msg.which)).then(
       ({words, ms, inflateMs}) => self.postMessage({id: msg.id, words, ms, inflateMs}, [words.buffer]),
       (e) => self.postMessage({id: msg.id, error: e instanceof Refusal ? e.message
                                                   : `the decoder failed (${e && e.message ? e.message : e}).`}));

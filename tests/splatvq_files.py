@@ -1,0 +1,93 @@
+"""Damaged ``.splatvq`` files for the tests: the block table read back, entries, payloads and codes changed.
+
+Test-only code, shared by ``tests/test_splatvq.py`` (what splatconv's reader
+refuses) and ``tests/test_web_splatvq.py`` (what the page refuses). Every change
+is to the first block unless said otherwise.
+"""
+
+from __future__ import annotations
+
+import json
+import zlib
+
+from splatconv.formats import splatvq
+from splatconv.formats import splatvq_codec as codec
+
+
+def layout(data: bytes):
+    """Where the block table starts, its entries (coded, raw, payload, stored) and where the blocks start."""
+    json_length, blocks = splatvq.PREAMBLE.unpack_from(data)[-2:]
+    table_at = splatvq.PREAMBLE.size + json_length
+    entries = list(splatvq.BLOCK_ENTRY.iter_unpack(data[table_at:table_at + blocks * splatvq.BLOCK_ENTRY.size]))
+    return table_at, entries, table_at + blocks * splatvq.BLOCK_ENTRY.size
+
+
+def with_entry(data: bytes, i: int = 0, *, coded=None, raw=None, payload=None, stored=None, body=None) -> bytes:
+    """Block ``i``'s table entry with the values given changed; ``body`` replaces every block's bytes."""
+    table_at, entries, body_at = layout(data)
+    at = table_at + i * splatvq.BLOCK_ENTRY.size
+    entry = splatvq.BLOCK_ENTRY.pack(*(old if new is None else new
+                                       for old, new in zip(entries[i], (coded, raw, payload, stored))))
+    rest = data[at + splatvq.BLOCK_ENTRY.size:] if body is None else data[at + splatvq.BLOCK_ENTRY.size:body_at] + body
+    return data[:at] + entry + rest
+
+
+def with_count(data: bytes, count) -> bytes:
+    """The header JSON's count changed (the block table left as it is)."""
+    head = splatvq.PREAMBLE.unpack_from(data)
+    table_at, _, _ = layout(data)
+    meta = json.loads(data[splatvq.PREAMBLE.size:table_at])
+    meta["count"] = count
+    text = json.dumps(meta).encode()
+    return splatvq.PREAMBLE.pack(*head[:-2], len(text), head[-1]) + text + data[table_at:]
+
+
+def deflate(payload: bytes) -> bytes:
+    """Raw deflate, as any encoder might write it."""
+    comp = zlib.compressobj(9, zlib.DEFLATED, -15)
+    return comp.compress(payload) + comp.flush()
+
+
+def payload(data: bytes) -> bytes:
+    """The first block's payload (inflated)."""
+    _, entries, start = layout(data)
+    return zlib.decompress(data[start:start + entries[0][3]], -15)
+
+
+def with_payload(data: bytes, new: bytes, declared: int | None = None) -> bytes:
+    """The first block's payload replaced, deflated again; the table declares its size (or ``declared``)."""
+    _, entries, start = layout(data)
+    again = deflate(new)
+    changed = with_entry(data, 0, payload=len(new) if declared is None else declared, stored=len(again))
+    return changed[:start] + again + changed[start + entries[0][3]:]
+
+
+def with_codes(data: bytes, change) -> bytes:
+    """The first block's codes changed by ``change(tables, fields)`` and packed again (a damaged encoder)."""
+    coded, raw = layout(data)[1][0][:2]
+    tables, fields, raw_words = codec.unpack_payload(payload(data), coded, raw, "x", ())
+    tables = {name: v.copy() for name, v in tables.items()}
+    fields = {name: v.copy() for name, v in fields.items()}
+    change(tables, fields)
+    return with_payload(data, b"".join(codec.payload_parts(tables, fields, raw_words)))
+
+
+def with_width(data: bytes, column: str, width: int) -> bytes:
+    """The first block's width table saying ``width`` bytes for ``column`` (a name of ``WIDTH_COLUMNS``),
+    its planes as they are."""
+    changed = bytearray(payload(data))
+    coded = layout(data)[1][0][0]
+    at = -(-coded // codec.CHUNK) * codec.CHUNK_BYTES + codec.WIDTH_COLUMNS.index(column)
+    assert changed[at] < width
+    changed[at] = width
+    return with_payload(data, bytes(changed))
+
+
+def bad_window(tables, fields):
+    """A window_index one past the largest (e 30, rotation index 3): a change for :func:`with_codes`."""
+    fields["window_index"][0] = (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 4
+
+
+def bad_position_step(tables, fields):
+    """The first two splats' x steps at their largest: the second's code passes 2**32 - 1."""
+    fields["x_step"][:2] = 2 ** 32 - 1
