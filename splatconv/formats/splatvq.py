@@ -14,6 +14,7 @@ writing: every frame the viewer draws is unchanged by it; the notes say how many
 
 from __future__ import annotations
 
+import collections
 import contextlib
 import json
 import os
@@ -243,29 +244,59 @@ def _header(f, path: str, file_size: int):
     return setting, meta, blocks
 
 
+#: Blocks decoded at once while reading (numpy and zlib work outside the interpreter lock).
+READ_WORKERS = 2
+
+
 def read_records(path: str | os.PathLike):
     """Decode a ``.splatvq`` file to the records a ``.splatv`` holds.
+
+    Blocks are independent: two are decoded at a time, their stored bytes read in
+    file order, and a damaged block is reported before any block after it.
 
     Returns
     -------
     records : (N, 16) uint32 ndarray
         Texture words, block after block.
-    meta : dict
-        The header JSON (count, setting, cameras) and sizes.
+    cameras : list
+        The header's cameras.
+    info : dict
+        Setting, block count, file size and record count.
     """
     path = os.fspath(path)
     with open_input(path) as f:
         file_size = os.fstat(f.fileno()).st_size
         setting, meta, blocks = _header(f, path, file_size)
         records = np.empty((sum(c + r for c, r, *_ in blocks), WORDS_PER_SPLAT), dtype="<u4")
-        at = 0
-        for i, (coded, raw, stored, offset, size) in enumerate(blocks):
-            f.seek(offset)
-            data = f.read(stored)
+
+        def job(i, data):
+            coded, raw, _stored, _offset, size = blocks[i]
             where = (f"block {i}",)
-            payload = codec.inflate(data, size, path, where)
-            records[at:at + coded + raw] = codec.decode_block(payload, coded, raw, setting, path, where)
-            at += coded + raw
+            return codec.decode_block(codec.inflate(data, size, path, where), coded, raw, setting, path, where)
+
+        def stored(i):
+            f.seek(blocks[i][3])
+            return f.read(blocks[i][2])
+
+        starts = np.cumsum([0] + [c + r for c, r, *_ in blocks])
+
+        def keep(i, out):
+            records[starts[i]:starts[i + 1]] = out
+
+        if len(blocks) < 2:
+            for i in range(len(blocks)):
+                keep(i, job(i, stored(i)))
+        else:
+            with ThreadPoolExecutor(max_workers=READ_WORKERS) as pool:
+                pending = collections.deque()
+                for i in range(len(blocks)):
+                    pending.append((i, pool.submit(job, i, stored(i))))
+                    if len(pending) > READ_WORKERS:
+                        done, future = pending.popleft()
+                        keep(done, future.result())
+                while pending:
+                    done, future = pending.popleft()
+                    keep(done, future.result())
     info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
             "records": int(len(records))}
     return records, list(meta.get("cameras", [])), info
