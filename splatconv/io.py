@@ -123,7 +123,7 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
     _choice(color, COLOR_MODES, "colour mode")
     fmt = format_for(path, purpose="read")
     with plain_input(path, declared_size=fmt.declared_size, progress=progress) as plain:
-        if is_compressed(path):
+        if is_compressed(path) or fmt.expands:
             check_memory(fmt, plain, path)
         scene = fmt.read(plain, color=color)
         if is_compressed(path):
@@ -133,7 +133,8 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
 
 
 def check_memory(fmt, plain, path) -> None:
-    """Refuse a decompressed file whose scene would take more memory than the decompression ceiling.
+    """Refuse a decompressed file (or one that expands, ``fmt.expands``) whose scene would take more memory
+    than the decompression ceiling.
 
     A few hundred kilobytes of zstd expand to gigabytes, and a scene takes up
     to :data:`SPLAT_MEMORY_BYTES` a splat in memory (columns a format does not
@@ -192,7 +193,7 @@ def read_texture(path: str | os.PathLike, *, progress=SILENT):
     if not fmt.stores_texture:
         return None
     with plain_input(path, declared_size=fmt.declared_size, progress=progress) as plain:
-        if is_compressed(path):
+        if is_compressed(path) or fmt.expands:
             check_memory(fmt, plain, path)
         padded, scene = fmt.texture.read(plain)
     if is_compressed(path):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import zlib
 
 import numpy as np
 import pytest
@@ -110,15 +111,33 @@ def test_values_the_codes_cannot_hold_are_kept_verbatim(tmp_path, real):
 
 
 def test_a_block_of_verbatim_splats_only(tmp_path, real):
-    """Every splat of the block kept verbatim (an omega past the half range): no coded splat, no empty plane
-    trouble, the records back as they were."""
+    """Every splat of the block kept verbatim (an infinite rotation component: no code holds it): no coded
+    splat, no empty plane trouble, the records back as they were."""
     columns = real[0].take(np.flatnonzero(~undrawable(real[0].columns))[:5])
-    columns["omega_0"][:] = 1e6
+    columns["rot_0"][:] = np.inf
     scene = Scene(columns, cameras=real[0].cameras)
     path, report = written(tmp_path, scene)
     assert any("5 splats kept verbatim" in n for n in report.notes), report.notes
     want = sorted_records(splatv.encode(scene, sort="none")[0][:5])
     assert (sorted_records(splatvq.decode(path)) == want).all()
+
+
+def test_codes_past_the_old_16_bits_are_coded_not_kept_verbatim(tmp_path, real):
+    """A fast spin on a short quaternion: omega / |q| * W takes codes past 2**15 (version 2's omega field held
+    16 bits, so such splats went verbatim); version 3's columns hold 32 bits: coded, and decoded as written."""
+    columns = real[0].take(np.flatnonzero(~undrawable(real[0].columns))[:50])
+    near = np.abs(np.stack([columns[a] for a in "xyz"])).max(axis=0) < 1e3  # no NaN or far position (verbatim)
+    columns = {name: v[near] for name, v in columns.items()}
+    for i in range(4):
+        columns[f"rot_{i}"][:] = 1e-3
+    columns["omega_0"][:] = 5.0
+    scene = Scene(columns, cameras=real[0].cameras)
+    path, report = written(tmp_path, scene)
+    assert not any("kept verbatim" in n for n in report.notes), report.notes
+    decoded = splatvq.read(path).columns
+    # omega / |q| is what the viewer's normalize(q + omega * dt) turns by: the same, within the code step.
+    got = decoded["omega_0"] / np.sqrt(sum(decoded[f"rot_{i}"].astype(np.float64) ** 2 for i in range(4)))
+    assert np.allclose(got, 5.0 / np.sqrt(4e-6), rtol=1e-2)
 
 
 def test_flat_splats_and_infinite_temporal_scales_keep_their_infinities(tmp_path, real):
@@ -144,6 +163,18 @@ def _bad_rotation(tables, fields):
 
 def _bad_scale(tables, fields):
     fields["scale"][5, 2] = 1 << 20
+
+
+def _without_end(payload: bytes) -> bytes:
+    """Raw deflate of ``payload`` that stops without a final block (a sync flush, no end marker)."""
+    comp = zlib.compressobj(9, zlib.DEFLATED, -15)
+    return comp.compress(payload) + comp.flush(zlib.Z_SYNC_FLUSH)
+
+
+def _no_blocks(data: bytes) -> bytes:
+    fields = splatvq.PREAMBLE.unpack_from(data)
+    table_at, _, _ = damage.layout(data)
+    return splatvq.PREAMBLE.pack(*fields[:-1], 0) + data[splatvq.PREAMBLE.size:table_at]
 
 
 BAD = [
@@ -178,7 +209,16 @@ BAD = [
     ("scale code", lambda d: damage.with_codes(d, _bad_scale), "block 0: a scale code decodes past the half range"),
     ("width", lambda d: damage.with_width(d, "x_step[0]", 5), "block 0: a column width of 5 bytes (at most 4)"),
     ("payload ends early", lambda d: damage.with_width(d, "rotation[0]", codec.MAX_WIDTH),
-     "block 0: its payload ends before its last record (its widths or escapes name more bytes than it holds)"),
+     "block 0: its payload ends before its last record"),
+    ("payload cut", lambda d: damage.with_payload(d, damage.payload(d)[:-1]), "block 0: its payload ends before its "
+     "last record"),
+    ("no end marker", lambda d: damage.with_entry(d, stored=len(x := _without_end(damage.payload(d))), body=x),
+     "block 0: its compressed data stops after the {payload} bytes declared without its end marker"),
+    ("data after the end marker", lambda d: damage.with_entry(d, stored=len(x := damage.deflate(damage.payload(d))
+                                                                            + b"\1"), body=x),
+     "block 0: 1 byte after the end of its compressed data"),
+    ("no blocks", lambda d: damage.with_count(_no_blocks(d), 0), "its block table lists no blocks; a .splatvq "
+     "file holds at least one splat"),
     ("payload has more", lambda d: damage.with_payload(d, damage.payload(d) + b"\0" * 64),
      "block 0: its payload has 64 bytes after its last record"),
 ]
@@ -199,6 +239,64 @@ def test_bad_input_gives_one_error_line_and_writes_nothing(tmp_path, name, mutat
     r = run("convert", path, tmp_path / "out.splatv")
     assert (r.exit_code, r.stderr) == (1, f"Error: {path}: {message}\n"), r.output
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.splatvq"]
+
+
+def _three_blocks():
+    """A file of three blocks: a small real scene's block, repeated (the table and count made to agree)."""
+    one = splatvq.encode(real_scene(300, seed=1)[0])[0]
+    table_at, entries, body_at = damage.layout(one)
+    fields = splatvq.PREAMBLE.unpack_from(one)
+    head = splatvq.PREAMBLE.pack(*fields[:-1], 3) + one[splatvq.PREAMBLE.size:table_at]
+    data = head + splatvq.BLOCK_ENTRY.pack(*entries[0]) * 3 + one[body_at:] * 3
+    return damage.with_count(data, 3 * (entries[0][0] + entries[0][1])), entries[0][3]
+
+
+@pytest.mark.parametrize("damaged", [(2,), (1, 2), (2, 0), (0, 1, 2)], ids=str)
+def test_the_first_damaged_block_is_named(tmp_path, damaged):
+    """Blocks are decoded two at a time: whichever finishes first, the error names the first damaged block."""
+    data, stored = _three_blocks()
+    body_at = damage.layout(data)[2]
+    assert splatvq.splat_count(_write(tmp_path, data)) is not None
+    for i in damaged:
+        at = body_at + i * stored
+        data = data[:at] + b"\xff" * stored + data[at + stored:]
+    r = run("convert", _write(tmp_path, data), tmp_path / "out.splatv")
+    assert r.exit_code == 1 and f"bad.splatvq: block {min(damaged)}: compressed data is corrupt" in r.stderr, r.stderr
+    undamaged, _ = _three_blocks()
+    assert run("convert", _write(tmp_path, undamaged), tmp_path / "out.splatv").exit_code == 0
+
+
+def _write(tmp_path, data):
+    path = tmp_path / "bad.splatvq"
+    path.write_bytes(data)
+    return path
+
+
+def test_a_small_file_declaring_a_large_scene_is_held_to_the_decompression_ceiling(tmp_path):
+    """Blocks of zeros deflate some thousand to one: a 100 KB file can declare millions of splats. A read is
+    held to the decompression ceiling (--max-decompressed) from the block table, before a block is decoded."""
+    payload = bytes(codec.payload_bounds(codec.BLOCK, 0)[0])  # a valid payload: every code 0
+    stored = damage.deflate(payload)
+    cameras = json.loads(_header_json(splatvq.encode(real_scene(300, seed=1)[0])[0]))["cameras"]
+    meta = json.dumps({"count": 8 * codec.BLOCK, "cameras": cameras})
+    values = [getattr(codec.SETTINGS["default"], f) for f in splatvq.SETTING_ORDER]
+    data = (splatvq.PREAMBLE.pack(splatvq.MAGIC, splatvq.VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2,
+                                  len(meta), 8) + meta.encode()
+            + splatvq.BLOCK_ENTRY.pack(codec.BLOCK, 0, len(payload), len(stored)) * 8 + stored * 8)
+    path = _write(tmp_path, data)
+    assert len(data) < 40_000 and splatvq.splat_count(path) == 8 * codec.BLOCK
+    r = CliRunner().invoke(main, ["--max-decompressed", "32M", "info", str(path)])
+    each = io.SPLAT_MEMORY_BYTES
+    assert r.exit_code == 1 and r.stderr == (
+        f"Error: {path}: holds 524,288 splats: up to {524_288 * each:,} bytes in memory ({each} a splat), more than "
+        "the 32 MiB a decompressed scene may take (raise it with --max-decompressed or SPLATCONV_MAX_DECOMPRESSED)\n")
+    r = CliRunner().invoke(main, ["--max-decompressed", "64M", "info", str(path)])
+    assert r.exit_code == 0, r.output
+
+
+def _header_json(data: bytes) -> bytes:
+    table_at = damage.layout(data)[0]
+    return data[splatvq.PREAMBLE.size:table_at]
 
 
 def test_an_unknown_quality_is_a_usage_error(real):

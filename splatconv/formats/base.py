@@ -134,6 +134,10 @@ class Format:
         ``check_playable(path)`` raises :class:`~splatconv.errors.FormatError` for a file
         the page could not play. Any other format is given to the page as the
         texture format's bytes, converted.
+    expands : bool
+        A file is compressed inside: a small one can declare a scene many times
+        its size (``most_splats``), so a read is held to the decompression ceiling
+        (``--max-decompressed``) as a ``.zst`` file's is.
     """
 
     name: str
@@ -154,6 +158,7 @@ class Format:
     texture: Texture | None = None
     plays_segments: bool = False
     check_playable: Callable | None = None
+    expands: bool = False
 
     def __post_init__(self):
         readers = (self.read, self.splat_count, self.most_splats)
@@ -161,8 +166,8 @@ class Format:
             raise TypeError(f"format {self.name}: read, splat_count and most_splats come together")
         if self.read is None and self.write is None:
             raise TypeError(f"format {self.name}: neither read nor write")
-        if (self.texture is not None or self.check_playable is not None) and self.read is None:
-            raise TypeError(f"format {self.name}: a texture or a playable file must be readable")
+        if (self.texture is not None or self.check_playable is not None or self.expands) and self.read is None:
+            raise TypeError(f"format {self.name}: a texture, a playable or an expanding file must be readable")
         if not self.suffixes or any(s != s.lower() or not s.startswith(".") for s in self.suffixes):
             raise TypeError(f"format {self.name}: suffixes must be lower-case and start with '.'")
 

@@ -21,6 +21,7 @@ import os
 import struct
 import threading
 from concurrent.futures import ThreadPoolExecutor
+from typing import NamedTuple
 
 import numpy as np
 
@@ -51,6 +52,16 @@ VERSION = 3
 PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBII")
 #: One block table entry: splats quantized, splats verbatim, payload (inflated) bytes, stored (compressed) bytes.
 BLOCK_ENTRY = struct.Struct("<IIII")
+
+
+class Block(NamedTuple):
+    """A block table entry, checked, and where the block's stored bytes start in the file."""
+
+    coded: int
+    raw: int
+    payload: int
+    stored: int
+    offset: int
 #: Largest JSON header read.
 MAX_JSON_BYTES = 64 << 20
 #: Most splats a file holds: as many as a ``.splatv`` texture (65536 rows of 1024).
@@ -178,7 +189,7 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
 
 
 def _header(f, path: str, file_size: int):
-    """Read and check the preamble, JSON and block table; the blocks' (coded, raw, stored, offset, payload)."""
+    """Read and check the preamble, JSON and block table: the setting, the header JSON and a :class:`Block` each."""
     if file_size < PREAMBLE.size:
         raise FormatError(f"{file_size} bytes is too short for a .splatvq file ({PREAMBLE.size}-byte preamble)",
                           path)
@@ -210,6 +221,8 @@ def _header(f, path: str, file_size: int):
         raise FormatError(f"header declares {block_count} blocks but the file ends before their table", path)
     table = f.read(block_count * BLOCK_ENTRY.size)
     offset = table_at + block_count * BLOCK_ENTRY.size
+    if block_count == 0:
+        raise FormatError("its block table lists no blocks; a .splatvq file holds at least one splat", path)
     blocks = []
     total = 0
     for i, (coded, raw, payload, stored) in enumerate(BLOCK_ENTRY.iter_unpack(table)):
@@ -226,7 +239,7 @@ def _header(f, path: str, file_size: int):
         if payload > codec.MAX_RATIO * stored + 64:
             raise FormatError(f"declares {payload} decoded bytes from {stored} stored, more than deflate can give",
                               path, where)
-        blocks.append((coded, raw, stored, offset, payload))
+        blocks.append(Block(coded, raw, payload, stored, offset))
         offset += stored
         total += coded + raw
     if offset != file_size:
@@ -267,18 +280,18 @@ def read_records(path: str | os.PathLike):
     with open_input(path) as f:
         file_size = os.fstat(f.fileno()).st_size
         setting, meta, blocks = _header(f, path, file_size)
-        records = np.empty((sum(c + r for c, r, *_ in blocks), WORDS_PER_SPLAT), dtype="<u4")
+        records = np.empty((sum(b.coded + b.raw for b in blocks), WORDS_PER_SPLAT), dtype="<u4")
 
         def job(i, data):
-            coded, raw, _stored, _offset, size = blocks[i]
-            where = (f"block {i}",)
-            return codec.decode_block(codec.inflate(data, size, path, where), coded, raw, setting, path, where)
+            b, where = blocks[i], (f"block {i}",)
+            return codec.decode_block(codec.inflate(data, b.payload, path, where), b.coded, b.raw, setting, path,
+                                      where)
 
         def stored(i):
-            f.seek(blocks[i][3])
-            return f.read(blocks[i][2])
+            f.seek(blocks[i].offset)
+            return f.read(blocks[i].stored)
 
-        starts = np.cumsum([0] + [c + r for c, r, *_ in blocks])
+        starts = np.cumsum([0] + [b.coded + b.raw for b in blocks])
 
         def keep(i, out):
             records[starts[i]:starts[i + 1]] = out
@@ -322,7 +335,7 @@ def splat_count(path: str | os.PathLike) -> int | None:
             _setting, _meta, blocks = _header(f, path, os.fstat(f.fileno()).st_size)
     except FormatError:
         return None
-    return sum(c + r for c, r, *_ in blocks)
+    return sum(b.coded + b.raw for b in blocks)
 
 
 def most_splats(path: str | os.PathLike) -> int:
@@ -370,6 +383,9 @@ FORMAT = Format(
     # it in a worker, so it plays a .splatvq's bytes as they are, once its preamble,
     # header and block table check out (the page checks each block as it decodes it).
     check_playable=check,
+    # Its blocks inflate: a small file can declare millions of splats, so a read is held to the
+    # decompression ceiling (the block table's count, before a block is decoded).
+    expands=True,
     # The quality write option, the default setting first (for the help text).
     qualities=tuple(sorted(QUALITIES, key=lambda name: name != codec.DEFAULT_SETTING)),
 )

@@ -28,6 +28,7 @@ import numpy as np
 
 from .. import packing
 from ..errors import FormatError
+from ..wording import plural
 from ..viewer import VISIBLE_RADIUS
 from .splatv_layout import COLOR_WORD, WORDS_PER_SPLAT
 
@@ -173,8 +174,9 @@ _SQRT1_2 = np.sqrt(0.5)
 #: 2**x for every step exponent a decoder meets: |x| is at most the sum of the largest size exponent (16),
 #: position shift, alpha coarsening, motion shift, acceleration or jerk shift, omega shift and three windows.
 _POW2_BIAS = (16 + 3 * max(-WINDOW_MIN, WINDOW_MAX)
-              + sum(max(abs(lo), abs(hi)) for name, (lo, hi) in SETTING_LIMITS.items()
-                    if name in ("position_shift", "alpha_levels", "motion_shift", "jerk_shift", "omega_shift")))
+              + sum(max(map(abs, SETTING_LIMITS[name]))
+                    for name in ("position_shift", "alpha_levels", "motion_shift", "omega_shift"))
+              + max(max(map(abs, SETTING_LIMITS[name])) for name in ("acceleration_shift", "jerk_shift")))
 _POW2 = np.ldexp(1.0, np.arange(-_POW2_BIAS, _POW2_BIAS + 1))
 #: The other three components of a quaternion, by the index of the one dropped.
 _OTHERS = np.array([[j for j in range(4) if j != i] for i in range(4)])
@@ -441,14 +443,16 @@ def _byte_planes(values: np.ndarray, width: int):
         yield ((v >> np.uint32(8 * b)) & np.uint32(0xFF)).astype(np.uint8).tobytes()
 
 
-def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: np.ndarray | None = None
-                 ) -> tuple[bytes, int, int, int]:
+def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple[bytes, int, int, int]:
     """Quantize and compress one block of records (importance order).
 
     Parameters
     ----------
     records : (M, 16) uint32 ndarray
         M <= :data:`BLOCK`.
+    setting : Setting
+    level : int
+        Deflate level (run-length matching only: the level changes little).
 
     Returns
     -------
@@ -460,16 +464,16 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9, forced: 
         Bytes of the payload (what ``stored`` inflates to).
     """
     esc = escapes(records)
-    if forced is not None:
-        esc |= forced
-    kept = np.flatnonzero(~esc)
-    # Chunks in Morton order (stable: within a cell, importance order).
-    kept = kept[np.argsort(_morton(records[kept, :3].view(np.float32)), kind="stable")]
-    tables, fields, kept, too_big = _quantize(records, kept, setting)
-    # Records whose codes do not fit go raw after all: the block is made again with them forced raw.
-    if too_big.any():
+    while True:
+        kept = np.flatnonzero(~esc)
+        # Chunks in Morton order (stable: within a cell, importance order).
+        kept = kept[np.argsort(_morton(records[kept, :3].view(np.float32)), kind="stable")]
+        tables, fields, kept, too_big = _quantize(records, kept, setting)
+        if not too_big.any():
+            break
+        # Records whose codes do not fit go raw after all, and the block is made again without
+        # them (the chunks change, so another pass may find more: each pass takes at least one).
         esc[kept[too_big]] = True
-        return encode_block(records, setting, level, esc)
     # Run-length matching only: byte planes hold few long matches; it is some thirty
     # times faster than level 9's search for 1.3% more bytes (bench/README.md).
     # Each plane (and each class of a classed plane) ends a deflate block (Z_BLOCK: no
@@ -560,7 +564,7 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     fits = np.ones(n, bool)
     for j, (w, i) in enumerate(OMEGA_AT):
         v = np.rint(np.ldexp(packing.HALF_TO_FLOAT[h[:, 2 * w + i]] * sign, e + setting.omega_shift - coarse))
-        fits &= np.abs(v) < 1 << 15
+        fits &= np.abs(v) < 2.0 ** 31
         omega_u[:, j] = _zigzag(np.where(fits, v, 0), np.uint32)
     motion_u = np.empty((n, 9), np.uint32)
     exps = motion_exponents(setting)
@@ -668,10 +672,13 @@ def inflate(stored: bytes, expected: int, path: str, where: tuple) -> bytes:
         raise FormatError(f"compressed data is corrupt ({e})", path, where) from None
     if more:
         raise FormatError(f"decodes to more than the {expected} bytes declared", path, where)
-    if len(out) != expected or not d.eof:
+    if len(out) != expected:
         raise FormatError(f"decodes to {len(out)} bytes, not the {expected} declared", path, where)
+    if not d.eof:
+        raise FormatError(f"its compressed data stops after the {expected} bytes declared without its end "
+                          "marker", path, where)
     if d.unused_data:
-        raise FormatError(f"{len(d.unused_data)} bytes after the end of its compressed data", path, where)
+        raise FormatError(f"{plural(len(d.unused_data), 'byte')} after the end of its compressed data", path, where)
     return out
 
 
@@ -684,8 +691,7 @@ class _Reader:
     def take(self, dtype, count: int) -> np.ndarray:
         size = np.dtype(dtype).itemsize * count
         if self.at + size > len(self.buf):
-            raise FormatError("its payload ends before its last record (its widths or escapes name more bytes "
-                              "than it holds)", self.path, self.where)
+            raise FormatError("its payload ends before its last record", self.path, self.where)
         out = np.frombuffer(self.buf, dtype=dtype, count=count, offset=self.at)
         self.at += size
         return out
@@ -745,7 +751,7 @@ def unpack_payload(payload: bytes, coded: int, raw: int, path: str, where: tuple
             values[orders[by], j] = v
     raw_words = r.take("<u4", raw * WORDS_PER_SPLAT).reshape(raw, WORDS_PER_SPLAT)
     if r.at != len(payload):
-        raise FormatError(f"its payload has {len(payload) - r.at} bytes after its last record", path, where)
+        raise FormatError(f"its payload has {plural(len(payload) - r.at, 'byte')} after its last record", path, where)
     return tables, fields, raw_words
 
 

@@ -342,27 +342,38 @@ function readTable(bytes) {
 
 // ------------------------------------------------------------------ one block
 
-// Deflate gives at most MAX_RATIO bytes a stored byte and the table was checked
-// against that, so the whole output is collected natively (far fewer round trips
-// than reading it piece by piece) and then compared with what the table declares.
+// The output is read into a buffer of the declared size and the stream cancelled as
+// soon as it gives more: a block of deflated zeros that declares a small payload
+// costs no more memory than it declares.
 async function inflate(stored, expected, which) {
-  let out;
+  const out = new Uint8Array(expected);
+  let got = 0;
   try {
     // Written straight into the stream: a Blob's stream would go through the browser's blob store.
     const inflater = new DecompressionStream("deflate-raw");
     const writer = inflater.writable.getWriter();
     writer.write(stored).catch(() => {}); // a corrupt stream fails the read below
     writer.close().catch(() => {});
-    out = new Uint8Array(await new Response(inflater.readable).arrayBuffer());
+    const reader = inflater.readable.getReader();
+    for (;;) {
+      const {done, value} = await reader.read();
+      if (done) break;
+      if (got + value.length > expected) {
+        reader.cancel().catch(() => {});
+        got = expected + 1;
+        break;
+      }
+      out.set(value, got);
+      got += value.length;
+    }
   } catch (e) {
     throw new Refusal(`${which} is corrupt: its compressed data cannot be decoded.`);
   }
-  if (out.length > expected) {
+  if (got > expected) {
     throw new Refusal(`${which} is damaged: it decodes to more than the ${expected} bytes its table declares.`);
   }
-  if (out.length !== expected) {
-    throw new Refusal(`${which} is damaged: it decodes to ${out.length} bytes, not the ${expected} its table ` +
-                      "declares.");
+  if (got !== expected) {
+    throw new Refusal(`${which} is damaged: it decodes to ${got} bytes, not the ${expected} its table declares.`);
   }
   return out;
 }
@@ -383,7 +394,7 @@ function unzigzag(u) {
 }
 
 // Where a payload's value columns lie, as unpack_payload reads them, checked against
-// the payload's length: for each column (SPLAT_FIELDS order) its coding, its first
+// the payload's length: for each column (SPLAT_FIELDS order) its first
 // plane, its width and, for a saturating one, how many escapes it has and where.
 function layout(p, n, raw, which) {
   const short = () => new Refusal(`${which} is damaged (its data ends before its last splat).`);
@@ -400,7 +411,7 @@ function layout(p, n, raw, which) {
   for (const [name, count, coding] of SPLAT_FIELDS) {
     const list = columns[name] = [];
     for (let j = 0; j < count; j++) {
-      const column = {coding, at, width: coding === BYTE ? 1 : widths[w++], escapes: 0, escapesAt: 0};
+      const column = {at, width: coding === BYTE ? 1 : widths[w++], escapes: 0, escapesAt: 0};
       if (coding === SATURATING) {
         // Its escapes are counted only where they take bytes (with a width of 0 each is 255).
         if (at + n > p.length) throw short();
@@ -616,12 +627,12 @@ function motionAndOmega(b) {
   const cls = new Uint8Array(n), rank = new Int32Array(n), exponent = new Int32Array(n);
   for (let i = 0; i < n; i++) rank[i] = i;
   // A column without escape bytes is read from its plane as it is.
-  const source = (column) => (column.width === 0 ? [p, column.at] : [saturatingValues(p, n, column, b.values), 0]);
+  const valuesOf = (column) => (column.width === 0 ? [p, column.at] : [saturatingValues(p, n, column, b.values), 0]);
   for (let j = 0; j < 9; j++) {
     const d = 1 + ((j / 3) | 0);
     if (j % 3 === 0) for (let i = 0; i < n; i++) exponent[i] = k[i] - e[i] * d;
     if (j >= 1 && j <= 3) classRanks(cls, n, rank);
-    const [src, at] = source(columns.motion[j]);
+    const [src, at] = valuesOf(columns.motion[j]);
     termAt(b, src, at, rank, 16 + j, s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1], exponent);
     if (j < 3) {
       for (let i = 0; i < n; i++) {
@@ -632,7 +643,7 @@ function motionAndOmega(b) {
   }
   for (let i = 0; i < n; i++) exponent[i] = c[i] - e[i];
   for (let j = 0; j < 4; j++) {
-    const [src, at] = source(columns.omega[j]);
+    const [src, at] = valuesOf(columns.omega[j]);
     termAt(b, src, at, rank, 26 + j, -s.omega_shift, exponent);
   }
 }
