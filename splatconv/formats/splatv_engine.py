@@ -448,8 +448,12 @@ class Plan:
         return counts
 
 
-def _ahead(pool, fn, items, depth: int):
-    """Yield ``fn(item)`` for each item in order, computed by ``pool`` up to ``depth`` items ahead."""
+def ahead(pool, fn, items, depth: int):
+    """Yield ``fn(item)`` for each item in order, computed by ``pool`` up to ``depth`` items ahead.
+
+    The items are drawn in the calling thread, one as each result is taken (a reader of a file can
+    produce them), and the results come back in their order whichever finishes first.
+    """
     if pool is None:
         yield from map(fn, items)
         return
@@ -475,7 +479,7 @@ def prepare(plan: Plan, camera: bool, report: WriteReport, pool) -> list | None:
     framed = pool.submit(plan.frame).result if camera and pool is not None else (plan.frame if camera else None)
     if plan.sorted:
         key = np.empty(plan.n, dtype=np.float64)
-        for _ in _ahead(pool, lambda start: plan.keys(start, min(start + KEY_BLOCK, plan.n), key),
+        for _ in ahead(pool, lambda start: plan.keys(start, min(start + KEY_BLOCK, plan.n), key),
                         range(0, plan.n, KEY_BLOCK), WORKERS):
             pass
         plan.sort(key, report)
@@ -498,7 +502,7 @@ def blocks(plan: Plan, report: WriteReport, pool):
         out = ring[(start // BLOCK) % len(ring)][:min(BLOCK, plan.n - start)]
         return out, plan.block(start, out)
 
-    for out, counts in _ahead(pool, job, range(0, plan.n, BLOCK), depth):
+    for out, counts in ahead(pool, job, range(0, plan.n, BLOCK), depth):
         merge_counts(report, counts)
         yield out
 
@@ -508,5 +512,5 @@ def into(plan: Plan, records: np.ndarray, report: WriteReport, pool) -> None:
     def job(start):
         return plan.block(start, records[start:min(start + BLOCK, plan.n)])
 
-    for counts in _ahead(pool, job, range(0, plan.n, BLOCK), 2 * WORKERS):
+    for counts in ahead(pool, job, range(0, plan.n, BLOCK), 2 * WORKERS):
         merge_counts(report, counts)

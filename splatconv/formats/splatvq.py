@@ -14,12 +14,10 @@ writing: every frame the viewer draws is unchanged by it; the notes say how many
 
 from __future__ import annotations
 
-import collections
 import contextlib
 import json
 import os
 import struct
-import threading
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
@@ -52,7 +50,13 @@ VERSION = 3
 PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBII")
 #: One block table entry: splats quantized, splats verbatim, payload (inflated) bytes, stored (compressed) bytes.
 BLOCK_ENTRY = struct.Struct("<IIII")
-
+#: Largest JSON header read.
+MAX_JSON_BYTES = 64 << 20
+#: Most splats a file holds: as many as a ``.splatv`` texture (65536 rows of 1024).
+MAX_SPLATS = 65536 * SPLATS_PER_ROW
+#: The setting's fields in preamble order.
+SETTING_ORDER = ("position_shift", "rotation_bits", "scale_step", "trbf_scale_step", "time_shift", "omega_shift",
+                 "motion_shift", "acceleration_shift", "jerk_shift", "alpha_levels")
 
 class Block(NamedTuple):
     """A block table entry, checked, and where the block's stored bytes start in the file."""
@@ -62,13 +66,7 @@ class Block(NamedTuple):
     payload: int
     stored: int
     offset: int
-#: Largest JSON header read.
-MAX_JSON_BYTES = 64 << 20
-#: Most splats a file holds: as many as a ``.splatv`` texture (65536 rows of 1024).
-MAX_SPLATS = 65536 * SPLATS_PER_ROW
-#: The setting's fields in preamble order.
-SETTING_ORDER = ("position_shift", "rotation_bits", "scale_step", "trbf_scale_step", "time_shift", "omega_shift",
-                 "motion_shift", "acceleration_shift", "jerk_shift", "alpha_levels")
+
 
 __all__ = ["FORMAT", "read", "write", "encode", "decode", "check", "info_fields", "splat_count", "most_splats",
            "storage", "read_records", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
@@ -114,15 +112,12 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
                                "a .splatvq file holds drawable splats only")
     # Records are packed a block of rows at a time, as the .splatv writer packs them (never the
     # whole texture at once: a block's records are all the memory a block needs).
-    source = engine.RowSource(scene.columns)
-    local = threading.local()
+    plan = engine.Plan(scene, False, "none")  # its row source and per-thread scratch; blocks chosen here
 
     def packed(rows):
-        if not hasattr(local, "scratch"):
-            local.scratch = engine.Scratch()
         out = np.empty((len(rows), WORDS_PER_SPLAT), dtype="<u4")
         counts = engine.new_counts()
-        engine.pack_rows(source, rows, out, False, counts, local.scratch)
+        engine.pack_rows(plan.source, rows, out, False, counts, plan.scratch())
         return out, counts
 
     starts = range(0, n, codec.BLOCK)
@@ -291,25 +286,13 @@ def read_records(path: str | os.PathLike):
             f.seek(blocks[i].offset)
             return f.read(blocks[i].stored)
 
-        starts = np.cumsum([0] + [b.coded + b.raw for b in blocks])
-
-        def keep(i, out):
-            records[starts[i]:starts[i + 1]] = out
-
-        if len(blocks) < 2:
-            for i in range(len(blocks)):
-                keep(i, job(i, stored(i)))
-        else:
-            with ThreadPoolExecutor(max_workers=READ_WORKERS) as pool:
-                pending = collections.deque()
-                for i in range(len(blocks)):
-                    pending.append((i, pool.submit(job, i, stored(i))))
-                    if len(pending) > READ_WORKERS:
-                        done, future = pending.popleft()
-                        keep(done, future.result())
-                while pending:
-                    done, future = pending.popleft()
-                    keep(done, future.result())
+        at = 0
+        # The stored bytes are read here, in file order, as the helpers ask for the next block.
+        with ThreadPoolExecutor(max_workers=READ_WORKERS) if len(blocks) > 1 else contextlib.nullcontext() as pool:
+            for out in engine.ahead(pool, lambda item: job(*item), ((i, stored(i)) for i in range(len(blocks))),
+                                    READ_WORKERS):
+                records[at:at + len(out)] = out
+                at += len(out)
     info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
             "records": int(len(records))}
     return records, list(meta.get("cameras", [])), info
