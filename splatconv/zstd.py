@@ -13,7 +13,7 @@ import os
 
 import zstandard
 
-from .errors import FormatError, SplatconvError, UsageError
+from .errors import FormatError, OutputError, SplatconvError, UsageError
 from .files.stale import locked_temporary
 from .files.inputs import open_input
 from .progress import SILENT
@@ -228,6 +228,10 @@ def plain_input(path, declared_size=None, progress=SILENT):
                 except zstandard.ZstdError as e:
                     # "zstd decompress error: Unknown frame descriptor": the library's prefix says nothing
                     raise FormatError(f"not a valid zstd stream ({str(e).split('error: ', 1)[-1]})", path) from None
+                except OSError as e:
+                    # A full disk names no file; the temporary file's random name would say nothing either.
+                    raise OutputError(f"cannot decompress into the temporary folder {os.path.dirname(tmp)}: "
+                                      f"{e.strerror or e} (TMPDIR chooses another folder)", path) from None
             try:
                 yield tmp
             except SplatconvError as e:

@@ -9,6 +9,7 @@ import os
 import click
 
 from ..errors import SplatconvError, UsageError
+from ..files.signals import check_signals
 from ..io import COLOR_MODES, QUALITIES, noting_undrawable
 from ..wording import plural
 from ..zstd import DEFAULT_LEVEL
@@ -19,6 +20,7 @@ from ._progress import progress_for
 def library_errors(fn):
     """Map library and OS errors to one-line click errors (usage errors exit 2), and echo the
     library's note on a scene read with many undrawable splats (:class:`_UndrawableNote`).
+    A command that a signal asked to end never returns as if it had not (:func:`check_signals`).
 
     Every command body is wrapped in this; the group is not, so that it loads no library."""
 
@@ -26,7 +28,9 @@ def library_errors(fn):
     def wrapper(*args, **kwargs):
         try:
             with noting_undrawable(_UndrawableNote()):
-                return fn(*args, **kwargs)
+                result = fn(*args, **kwargs)
+            check_signals()  # a signal whose exception was swallowed on the way still ends the run
+            return result
         except UsageError as e:
             raise Failure(str(e), 2) from None
         except SplatconvError as e:

@@ -17,7 +17,7 @@ import re
 import tempfile
 
 from ..errors import OutputError
-from .signals import hold_signals, release_signals
+from .signals import check_signals, hold_signals, release_signals
 from .stale import remove_unlocked
 
 
@@ -179,7 +179,20 @@ class AtomicGroup:
             raise
 
     def _commit(self) -> None:
-        """Rename every part file over its output (with ``replace`` false: only onto a name still free)."""
+        """Rename every part file over its output (with ``replace`` false: only onto a name still free).
+
+        Not after a signal that asked the run to end, even one whose exception
+        was lost (:func:`check_signals`); one that comes during the renames ends
+        the run once they are done (the outputs are then whole).
+        """
+        held = hold_signals()
+        try:
+            check_signals()
+            self._rename_all()
+        finally:
+            release_signals(held)
+
+    def _rename_all(self) -> None:
         umask = os.umask(0)
         os.umask(umask)
         linked = []

@@ -3,6 +3,15 @@
 Ending by an exception runs every ``finally`` on the way out (part files,
 decompressed temporaries); :func:`hold_signals` covers the instant between
 creating such a file and entering the ``try`` that removes it.
+
+An exception raised by a signal handler is not certain to end the run: the
+handler runs between two bytecodes of whatever Python code the main thread is
+in, and C code that calls Python and then clears the error it got back (numpy's
+``np.dtype((np.void, n))``, called as the ``.splatv`` writer starts, did so)
+swallows it, and the run went on to write its output and exit 0. So a signal is
+also remembered: :func:`check_signals` raises its exception again, and every
+output is put in place only after that check (``files.output``), and the
+command line checks once more before it exits.
 """
 
 from __future__ import annotations
@@ -18,6 +27,9 @@ CLEANUP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGTERM", "SIGHUP") 
 
 _held = 0
 _pending = None
+#: The first signal that asked this run to end (None: none yet). Never cleared:
+#: once asked to end, the run ends, even if the exception raised for it was lost.
+_received = None
 
 
 def hold_signals():
@@ -49,14 +61,37 @@ def release_signals(_token=None) -> None:
 
 def _exit_for_signal(signum, _frame):
     # Raised in the main thread between two bytecodes; unwinding runs every
-    # clean-up on the way. 128 + N is the status a shell gives a process killed by N.
-    global _pending
+    # clean-up on the way.
+    global _pending, _received
+    if _received is None:
+        _received = signum
     if _held:
         _pending = signum
         return
+    _raise_for(signum)
+
+
+def _raise_for(signum):
+    # 128 + N is the status a shell gives a process killed by N; Ctrl-C is click's "Aborted!".
     if signum == signal.SIGINT:
         raise KeyboardInterrupt
     raise SystemExit(128 + signum)
+
+
+def check_signals() -> None:
+    """Raise the exception of a signal that asked this run to end, if one did.
+
+    For the points past which a run would make its work visible (an output put
+    in place, a zero exit status): the exception the handler raised may have
+    been swallowed by C code wherever the signal landed (see the module's docstring).
+
+    Raises
+    ------
+    KeyboardInterrupt or SystemExit
+        ``KeyboardInterrupt`` for SIGINT, ``SystemExit(128 + N)`` for signal N.
+    """
+    if _received is not None:
+        _raise_for(_received)
 
 
 def exit_on_signals() -> None:
