@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import base64
 import http.client
+import inspect
 import json
 import os
 import re
@@ -22,7 +23,7 @@ from splatconv.cli import main
 from splatconv.formats.splatv_layout import COUNT_KEY
 from splatconv.zstd import plain_input
 from splatconv.web.page import SHADERS, SceneRef, build_page
-from splatconv.server import HOST, IDLE_TIMEOUT, ViewServer
+from splatconv.server import _COPY_CHUNK, HOST, IDLE_TIMEOUT, REQUEST_DEADLINE, ViewServer
 
 from .web_support import serving
 
@@ -91,6 +92,38 @@ def test_idle_connections_are_closed(sample):
                 pass
             s.close()
         assert time.monotonic() < deadline
+
+
+def _closed_by_server(s, timeout):
+    """Whether the server closed ``s`` (EOF or a reset) within ``timeout`` seconds of waiting."""
+    s.settimeout(timeout)
+    try:
+        return s.recv(1024) == b""
+    except ConnectionError:
+        return True
+    except TimeoutError:
+        return False
+
+
+def test_a_request_dripped_a_byte_at_a_time_is_cut_at_the_deadline(sample):
+    # One byte every 0.3 s once kept its connection and thread for as long as the client liked:
+    # the idle timeout starts again at each byte.
+    assert inspect.signature(ViewServer).parameters["request_deadline"].default == REQUEST_DEADLINE <= 10
+    with serving([sample], request_deadline=1.0) as server:
+        s = socket.create_connection((HOST, server.port), timeout=60)
+        s.sendall(b"GET / HTTP/1.0\r\nX-Drip: ")
+        deadline = time.monotonic() + 60  # generous: the machine may be loaded
+        closed = False
+        while not closed and time.monotonic() < deadline:
+            try:
+                s.sendall(b"a")  # a header that never ends
+            except ConnectionError:
+                closed = True
+                break
+            closed = _closed_by_server(s, 0.3)
+        s.close()
+        assert closed  # nothing sent back: the connection closed
+        assert get(server.port, "/")[0] == 200  # and the server still answers
 
 
 @pytest.mark.parametrize("path", [
@@ -308,6 +341,9 @@ def test_specs_player_md_states_what_the_code_does(sample):
         routes = sorted(server.routes)
     assert routes == ["/", "/index.html", "/scene/0.splatv", "/scene/1.splatv"]
     assert "`GET` and `HEAD` for exactly `/`,\n`/index.html` and `/scene/I.splatv`" in spec
+    flat = " ".join(spec.split())
+    assert f"request line and headers whole within {REQUEST_DEADLINE:g} s" in flat
+    assert f"within {IDLE_TIMEOUT:g} s is dropped" in flat and _COPY_CHUNK == 1 << 20
     for name in SHADERS:
         assert name in spec
     # The page reads the splat count under the writer's key.
