@@ -35,6 +35,11 @@ IDLE_TIMEOUT = 30.0
 #: let a client sending a byte every few seconds hold a connection and a thread
 #: forever. A browser sends a request in one piece, at once.
 REQUEST_DEADLINE = 10.0
+#: Connections the system may queue before the server accepts them (capped by
+#: the system's own limit, somaxconn on Linux). The standard library's 5 dropped
+#: the connection attempts of a burst beyond it: they waited for the client to
+#: try again, a second and more later, and some never got an answer.
+LISTEN_BACKLOG = 1024
 _COPY_CHUNK = 1 << 20
 
 
@@ -86,6 +91,11 @@ class _DeadlineReader(io.RawIOBase):
             raise TimeoutError("request deadline passed")
         self._sock.settimeout(min(self._idle, left))
         return self._sock.recv_into(buffer)
+
+
+class _Server(ThreadingHTTPServer):
+    request_queue_size = LISTEN_BACKLOG
+    daemon_threads = True  # a connection still open never holds up the exit
 
 
 def _handler(routes: dict, port_holder: list, idle_timeout: float, request_deadline: float):
@@ -221,11 +231,9 @@ class ViewServer:
         self.routes = {"/": page, "/index.html": page, **scenes}
         port_holder = [port]
         try:
-            self.httpd = ThreadingHTTPServer((HOST, port), _handler(self.routes, port_holder, idle_timeout,
-                                                                            request_deadline))
+            self.httpd = _Server((HOST, port), _handler(self.routes, port_holder, idle_timeout, request_deadline))
         except OSError as e:
             raise UsageError(f"--port {port}: cannot listen on {HOST}:{port} ({e.strerror or e})") from None
-        self.httpd.daemon_threads = True
         self.port = port_holder[0] = self.httpd.server_address[1]
         self.url = f"http://{HOST}:{self.port}/"
         self._stop = threading.Event()
