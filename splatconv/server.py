@@ -8,11 +8,13 @@ is a 404, and a request naming another host (DNS rebinding) is refused.
 
 from __future__ import annotations
 
+import io
 import os
 import shutil
 import signal
 import sys
 import threading
+import time
 import webbrowser
 from dataclasses import dataclass
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
@@ -28,6 +30,16 @@ HOST = "127.0.0.1"
 #: thread for as long as its client liked. A browser reading a scene takes each
 #: chunk at once; only a stalled client waits this long.
 IDLE_TIMEOUT = 30.0
+#: Seconds from a connection's acceptance by which its request line and headers
+#: must have arrived whole; then it is closed unanswered. The idle timeout alone
+#: let a client sending a byte every few seconds hold a connection and a thread
+#: forever. A browser sends a request in one piece, at once.
+REQUEST_DEADLINE = 10.0
+#: Connections the system may queue before the server accepts them (capped by
+#: the system's own limit, somaxconn on Linux). The standard library's 5 dropped
+#: the connection attempts of a burst beyond it: they waited for the client to
+#: try again, a second and more later, and some never got an answer.
+LISTEN_BACKLOG = 1024
 _COPY_CHUNK = 1 << 20
 
 
@@ -64,11 +76,48 @@ def scene_resources(paths, durations=None) -> tuple[dict, list, list]:
     return resources, refs, notes
 
 
-def _handler(routes: dict, port_holder: list, idle_timeout: float):
+class _DeadlineReader(io.RawIOBase):
+    """A connection's bytes, read with no wait past ``deadline`` (a :func:`time.monotonic` time)."""
+
+    def __init__(self, sock, deadline: float, idle_timeout: float):
+        self._sock, self._deadline, self._idle = sock, deadline, idle_timeout
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer) -> int:
+        left = self._deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError("request deadline passed")
+        self._sock.settimeout(min(self._idle, left))
+        return self._sock.recv_into(buffer)
+
+
+class _Server(ThreadingHTTPServer):
+    request_queue_size = LISTEN_BACKLOG
+    daemon_threads = True  # a connection still open never holds up the exit
+
+
+def _handler(routes: dict, port_holder: list, idle_timeout: float, request_deadline: float):
     class Handler(BaseHTTPRequestHandler):
         server_version = "splatconv"
         sys_version = ""
         timeout = idle_timeout  # StreamRequestHandler sets it on each connection's socket
+
+        def setup(self):
+            super().setup()
+            # The request is read through a reader that stops at the deadline
+            # (http.server answers its TimeoutError by closing the connection).
+            self.rfile.close()
+            deadline = time.monotonic() + request_deadline
+            self.rfile = io.BufferedReader(_DeadlineReader(self.connection, deadline, idle_timeout))
+
+        def parse_request(self):
+            ok = super().parse_request()
+            # The request is read: the reply's writes wait the idle timeout, not what
+            # was left of the deadline.
+            self.connection.settimeout(idle_timeout)
+            return ok
 
         def _resource(self):
             host = (self.headers.get("Host") or "").lower()
@@ -161,6 +210,8 @@ class ViewServer:
         ``"D0,D1,..."``: each segment's share of the timeline (default equal shares).
     idle_timeout : float
         Seconds before an idle connection is closed (:data:`IDLE_TIMEOUT`).
+    request_deadline : float
+        Seconds a connection has to send its request whole (:data:`REQUEST_DEADLINE`).
 
     Raises
     ------
@@ -168,7 +219,8 @@ class ViewServer:
         When the port is taken or cannot be bound.
     """
 
-    def __init__(self, paths, port: int = 0, durations: str | None = None, idle_timeout: float = IDLE_TIMEOUT):
+    def __init__(self, paths, port: int = 0, durations: str | None = None, idle_timeout: float = IDLE_TIMEOUT,
+                 request_deadline: float = REQUEST_DEADLINE):
         paths = [os.fspath(p) for p in paths]
         if not paths:
             raise UsageError("give a scene file to view")
@@ -179,10 +231,9 @@ class ViewServer:
         self.routes = {"/": page, "/index.html": page, **scenes}
         port_holder = [port]
         try:
-            self.httpd = ThreadingHTTPServer((HOST, port), _handler(self.routes, port_holder, idle_timeout))
+            self.httpd = _Server((HOST, port), _handler(self.routes, port_holder, idle_timeout, request_deadline))
         except OSError as e:
             raise UsageError(f"--port {port}: cannot listen on {HOST}:{port} ({e.strerror or e})") from None
-        self.httpd.daemon_threads = True
         self.port = port_holder[0] = self.httpd.server_address[1]
         self.url = f"http://{HOST}:{self.port}/"
         self._stop = threading.Event()

@@ -3,14 +3,18 @@
 from __future__ import annotations
 
 import base64
+import errno
 import http.client
+import inspect
 import json
 import os
 import re
+import selectors
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -22,7 +26,7 @@ from splatconv.cli import main
 from splatconv.formats.splatv_layout import COUNT_KEY
 from splatconv.zstd import plain_input
 from splatconv.web.page import SHADERS, SceneRef, build_page
-from splatconv.server import HOST, IDLE_TIMEOUT, ViewServer
+from splatconv.server import _COPY_CHUNK, HOST, IDLE_TIMEOUT, LISTEN_BACKLOG, REQUEST_DEADLINE, ViewServer
 
 from .web_support import serving
 
@@ -91,6 +95,92 @@ def test_idle_connections_are_closed(sample):
                 pass
             s.close()
         assert time.monotonic() < deadline
+
+
+def _closed_by_server(s, timeout):
+    """Whether the server closed ``s`` (EOF or a reset) within ``timeout`` seconds of waiting."""
+    s.settimeout(timeout)
+    try:
+        return s.recv(1024) == b""
+    except ConnectionError:
+        return True
+    except TimeoutError:
+        return False
+
+
+def test_a_request_dripped_a_byte_at_a_time_is_cut_at_the_deadline(sample):
+    # One byte every 0.3 s once kept its connection and thread for as long as the client liked:
+    # the idle timeout starts again at each byte.
+    assert inspect.signature(ViewServer).parameters["request_deadline"].default == REQUEST_DEADLINE <= 10
+    with serving([sample], request_deadline=1.0) as server:
+        s = socket.create_connection((HOST, server.port), timeout=60)
+        s.sendall(b"GET / HTTP/1.0\r\nX-Drip: ")
+        deadline = time.monotonic() + 60  # generous: the machine may be loaded
+        closed = False
+        while not closed and time.monotonic() < deadline:
+            try:
+                s.sendall(b"a")  # a header that never ends
+            except ConnectionError:
+                closed = True
+                break
+            closed = _closed_by_server(s, 0.3)
+        s.close()
+        assert closed  # nothing sent back: the connection closed
+        assert get(server.port, "/")[0] == 200  # and the server still answers
+
+
+def test_hundreds_of_connections_wait_in_the_listen_queue(sample):
+    """300 clients connecting at once are all queued and answered (the standard library's queue holds 5)."""
+    assert LISTEN_BACKLOG >= 1024
+    try:  # Linux caps every listen queue at somaxconn (older kernels: 128)
+        cap = int(Path("/proc/sys/net/core/somaxconn").read_text())
+    except (OSError, ValueError):
+        cap = 128
+    count = min(300, cap)
+    server = ViewServer([sample])  # listening, not accepting yet: every connection waits in the queue
+    clients, thread = [], None
+    try:
+        with selectors.DefaultSelector() as sel:
+            for _ in range(count):
+                c = socket.socket()
+                c.setblocking(False)
+                assert c.connect_ex((HOST, server.port)) in (0, errno.EINPROGRESS)
+                clients.append(c)
+                sel.register(c, selectors.EVENT_WRITE)
+            # Each handshake completes only where the queue has room: beyond it the SYN is dropped.
+            deadline = time.monotonic() + 60
+            connected = 0
+            while connected < count and time.monotonic() < deadline:
+                for key, _ in sel.select(timeout=1):
+                    sel.unregister(key.fileobj)
+                    assert key.fileobj.getsockopt(socket.SOL_SOCKET, socket.SO_ERROR) == 0
+                    connected += 1
+            assert connected == count
+            request = f"GET / HTTP/1.0\r\nHost: {HOST}:{server.port}\r\n\r\n".encode()
+            replies = {}
+            for c in clients:
+                c.sendall(request)  # a few dozen bytes: the socket buffer takes them at once
+                sel.register(c, selectors.EVENT_READ)
+                replies[c] = bytearray()
+            thread = threading.Thread(target=server.serve, kwargs={"open_browser": False}, daemon=True)
+            thread.start()
+            done = 0
+            while done < count and time.monotonic() < deadline:
+                for key, _ in sel.select(timeout=1):
+                    chunk = key.fileobj.recv(1 << 16)
+                    replies[key.fileobj] += chunk
+                    if not chunk:  # HTTP/1.0: the reply ends where the server closes
+                        sel.unregister(key.fileobj)
+                        done += 1
+        page = server.routes["/"].data
+        assert sum(r.startswith(b"HTTP/1.0 200 ") and r.endswith(page) for r in replies.values()) == count
+    finally:
+        for c in clients:
+            c.close()
+        server.stop()
+        if thread is not None:
+            thread.join(10)
+        server.close()
 
 
 @pytest.mark.parametrize("path", [
@@ -308,6 +398,10 @@ def test_specs_player_md_states_what_the_code_does(sample):
         routes = sorted(server.routes)
     assert routes == ["/", "/index.html", "/scene/0.splatv", "/scene/1.splatv"]
     assert "`GET` and `HEAD` for exactly `/`,\n`/index.html` and `/scene/I.splatv`" in spec
+    flat = " ".join(spec.split())
+    assert f"up to {LISTEN_BACKLOG} connections" in flat
+    assert f"request line and headers whole within {REQUEST_DEADLINE:g} s" in flat
+    assert f"within {IDLE_TIMEOUT:g} s is dropped" in flat and _COPY_CHUNK == 1 << 20
     for name in SHADERS:
         assert name in spec
     # The page reads the splat count under the writer's key.
