@@ -157,7 +157,9 @@ def _handler(routes: dict, port_holder: list, idle_timeout: float, request_deadl
             try:
                 if resource.data is not None:
                     self._headers(resource, len(resource.data))
-                    self.wfile.write(resource.data)
+                    view = memoryview(resource.data)
+                    for start in range(0, len(view), _COPY_CHUNK):  # each piece within the idle timeout
+                        self.wfile.write(view[start:start + _COPY_CHUNK])
                     return
                 f = self._open(resource)
                 if f is None:
