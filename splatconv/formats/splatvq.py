@@ -41,8 +41,8 @@ from .splatv_layout import SPLATS_PER_ROW, WORDS_PER_SPLAT
 QUALITIES = tuple(codec.SETTINGS)
 #: Colour and opacity keep the texture's bytes; every other group is quantized
 #: (error bounds in ``specs/splatvq.md``), judged by the frames drawn.
-STORAGE = {"position": "none", "rotation": "none", "scale": "none", "color": "byte", "opacity": "byte",
-           "motion": "none", "omega": "none", "trbf": "none"}
+STORAGE = {"position": "quantized", "rotation": "quantized", "scale": "quantized", "color": "byte",
+           "opacity": "byte", "motion": "quantized", "omega": "quantized", "trbf": "quantized"}
 
 MAGIC = b"SPVQ"
 VERSION = 3
