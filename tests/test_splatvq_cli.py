@@ -124,6 +124,20 @@ def test_a_splatvq_page_takes_another_setting(tmp_path, source):
         assert io.read(tmp_path / "e.splatvq").meta["setting"] == setting
 
 
+def test_a_splatvq_kept_at_its_setting_is_not_called_quantized(tmp_path, source):
+    """Written again at its own setting, a .splatvq input is quantized by nothing: no note says it was."""
+    first, last = QUALITIES[0], QUALITIES[-1]
+    vq = tmp_path / "in.splatvq"
+    assert run("convert", source, vq, "--quality", first).exit_code == 0
+    for out, more in (("kept.html", ()), ("same.html", ("--quality", first)), ("again.splatvq", ())):
+        r = run("convert", vq, tmp_path / out, *more)
+        assert r.exit_code == 0, r.output
+        assert "quantized" not in r.stderr and f"kept the source's {first!r} setting" in r.stderr
+    # Another setting does quantize it, and says so.
+    r = run("convert", vq, tmp_path / "other.html", "--quality", last)
+    assert r.exit_code == 0 and f"quantized with the {last!r} setting" in r.stderr
+
+
 def test_bake_merge_and_frames_take_it(tmp_path, source):
     quality = QUALITIES[-1]
     baked = tmp_path / "moment.splatvq"

@@ -161,9 +161,12 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         report.notes.append(f"left out {plural(int(dropped.sum()), 'undrawable splat')} ({what}): "
                             "no frame the viewer draws changes")
     raw = sum(r for _, _, r, _ in blocks)
-    report.notes.append(f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat); "
-                        f"{plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else
-                        f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat)")
+    # A scene read from a .splatvq of this very setting is on its grid already (the quantizers are
+    # projections): encoding it again quantizes nothing, so the note says the setting was kept.
+    kept = scene.variant == FORMAT.name and scene.meta.get("setting") == name
+    how = f"kept the source's {name!r} setting" if kept else f"quantized with the {name!r} setting"
+    report.notes.append(f"{how} ({len(data) / n:.1f} bytes a splat)"
+                        + (f"; {plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else ""))
     # What packing the drawable splats' records changed, as the .splatv writer says it.
     report.notes.extend(splatv.write_notes(counts, False))
     return data, report
