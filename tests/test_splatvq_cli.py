@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from splatconv import io
 from splatconv.cli import main
 from splatconv.formats import splatvq
+from splatconv.viewer import undrawable
 from tests.real_scenes import real_scene
 
 QUALITIES = splatvq.QUALITIES
@@ -136,6 +137,23 @@ def test_a_splatvq_kept_at_its_setting_is_not_called_quantized(tmp_path, source)
     # Another setting does quantize it, and says so.
     r = run("convert", vq, tmp_path / "other.html", "--quality", last)
     assert r.exit_code == 0 and f"quantized with the {last!r} setting" in r.stderr
+
+
+@pytest.mark.parametrize("args", [("convert", "{src}", "{out}.splatvq"), ("convert", "{src}", "{out}.html", "--quality",
+                                                                           QUALITIES[-1]),
+                                  ("merge", "{src}", "{src}", "{out}.splatvq")])
+def test_a_splatvq_output_counts_the_undrawable_splats_it_leaves_out_and_advises_nothing(tmp_path, source, args):
+    """The writer leaves undrawable splats out itself: no note advises --drop-undrawable, its own counts them."""
+    left_out = int(undrawable(io.read(source).columns).sum()) * args.count("{src}")
+    assert left_out >= 0.1 * 900 * args.count("{src}")  # enough for the reading note to be due
+    r = run(*(a.format(src=source, out=tmp_path / "out") for a in args))
+    assert r.exit_code == 0, r.output
+    assert "--drop-undrawable" not in r.stderr
+    counted = [int(m) for m in re.findall(r"left out ([\d,]+) undrawable splats", r.stderr)]
+    assert counted == [left_out]
+    # A .splatv output keeps them, and the note on reading still says how to remove them.
+    r = run("convert", source, tmp_path / "kept.splatv")
+    assert r.exit_code == 0 and "--drop-undrawable" in r.stderr
 
 
 def test_bake_merge_and_frames_take_it(tmp_path, source):

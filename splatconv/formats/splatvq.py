@@ -361,6 +361,7 @@ FORMAT = Format(
     suffixes=(".splatvq",),
     default_sort="importance",  # blocks in importance order: the page draws the most important splats first
     holds_empty=False,  # a file holds drawable splats only, at least one
+    drawable_only=True,  # undrawable splats are left out (and counted in a note)
     dynamic=True,  # motion and a temporal basis, quantized
     read=read, splat_count=splat_count, most_splats=most_splats,
     write=write,
