@@ -83,7 +83,8 @@ def _setting_name(quality: str | None) -> str:
     return name
 
 
-def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, level: int = 9) -> tuple:
+def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, level: int = 9,
+           progress=SILENT) -> tuple:
     """A scene as ``.splatvq`` bytes, in memory.
 
     Parameters
@@ -95,6 +96,8 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         The quality setting (:data:`QUALITIES`).
     level : int
         Deflate level.
+    progress : splatconv.progress.Progress
+        A "writing" stage of the splats written (the drawable ones), advanced as each block is encoded.
 
     Returns
     -------
@@ -140,7 +143,11 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
             records, counts = packed(order[start:start + codec.BLOCK])
             return codec.encode_block(records, setting, level), counts
 
-        blocks = list(each(job, starts))
+        blocks = []
+        with progress.stage("writing", n, "splat") as advance:
+            for start, block in zip(starts, each(job, starts)):
+                blocks.append(block)
+                advance(min(codec.BLOCK, n - start))
     counts = engine.new_counts()
     for _, part in blocks:
         engine.merge_counts(counts, part)
@@ -174,11 +181,10 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
           quality: str | None = None, **_options) -> WriteReport:
-    """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`)."""
-    with progress.stage("writing", scene.count, "splat") as advance:
-        data, report = encode(scene, sort=sort, quality=quality)
-        stream.write(data)
-        advance(scene.count)
+    """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`): ``progress`` counts the
+    splats written, not those read (undrawable splats are left out)."""
+    data, report = encode(scene, sort=sort, quality=quality, progress=progress)
+    stream.write(data)
     return report
 
 
