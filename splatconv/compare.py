@@ -38,9 +38,9 @@ F32_MAX = float(np.finfo(np.float32).max)
 #: Below these magnitudes a storage kind's step no longer shrinks with the value
 #: (half subnormals, byte steps, float32 subnormals), so an error there is
 #: measured against the step: relative error = |error| / max(|source|, floor).
-#: ``exact`` and ``none`` keep no floor (any error there is real; a source 0 is left out).
+#: ``exact``, ``none`` and ``quantized`` keep no floor (any error there is real; a source 0 is left out).
 RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np.float32).tiny), "byte": BYTE,
-                    "unit_quaternion_byte": QUATERNION_STEP, "none": 0.0}
+                    "unit_quaternion_byte": QUATERNION_STEP, "none": 0.0, "quantized": 0.0}
 
 #: How a format stores an attribute group (each format module's ``STORAGE`` maps every
 #: group to one), and so the error a faithful conversion may bring:
@@ -51,10 +51,13 @@ RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np
 #: (one step; NaN cannot be held and is stored as a number); ``unit_quaternion_byte``:
 #: normalised, each component in :data:`QUATERNION_STEP` steps, compared normalised
 #: (the viewer normalises) with two steps of room (rounding, then the length's change);
-#: ``none``: not stored at all (a static format's time and motion), or quantized past a value
-#: check (a ``.splatvq``'s positions, rotations, scales, motion, omega and time): nothing to compare,
-#: the frames drawn at several times check what the viewer shows.
-STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "none")
+#: ``none``: not stored at all (a static format's time and motion); ``quantized``: stored, but
+#: quantized past a value-by-value check (a ``.splatvq``'s positions, rotations, scales, motion,
+#: omega and time). Neither is checked value by value (:data:`UNCHECKED`): the frames drawn at
+#: several times check what the viewer shows.
+STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "none", "quantized")
+#: Storage kinds whose values are never ``unexplained``.
+UNCHECKED = ("none", "quantized")
 
 
 def quantization_bound(group: str, values: np.ndarray, kind: str) -> np.ndarray:
@@ -65,7 +68,7 @@ def quantization_bound(group: str, values: np.ndarray, kind: str) -> np.ndarray:
         return np.full_like(values, BYTE * (1 + 1e-6))
     if kind == "unit_quaternion_byte":
         return np.full_like(values, 2 * QUATERNION_STEP * (1 + 1e-6))
-    if kind == "none":
+    if kind in UNCHECKED:
         return np.full_like(values, np.inf)
     with np.errstate(invalid="ignore"):
         if kind == "float32":
@@ -299,7 +302,7 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str) -> GroupEr
     same_special = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
     nan_stored = np.isnan(a) & np.isfinite(b) if kind == "byte" else np.zeros(a.shape, bool)
     bad = ~(both & (err <= bound)) & ~over & ~same_special & ~nan_stored
-    if kind == "none":
+    if kind in UNCHECKED:
         bad[:] = False
     n = int(both.sum())
     worst = float(bound[bad].max()) if bad.any() else 0.0
@@ -320,7 +323,7 @@ _ROWS = 1 << 17
 
 def _turning_as_drawn(qa: np.ndarray, qb: np.ndarray, wa: np.ndarray, wb: np.ndarray) -> tuple:
     """Rotations and omegas of paired rows in the form the viewer turns a splat by, for a file that does not
-    keep the rotation's own values (its storage ``none``: a ``.splatvq`` normalises it and flips its sign).
+    keep the rotation's own values (its storage ``quantized``: a ``.splatvq`` normalises it and flips its sign).
 
     The viewer draws normalize(q + omega * dt), which is the same rotation when q and omega are both
     multiplied by one nonzero number (q and -q are one rotation): each side is divided by the length of
@@ -378,7 +381,7 @@ class Comparison:
             caller that counts more of them (``stats``).
         """
         values = {g: (viewer.group_values(source_cols, g), viewer.group_values(converted_cols, g)) for g in GROUPS}
-        if self.storage["rotation"] == "none":
+        if self.storage["rotation"] == "quantized":
             values["rotation"], values["omega"] = _turning_as_drawn(*values["rotation"], *values["omega"])
         for g in GROUPS:
             a, b = values[g]

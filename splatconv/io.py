@@ -16,7 +16,7 @@ import numpy as np
 from . import viewer
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
 from .files.output import atomic_group, atomic_writer, check_output
-from .formats import REGISTRY, compat_modes, format_for, layouts, qualities
+from .formats import REGISTRY, compat_modes, format_for, layouts, playable_format, qualities
 from .model import COLUMNS, Scene
 from .progress import SILENT
 from .wording import kinds_text, plural
@@ -38,7 +38,8 @@ SPLAT_MEMORY_BYTES = 4 * len(COLUMNS)
 
 
 #: Share of a scene's splats, undrawable (:func:`splatconv.viewer.undrawable`), from which
-#: reading it gives a note suggesting ``--drop-undrawable``. Real trained scenes hold a
+#: reading it gives a note suggesting ``--drop-undrawable`` (unless the output leaves them out
+#: itself: :func:`reading_for`). Real trained scenes hold a
 #: few dozen undrawable splats from NaN positions and faded opacities (well under 1%),
 #: which cost nothing worth a note; zero rotations make 17-95% of most of them. From a
 #: tenth of the splats on, removing them saves a tenth of the file, of the texture and
@@ -66,6 +67,25 @@ def noting_undrawable(receive):
         yield
     finally:
         _undrawable_listener.reset(token)
+
+
+def leaves_out_undrawable(output, *, quality: str | None = None) -> bool:
+    """Whether writing ``output`` (at ``quality``) leaves out the splats the viewer can never draw by itself
+    (``drawable_only``: a ``.splatvq``, or a page that embeds one at ``quality``)."""
+    fmt = format_for(output, purpose="write")
+    return fmt.drawable_only or (quality is not None and playable_format(quality).drawable_only)
+
+
+@contextlib.contextmanager
+def reading_for(output, *, quality: str | None = None):
+    """While the block runs, scenes read for writing ``output`` are noted as :func:`noting_undrawable`
+    says, but not when the output leaves their undrawable splats out itself: advice to remove them
+    would be moot, and the writer's note counts what it left out."""
+    if leaves_out_undrawable(output, quality=quality):
+        with noting_undrawable(None):
+            yield
+    else:
+        yield
 
 
 def _check_undrawable(scene: Scene, path) -> None:

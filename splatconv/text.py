@@ -124,13 +124,18 @@ def frames_text(data: dict) -> str:
     return "\n".join(lines)
 
 
+#: What an attribute line says in place of errors, for a storage kind not checked value by value
+#: (:data:`splatconv.compare.UNCHECKED`).
+_UNCHECKED_WORDS = {"none": "not stored by CONVERTED (a static format)",
+                    "quantized": "quantized by CONVERTED past a value-by-value check"}
+
+
 def attributes_text(data: dict) -> str:
     """Per-attribute errors of ``verify`` (its ``attributes`` block), against what quantization explains."""
     lines = [f"{'attribute':<10}  {'max abs err':>11}  {'max rel err':>11}  {'rmse':>10}  {'unexplained':>11}"]
     for name, g in data["attributes"].items():
-        if g["storage"] == "none":
-            lines.append(f"{name:<10}  not stored by CONVERTED (a static format) or quantized past a value check: "
-                         "the frames check it")
+        if g["storage"] in _UNCHECKED_WORDS:
+            lines.append(f"{name:<10}  {_UNCHECKED_WORDS[g['storage']]}: the frames check it")
             continue
         lines.append(f"{name:<10}  {g['max_abs_error']:>11.4g}  {g['max_rel_error']:>11.4g}  {g['rmse']:>10.4g}  "
                      f"{g['unexplained']:>11,}")

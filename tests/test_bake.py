@@ -19,7 +19,8 @@ from splatconv.cameras import load_cameras
 from splatconv.cli import main
 from splatconv.formats import base
 from splatconv.model import Scene
-from splatconv.ops.bake import KIND_WORDS, bake, baked_opacity, frame_times
+from splatconv.ops.bake import bake, baked_opacity, frame_times
+from splatconv.wording import kinds_text
 from splatconv.render import camera as cam
 from splatconv.render.diff import compare
 from splatconv.render.frames import render_scene
@@ -163,8 +164,8 @@ def test_nan_and_infinite_values():
     scene = Scene(columns=cols)
     baked, report = bake(scene, 0.4)
     assert baked.count == 200 - 10
-    assert any(n.startswith("left out 10 splats the viewer does not draw at t=0.4 (rotation with no direction 5, "
-                            "NaN position 2, alpha 0 3)") for n in report.notes)
+    assert any(n.startswith("left out 10 splats the viewer does not draw at t=0.4 (zero rotation 5, "
+                            "NaN position 2, alpha zero 3)") for n in report.notes)
     b = baked.columns
     for name in model.POSITION + model.ROTATION + model.SCALE + model.COLOR + ("opacity",):
         assert np.isfinite(b[name]).all(), name
@@ -199,12 +200,27 @@ def test_bake_command_writes_a_3dgs_ply(tmp_path, sample_splatv, sample):
     src = io.read(sample_splatv)
     counts = viewer.not_drawn_counts_at(src.columns, 0.77)
     assert counts["hidden_in_time"] > 0
-    kinds = ", ".join(f"{w} {counts[k]:,}" for k, w in KIND_WORDS.items() if counts[k])
+    kinds = kinds_text(counts)  # the words info uses
     assert (f"note: left out {sum(counts.values()):,} splats the viewer does not draw at t=0.77 ({kinds}): "
             "the viewer draws none of them then, so no pixel is lost\n") in r.stderr
     back = io.read(out)
     assert back.variant == model.VARIANT_3DGS and len(back.cameras) == 3
     assert psnr(draw(src, 0.77), draw(back, 0.0)) >= 50
+
+
+def test_bake_and_info_name_a_zero_rotation_alike(tmp_path):
+    cols = random_columns(40, seed=8)
+    cols.update({name: np.array(column) for name, column in model.static_columns(40).items()})
+    cols["opacity"][:] = 5.0
+    for name in model.ROTATION:
+        cols[name][:6] = 0.0  # no direction: never drawn
+    src = tmp_path / "z.ply"
+    io.write(Scene(columns=cols), src)
+    r = run("bake", src, tmp_path / "m.ply", "--time", "0.5")
+    assert r.exit_code == 0, r.output
+    assert "(zero rotation 6)" in r.stderr and "direction" not in r.stderr
+    # info's count of the same splats, under the same name.
+    assert "zero rotation 6" in run("info", src).stdout
 
 
 def test_bake_frames_writes_every_moment(tmp_path, sample_splatv):

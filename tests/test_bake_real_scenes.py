@@ -101,7 +101,7 @@ def test_bake_writes_only_what_the_viewer_draws_then(real):
         assert left_out["zero_rotation"] >= len(rows.zero_rotation)
         note = next(n for n in report.notes if n.startswith("left out "))
         assert note.startswith(f"left out {scene.count - baked.count:,} splats the viewer does not draw at t={t:g} "
-                               f"(rotation with no direction {left_out['zero_rotation']:,}, ")
+                               f"(zero rotation {left_out['zero_rotation']:,}, ")
         q = np.stack([baked.columns[n] for n in ROTATION], axis=1).astype(np.float64)
         assert np.isfinite(q).all() and np.allclose((q * q).sum(axis=1), 1.0, atol=1e-6)
 
@@ -268,7 +268,7 @@ def test_bake_command_on_a_real_file_writes_no_nan_and_no_zero_quaternion(tmp_pa
             assert r.exit_code == 0, r.output
             assert r.stdout.startswith(f"wrote {out}: {np.count_nonzero(drawn):,} splats")
             assert (f"note: left out {np.count_nonzero(~drawn):,} splats the viewer does not draw at t={t:g} "
-                    "(rotation with no direction ") in r.stderr
+                    "(zero rotation ") in r.stderr
         v = _read_ply_vertices(ply)
         assert len(v) == np.count_nonzero(drawn)
         for name in v.dtype.names:

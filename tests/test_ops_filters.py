@@ -152,6 +152,40 @@ def test_crop_uses_the_centre_at_the_time_of_peak_opacity():
                             "(-0.5, -1, -1) .. (0.45, 1, 1)"]
 
 
+def test_crop_counts_the_undrawable_splats_it_keeps():
+    cols = plain(8)
+    cols["x"][6:] = 5.0  # outside the box
+    for name in ("rot_0", "rot_1", "rot_2", "rot_3"):
+        cols[name][[1, 2, 6]] = 0.0  # zero rotation: never drawn (row 6 is outside)
+    cols["opacity"][3] = -np.inf  # alpha zero
+    out, report = crop(Scene(cols), (-1, -1, -1), (1, 1, 1))
+    assert ids(out) == [0, 1, 2, 3, 4, 5] and report.removed == 2
+    assert report.counts == {"zero_rotation": 2, "nan_position": 0, "alpha_zero": 1, "hidden_in_time": 0}
+    assert len(report.notes) == 2 and "zero rotation 2" in report.notes[1] and "alpha zero 1" in report.notes[1]
+    # The pipeline says the same; after --drop-undrawable (which comes first) the box keeps none.
+    edited, reports = apply_edits(Scene(cols), EditPlan(crop=((-1, -1, -1), (1, 1, 1))))
+    assert reports[0].counts == report.counts and reports[0].notes == report.notes
+    edited, reports = apply_edits(Scene(cols), EditPlan(drop_undrawable=True, crop=((-1, -1, -1), (1, 1, 1))))
+    assert ids(edited) == [0, 4, 5] and sum(reports[1].counts.values()) == 0 and len(reports[1].notes) == 1
+
+
+def test_convert_crop_notes_the_undrawable_splats_in_the_box(tmp_path):
+    cols = plain(40)
+    cols["x"][:] = np.linspace(-2, 2, 40)
+    for name in ("rot_0", "rot_1", "rot_2", "rot_3"):
+        cols[name][::4] = 0.0  # every fourth: zero rotation
+    src = tmp_path / "in.ply"
+    io.write(Scene(cols), src)
+    result = CliRunner().invoke(main, ["convert", str(src), str(tmp_path / "out.splatv"), "--crop", "-1,-1,-1,1,1,1"])
+    assert result.exit_code == 0, result.output
+    kept = io.read(tmp_path / "out.splatv")
+    undrawable = int(viewer.undrawable(kept.columns).sum())
+    assert undrawable > 0
+    line = next(line for line in result.stderr.splitlines() if "can never draw" in line)
+    assert line.startswith(f"note: crop: {undrawable:,} of the {kept.count:,} splats kept")
+    assert f"zero rotation {undrawable:,}" in line
+
+
 @pytest.mark.parametrize("lo, hi", [((-0.1, -1e-8, -1e39), (0.1, 2.000000001, 1e39)), ((1e39, 0, 0), (1e40, 1, 1)),
                                     ((-1e40, -1, -1), (-1e39, 1, 1))])
 def test_crop_bounds_decide_as_in_float64(lo, hi):

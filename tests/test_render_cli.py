@@ -255,3 +255,87 @@ def test_an_empty_scene_file_is_bad_input_not_usage(tmp_path, command):
     assert (r.exit_code, r.stdout) == (1, "")
     assert r.stderr.startswith("Error: ") and r.stderr.count("\n") == 1, r.stderr
     assert not (tmp_path / "o.png").exists()
+
+
+# --------------------------------------------------------------------------
+# --fit: the camera's whole view at any --size
+
+
+@pytest.fixture(scope="module")
+def small_camera_scene(tmp_path_factory):
+    """The sample with its cameras at 320x180 (fx, fy a quarter of 1280x720's: the same view), quick to draw."""
+    from pathlib import Path
+
+    import splatconv
+
+    root = Path(__file__).resolve().parent.parent
+    folder = tmp_path_factory.mktemp("fit")
+    cameras = json.loads((root / "sample_data/cameras.json").read_text())
+    for c in cameras:
+        c.update(width=320, height=180, fx=c["fx"] / 4, fy=c["fy"] / 4)
+    (folder / "cameras.json").write_text(json.dumps(cameras))
+    splatconv.convert(root / SAMPLE, folder / "small.splatv", cameras=folder / "cameras.json")
+    return folder / "small.splatv"
+
+
+def _frames(path) -> list:
+    """Every frame of an image file as (H, W, 3) float64 (a contact sheet: the whole sheet)."""
+    from PIL import ImageSequence
+
+    return [np.asarray(f.convert("RGB"), dtype=np.float64) for f in ImageSequence.Iterator(Image.open(path))]
+
+
+def _halved(img: np.ndarray) -> np.ndarray:
+    """An image at half its width and height: each output pixel the mean of a 2x2 block."""
+    h, w = img.shape[0] // 2, img.shape[1] // 2
+    return img[:2 * h, :2 * w].reshape(h, 2, w, 2, -1).mean(axis=(1, 3))
+
+
+def _psnr(a: np.ndarray, b: np.ndarray) -> float:
+    return float(10 * np.log10(255.0**2 / max(np.mean((a - b) ** 2), 1e-12)))
+
+
+#: A contact sheet's time labels (drawn at a fixed size, top left of each 160x90 tile) are left out of the comparison.
+def _unlabelled(img: np.ndarray, tile: tuple) -> np.ndarray:
+    out = img.copy()
+    out.reshape(-1, tile[1], out.shape[1] // tile[0], tile[0], 3)[:, :16, :, :80] = 0
+    return out
+
+
+@pytest.mark.parametrize("name, frames", [("f.png", 1), ("sheet.png", 4), ("clip.webp", 3)])
+def test_fit_shows_the_cameras_whole_view_at_another_size(tmp_path, small_camera_scene, name, frames):
+    """At half the camera's size, --fit draws the full-size frame halved; without it, the frame's centre."""
+    full, fit, crop = (tmp_path / f"{kind}-{name}" for kind in ("full", "fit", "crop"))
+    sweep = ["--frames", frames] if frames > 1 else ["--time", "0.5"]
+    assert run("render", small_camera_scene, full, *sweep).exit_code == 0  # the camera's own 320x180
+    r = run("render", small_camera_scene, fit, *sweep, "--size", "160x90", "--fit")
+    assert r.exit_code == 0, r.output
+    assert run("render", small_camera_scene, crop, *sweep, "--size", "160x90").exit_code == 0
+    wanted = [_halved(f) for f in _frames(full)]
+    fitted, cropped = _frames(fit), _frames(crop)
+    assert len(wanted) == len(fitted) == len(cropped) == (1 if name.endswith(".png") else frames)
+    if name == "sheet.png":
+        wanted, fitted, cropped = ([_unlabelled(f, (160, 90)) for f in images] for images in (wanted, fitted, cropped))
+    assert wanted[0].mean() > 5  # the scene is in view
+    for want, got, centre in zip(wanted, fitted, cropped):
+        assert got.shape == want.shape
+        assert _psnr(want, got) >= 35
+        assert _psnr(want, centre) < 20
+
+
+def test_fit_letterboxes_another_aspect_ratio(tmp_path, small_camera_scene):
+    """160x160 from a 16:9 camera: the whole width, the view halved in the middle 90 rows, black bands around."""
+    assert run("render", small_camera_scene, tmp_path / "full.png").exit_code == 0
+    assert run("render", small_camera_scene, tmp_path / "sq.png", "--size", "160x160", "--fit").exit_code == 0
+    square = _frames(tmp_path / "sq.png")[0]
+    assert square.shape == (160, 160, 3)
+    assert not square[:30].any() and not square[130:].any()
+    assert _psnr(_halved(_frames(tmp_path / "full.png")[0]), square[35:125]) >= 35
+
+
+def test_fit_with_fx_or_fy_is_a_usage_error(tmp_path, small_camera_scene):
+    for option in ("--fx", "--fy"):
+        r = run("render", small_camera_scene, tmp_path / "o.png", "--size", "160x90", "--fit", option, "100")
+        assert r.exit_code == 2 and r.stdout == ""
+        assert r.stderr.startswith("Error: --fit scales the camera's fx and fy")
+    assert not (tmp_path / "o.png").exists()

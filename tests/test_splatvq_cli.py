@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from splatconv import io
 from splatconv.cli import main
 from splatconv.formats import splatvq
+from splatconv.viewer import undrawable
 from tests.real_scenes import real_scene
 
 QUALITIES = splatvq.QUALITIES
@@ -122,6 +123,68 @@ def test_a_splatvq_page_takes_another_setting(tmp_path, source):
     for name, setting in (("kept.html", first), ("other.html", last)):
         (tmp_path / "e.splatvq").write_bytes(embedded(tmp_path / name))
         assert io.read(tmp_path / "e.splatvq").meta["setting"] == setting
+
+
+def test_a_splatvq_kept_at_its_setting_is_not_called_quantized(tmp_path, source):
+    """Written again at its own setting, a .splatvq input is quantized by nothing: no note says it was."""
+    first, last = QUALITIES[0], QUALITIES[-1]
+    vq = tmp_path / "in.splatvq"
+    assert run("convert", source, vq, "--quality", first).exit_code == 0
+    for out, more in (("kept.html", ()), ("same.html", ("--quality", first)), ("again.splatvq", ())):
+        r = run("convert", vq, tmp_path / out, *more)
+        assert r.exit_code == 0, r.output
+        assert "quantized" not in r.stderr and f"kept the source's {first!r} setting" in r.stderr
+    # Another setting does quantize it, and says so.
+    r = run("convert", vq, tmp_path / "other.html", "--quality", last)
+    assert r.exit_code == 0 and f"quantized with the {last!r} setting" in r.stderr
+
+
+@pytest.mark.parametrize("args", [("convert", "{src}", "{out}.splatvq"), ("convert", "{src}", "{out}.html", "--quality",
+                                                                           QUALITIES[-1]),
+                                  ("merge", "{src}", "{src}", "{out}.splatvq")])
+def test_a_splatvq_output_counts_the_undrawable_splats_it_leaves_out_and_advises_nothing(tmp_path, source, args):
+    """The writer leaves undrawable splats out itself: no note advises --drop-undrawable, its own counts them."""
+    left_out = int(undrawable(io.read(source).columns).sum()) * args.count("{src}")
+    assert left_out >= 0.1 * 900 * args.count("{src}")  # enough for the reading note to be due
+    r = run(*(a.format(src=source, out=tmp_path / "out") for a in args))
+    assert r.exit_code == 0, r.output
+    assert "--drop-undrawable" not in r.stderr
+    counted = [int(m) for m in re.findall(r"left out ([\d,]+) undrawable splats", r.stderr)]
+    assert counted == [left_out]
+    # A .splatv output keeps them, and the note on reading still says how to remove them.
+    r = run("convert", source, tmp_path / "kept.splatv")
+    assert r.exit_code == 0 and "--drop-undrawable" in r.stderr
+
+
+class _Recorder:
+    """A progress that records each stage as [label, total, unit, done]."""
+
+    def __init__(self):
+        self.stages = []
+
+    def stage(self, label, total=None, unit="it"):
+        import contextlib
+
+        entry = [label, total, unit, 0]
+        self.stages.append(entry)
+
+        def advance(n=1):
+            entry[3] += n
+
+        return contextlib.nullcontext(advance)
+
+
+@pytest.mark.parametrize("name, quality", [("x.splatvq", None), ("x.splatvq", QUALITIES[-1]), ("x.html", QUALITIES[0]),
+                                           ("x.splatv", None), ("x.ply", None), ("x.html", None)])
+def test_the_writing_bar_counts_the_splats_written(tmp_path, source, name, quality):
+    """A .splatvq leaves undrawable splats out: its bar's total and count are the splats it writes."""
+    scene = io.read(source)
+    rec = _Recorder()
+    report = io.write(scene, tmp_path / name, quality=quality, progress=rec)
+    writing = [s for s in rec.stages if s[0] == "writing"]
+    assert [s[1:] for s in writing] == [[report.count, "splat", report.count]]
+    drawn = int((~undrawable(scene.columns)).sum())
+    assert report.count == (drawn if quality or name.endswith(".splatvq") else scene.count)
 
 
 def test_bake_merge_and_frames_take_it(tmp_path, source):

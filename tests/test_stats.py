@@ -667,7 +667,7 @@ def test_group_errors_of_infinities_and_nan_without_warning():
 
 
 
-@pytest.mark.parametrize("kind, unexplained", [("exact", 6), ("half", 3), ("byte", 2), ("float32", 5), ("none", 0)])
+@pytest.mark.parametrize("kind, unexplained", [("exact", 6), ("half", 3), ("byte", 2), ("float32", 5), ("none", 0), ("quantized", 0)])
 def test_each_storage_kind_explains_its_own_errors(kind, unexplained):
     """The same pairs judged by how CONVERTED stores them (``compare.STORAGE_KINDS``)."""
     from splatconv.compare import value_errors

@@ -117,6 +117,21 @@ def test_splatv_to_ply_conversion_verifies(tmp_path, faithful):
     assert all(v["unexplained"] == 0 for v in data["attributes"].values())
 
 
+def test_a_splatvq_is_called_quantized_not_static(tmp_path):
+    # A .splatvq keeps motion and time (a compact 4D format): its attribute lines say quantized, never static.
+    out = tmp_path / "dancers.splatvq"
+    assert run("convert", SAMPLE, out, "--cameras", CAMERAS).exit_code == 0
+    r = run("verify", SAMPLE, out, *QUICK)
+    assert r.exit_code == 0, r.output
+    assert "static" not in r.stdout
+    unchecked = [line.split()[0] for line in r.stdout.splitlines() if "the frames check it" in line]
+    assert unchecked == ["position", "rotation", "scale", "motion", "omega", "trbf"]
+    assert all("quantized" in line for line in r.stdout.splitlines() if "the frames check it" in line)
+    storage = {g: a["storage"] for g, a in json.loads(run("verify", SAMPLE, out, *QUICK, "--json").stdout)
+               ["attributes"].items()}
+    assert storage["motion"] == storage["trbf"] == "quantized" and storage["color"] == "byte"
+
+
 def test_compat_conversion_of_the_sample_verifies(tmp_path):
     out = tmp_path / "js.splatv"
     assert run("convert", SAMPLE, out, "--compat", "splatv-js", "--cameras", CAMERAS).exit_code == 0

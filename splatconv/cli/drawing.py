@@ -54,7 +54,11 @@ def _finish(data: dict, as_json: bool, parts) -> None:
                                 "a JSON list of 16 numbers."),
     click.option("--size", help=f"Image size WxH (of each frame). Default: the camera's, scaled down to at most "
                                 f"{MAX_DEFAULT_WIDTH} wide, fx and fy scaled along. An explicit size keeps the "
-                                "camera's fx and fy, as the viewer does in a window of that size."),
+                                "camera's fx and fy, as the viewer does in a window of that size (see --fit)."),
+    click.option("--fit", is_flag=True,
+                 help="Scale the camera's fx and fy with --size, by the smaller of the two size ratios, so the "
+                      "camera's whole view shows (with bands along one side when the aspect ratios differ) "
+                      "instead of the centre at the camera's focal length. Not with --fx or --fy."),
     click.option("--fx", type=POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
                                              "default size)."),
     click.option("--fy", type=POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
@@ -70,7 +74,7 @@ def _finish(data: dict, as_json: bool, parts) -> None:
     quiet_option(),
 )
 @library_errors
-def render(input_path, output_path, time_, camera, view, size, fx, fy, frames, reference, color, force, quiet):
+def render(input_path, output_path, time_, camera, view, size, fit, fx, fy, frames, reference, color, force, quiet):
     """Render INPUT (.splatv or PLY) headlessly with the viewer's shader to OUTPUT.
 
     OUTPUT is a .png for one frame; with --frames N it is an animated .gif or
@@ -81,11 +85,12 @@ def render(input_path, output_path, time_, camera, view, size, fx, fy, frames, r
     Example:
       splatconv render scene.splatv frame.png --time 0.25 --camera 1
       splatconv render scene.splatv clip.gif --frames 24 --size 480x270
+      splatconv render scene.splatv sheet.png --frames 9 --size 320x180 --fit
     """
     if camera is not None and view is not None:
         raise Failure("--camera and --view cannot be used together", 2)
     result = render_file(input_path, output_path, time=time_, camera=camera, view=view, size=size,
-                         fx=fx, fy=fy, frames=frames, reference=reference, color=color, force=force,
+                         fx=fx, fy=fy, fit=fit, frames=frames, reference=reference, color=color, force=force,
                          progress=progress(quiet))
     click.echo(result)
 

@@ -119,8 +119,8 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, qual
 
     Positions and rotations at that time, opacity times the temporal opacity,
     no motion; only splats the viewer draws then are written (a note counts the
-    others: no direction of rotation, NaN position, alpha 0, temporal opacity
-    below 0.02). The result shows that moment at every time. OUTPUT is a 3DGS PLY
+    others: zero rotation, NaN position, alpha zero, hidden in time: temporal
+    opacity below 0.02). The result shows that moment at every time. OUTPUT is a 3DGS PLY
     (what 3DGS tools and web viewers open) or an antimatter15 .splat (or a
     .splatv); the format comes from its extension.
 

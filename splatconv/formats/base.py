@@ -138,6 +138,9 @@ class Format:
         A file is compressed inside: a small one can declare a scene many times
         its size (``most_splats``), so a read is held to the decompression ceiling
         (``--max-decompressed``) as a ``.zst`` file's is.
+    drawable_only : bool
+        A write leaves out the splats the viewer can never draw
+        (:func:`splatconv.viewer.undrawable`) by itself, and its report says how many.
     """
 
     name: str
@@ -159,6 +162,7 @@ class Format:
     plays_segments: bool = False
     check_playable: Callable | None = None
     expands: bool = False
+    drawable_only: bool = False
 
     def __post_init__(self):
         readers = (self.read, self.splat_count, self.most_splats)

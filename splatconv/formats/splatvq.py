@@ -41,8 +41,8 @@ from .splatv_layout import SPLATS_PER_ROW, WORDS_PER_SPLAT
 QUALITIES = tuple(codec.SETTINGS)
 #: Colour and opacity keep the texture's bytes; every other group is quantized
 #: (error bounds in ``specs/splatvq.md``), judged by the frames drawn.
-STORAGE = {"position": "none", "rotation": "none", "scale": "none", "color": "byte", "opacity": "byte",
-           "motion": "none", "omega": "none", "trbf": "none"}
+STORAGE = {"position": "quantized", "rotation": "quantized", "scale": "quantized", "color": "byte",
+           "opacity": "byte", "motion": "quantized", "omega": "quantized", "trbf": "quantized"}
 
 MAGIC = b"SPVQ"
 VERSION = 3
@@ -83,7 +83,8 @@ def _setting_name(quality: str | None) -> str:
     return name
 
 
-def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, level: int = 9) -> tuple:
+def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, level: int = 9,
+           progress=SILENT) -> tuple:
     """A scene as ``.splatvq`` bytes, in memory.
 
     Parameters
@@ -95,6 +96,8 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         The quality setting (:data:`QUALITIES`).
     level : int
         Deflate level.
+    progress : splatconv.progress.Progress
+        A "writing" stage of the splats written (the drawable ones), advanced as each block is encoded.
 
     Returns
     -------
@@ -140,7 +143,11 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
             records, counts = packed(order[start:start + codec.BLOCK])
             return codec.encode_block(records, setting, level), counts
 
-        blocks = list(each(job, starts))
+        blocks = []
+        with progress.stage("writing", n, "splat") as advance:
+            for start, block in zip(starts, each(job, starts)):
+                blocks.append(block)
+                advance(min(codec.BLOCK, n - start))
     counts = engine.new_counts()
     for _, part in blocks:
         engine.merge_counts(counts, part)
@@ -161,9 +168,12 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         report.notes.append(f"left out {plural(int(dropped.sum()), 'undrawable splat')} ({what}): "
                             "no frame the viewer draws changes")
     raw = sum(r for _, _, r, _ in blocks)
-    report.notes.append(f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat); "
-                        f"{plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else
-                        f"quantized with the {name!r} setting ({len(data) / n:.1f} bytes a splat)")
+    # A scene read from a .splatvq of this very setting is on its grid already (the quantizers are
+    # projections): encoding it again quantizes nothing, so the note says the setting was kept.
+    kept = scene.variant == FORMAT.name and scene.meta.get("setting") == name
+    how = f"kept the source's {name!r} setting" if kept else f"quantized with the {name!r} setting"
+    report.notes.append(f"{how} ({len(data) / n:.1f} bytes a splat)"
+                        + (f"; {plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else ""))
     # What packing the drawable splats' records changed, as the .splatv writer says it.
     report.notes.extend(splatv.write_notes(counts, False))
     return data, report
@@ -171,11 +181,10 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
           quality: str | None = None, **_options) -> WriteReport:
-    """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`)."""
-    with progress.stage("writing", scene.count, "splat") as advance:
-        data, report = encode(scene, sort=sort, quality=quality)
-        stream.write(data)
-        advance(scene.count)
+    """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`): ``progress`` counts the
+    splats written, not those read (undrawable splats are left out)."""
+    data, report = encode(scene, sort=sort, quality=quality, progress=progress)
+    stream.write(data)
     return report
 
 
@@ -358,6 +367,7 @@ FORMAT = Format(
     suffixes=(".splatvq",),
     default_sort="importance",  # blocks in importance order: the page draws the most important splats first
     holds_empty=False,  # a file holds drawable splats only, at least one
+    drawable_only=True,  # undrawable splats are left out (and counted in a note)
     dynamic=True,  # motion and a temporal basis, quantized
     read=read, splat_count=splat_count, most_splats=most_splats,
     write=write,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 
 from ..cameras import load_cameras
-from ..io import refuse_empty, write
+from ..io import reading_for, refuse_empty, write
 from ..progress import SILENT
 from ._steps import check_job, read_input, silent
 
@@ -40,7 +40,8 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     # The output is checked before the (possibly long) read: fail fast, touch nothing.
     fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout, quality=quality)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
-    scene = read_input(source, color=color, progress=progress)
+    with reading_for(output, quality=quality):
+        scene = read_input(source, color=color, progress=progress)
     refuse_empty(fmt, scene.count, source, "holds no splats")
     if camera_list is not None:
         scene.cameras = camera_list

@@ -16,7 +16,7 @@ import numpy as np
 from ..cameras import load_cameras
 from ..errors import UsageError
 from ..formats import REGISTRY
-from ..io import read, refuse_empty, splat_count, write
+from ..io import read, reading_for, refuse_empty, splat_count, write
 from ..model import COLUMNS, Scene
 from ..ops.sequence import fit_sequence
 from ..progress import SILENT
@@ -109,7 +109,8 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     found = {}
 
     def read_frame(k):
-        scene = read(paths[k], color=color)
+        with reading_for(output, quality=quality):
+            scene = read(paths[k], color=color)
         if "cameras" not in found and scene.cameras:
             found["cameras"] = scene.cameras
         return scene

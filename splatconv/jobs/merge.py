@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..io import write
+from ..io import reading_for, write
 from ..ops import apply_transform
 from ..ops import drop_nonfinite as drop_nonfinite_splats
 from ..ops.merge import overlay
@@ -38,7 +38,8 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=No
     check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality)
     scenes = []
     for number, path in enumerate(inputs, 1):
-        scene = read_input(path, color=color, progress=progress)
+        with reading_for(output, quality=quality):
+            scene = read_input(path, color=color, progress=progress)
         if drop_nonfinite:
             scene, _report = drop_nonfinite_splats(scene)
         if number in placements:

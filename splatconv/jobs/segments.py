@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 
-from ..io import read, write
+from ..io import read, reading_for, write
 from ..ops.segments import (DEFAULT_BUDGET, DEFAULT_LEAK, check_budget, check_durations, check_segment_count,
                             merge_segments as merge_scenes)
 from ..progress import SILENT
@@ -53,7 +53,8 @@ def merge_segments(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, 
     else:
         check_segment_count(len(inputs))
     check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality)
-    scenes = [read(p, color=color) for p in inputs]
+    with reading_for(output, quality=quality):
+        scenes = [read(p, color=color) for p in inputs]
     merged, report = merge_scenes(scenes, durations, leak=leak, budget=budget, progress=progress)
     frames = checked_frames(report, check_every) if check else []
     rows = fidelity(merged, scenes, report, camera=camera, frames=frames, progress=progress) if check else []

@@ -14,8 +14,8 @@ At time ``t`` the viewer draws each splat (see :mod:`splatconv.viewer`) at
   scene shows the same picture at every time, at full baked opacity.
 
 Only splats the viewer draws at ``t`` are baked (:func:`splatconv.viewer.not_drawn_kinds_at`:
-a rotation with no direction, a NaN position, an alpha byte of 0, below the
-temporal cut): so no zero or NaN quaternion is ever written, and a scene with or
+zero rotation, a NaN position, alpha zero, hidden in time below the temporal cut;
+a note names them as :func:`splatconv.wording.kinds_text` does everywhere): so no zero or NaN quaternion is ever written, and a scene with or
 without splats the viewer never draws bakes to the same rows. Infinities the
 viewer gives a meaning to are written as finite values every reader decodes to
 the same thing (:data:`FLAT_LOG_SCALE` for a flat splat's log scale, and see
@@ -34,7 +34,7 @@ import numpy as np
 from .. import model, viewer
 from ..errors import UsageError
 from ..model import Scene
-from ..wording import plural
+from ..wording import kinds_text, plural
 from . import filters
 from .report import OpReport
 
@@ -64,9 +64,6 @@ FLAT_LOG_SCALE = -120.0
 #: The opacity logit an opacity of +inf is baked with: sigmoid(40) is 1 in float64
 #: and float32, as sigmoid(inf) is.
 OPAQUE_LOGIT = 40.0
-#: How a note names each kind of splat not drawn (:data:`splatconv.viewer.UNDRAWABLE_KINDS`).
-KIND_WORDS = {"zero_rotation": "rotation with no direction", "nan_position": "NaN position",
-              "alpha_zero": "alpha 0", "hidden_in_time": f"temporal opacity below {viewer.TEMPORAL_CUTOFF}"}
 
 
 @dataclass
@@ -74,7 +71,7 @@ class BakeReport(OpReport):
     """What baking did: an :class:`~splatconv.ops.report.OpReport` (``op`` ``"bake"``) and the time.
 
     ``counts``: splats left out because the viewer does not draw them at ``time``,
-    by kind (the keys of :data:`KIND_WORDS`); ``faded``, kept splats whose opacity
+    by kind (:data:`splatconv.viewer.UNDRAWABLE_KINDS`); ``faded``, kept splats whose opacity
     the temporal opacity lowered; ``flat``, ``opaque`` and ``color``, splats whose
     infinities :func:`finite_stand_ins` wrote as finite values; ``nonfinite``,
     splats ``drop_nonfinite`` removed from the baked scene.
@@ -159,8 +156,8 @@ def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Sc
     counts.update(finite_stand_ins(out))
     notes = [f"baked at t={t:g}: {m:,} of {plural(n, 'splat')} drawn"]
     if m < n:
-        kinds_text = ", ".join(f"{KIND_WORDS[k]} {counts[k]:,}" for k in viewer.UNDRAWABLE_KINDS if counts[k])
-        notes.append(f"left out {n - m:,} splats the viewer does not draw at t={t:g} ({kinds_text}): "
+        left_out = kinds_text({k: counts[k] for k in viewer.UNDRAWABLE_KINDS})
+        notes.append(f"left out {n - m:,} splats the viewer does not draw at t={t:g} ({left_out}): "
                      "the viewer draws none of them then, so no pixel is lost")
     notes.extend(_stand_in_notes(counts))
     baked = Scene(columns=out, cameras=scene.cameras, variant=model.VARIANT_3DGS, meta={"baked_time": t})

@@ -351,6 +351,23 @@ def crop_tester(lo, hi, window=viewer.TIME_RANGE):
     return inside
 
 
+#: The crop value (:func:`crop_values`) of a splat outside the box.
+OUTSIDE = -2
+
+
+def crop_values(columns: dict, lo, hi, window=viewer.TIME_RANGE) -> np.ndarray:
+    """What :func:`crop` finds of each row: ``(N,) int8``, :data:`OUTSIDE` for a row outside the box
+    (:func:`crop_mask`), else its :func:`splatconv.viewer.undrawable_kinds` code (-1: drawable), so that
+    the report can say how many splats the box keeps that the viewer can never draw."""
+    return blockwise(crop_value_tester(lo, hi, window), columns, COLUMNS, dtype=np.int8)
+
+
+def crop_value_tester(lo, hi, window=viewer.TIME_RANGE):
+    """``test(block)``: :func:`crop_values` of one block of columns."""
+    inside = crop_tester(lo, hi, window)
+    return lambda block: np.where(inside(block), viewer.undrawable_kinds(block), np.int8(OUTSIDE)).astype(np.int8)
+
+
 def _float32_bounds(lo: float, hi: float) -> tuple:
     """float32 bounds that decide as ``lo``, ``hi`` do: for every float32 v (and NaN),
     ``lo <= v`` exactly when ``lo32 <= v``, and ``v <= hi`` exactly when ``v <= hi32``.
@@ -379,14 +396,26 @@ def check_box(lo, hi) -> tuple:
     return lo, hi
 
 
-def crop_report(keep: np.ndarray, lo, hi, alive: np.ndarray | None = None) -> OpReport:
-    """The report of :func:`crop` for mask ``keep`` over the rows ``alive`` (all when None)."""
+def crop_report(values: np.ndarray, lo, hi, alive: np.ndarray | None = None) -> OpReport:
+    """The report of :func:`crop` for ``values`` (:func:`crop_values`) over the rows ``alive`` (all when None).
+
+    ``counts``: the splats kept in the box that the viewer can never draw, by kind
+    (:data:`splatconv.viewer.UNDRAWABLE_KINDS`); a second note names them when there are any
+    (``--drop-undrawable``, which comes first, leaves none).
+    """
+    keep = values != OUTSIDE
     count_in = len(keep) if alive is None else int(alive.sum())
-    removed = int((~keep).sum() if alive is None else (alive & ~keep).sum())
+    kept = keep if alive is None else alive & keep
+    removed = count_in - int(kept.sum())
     report = OpReport("crop", count_in, count_in - removed)
     box = f"({', '.join(f'{v:g}' for v in lo)}) .. ({', '.join(f'{v:g}' for v in hi)})"
     report.notes.append(f"crop: removed {removed:,} of {plural(count_in, 'splat')} whose centre at peak opacity lies "
                         f"outside {box}")
+    report.counts = viewer.kind_counts(values[kept])
+    undrawable = sum(report.counts.values())
+    if undrawable:
+        report.notes.append(f"crop: {undrawable:,} of the {plural(report.count_out, 'splat')} kept in the box the "
+                            f"viewer can never draw ({kinds_text(report.counts)})")
     return report
 
 
@@ -409,9 +438,9 @@ def crop(scene: Scene, lo, hi) -> tuple[Scene, OpReport]:
         When a bound is not finite or ``lo`` exceeds ``hi`` on an axis.
     """
     lo, hi = check_box(lo, hi)
-    keep = crop_mask(scene.columns, lo, hi)
-    report = crop_report(keep, lo, hi)
-    return derive(scene, keep_rows(scene, keep), report.notes), report
+    values = crop_values(scene.columns, lo, hi)
+    report = crop_report(values, lo, hi)
+    return derive(scene, keep_rows(scene, values != OUTSIDE), report.notes), report
 
 
 # --------------------------------------------------------------------------
@@ -513,20 +542,22 @@ class DropNonfinite(Step):
 
 
 class Crop(Step):
-    """:func:`crop` to the box (``lo``, ``hi``) as a step (the box checked by :func:`check_box`)."""
+    """:func:`crop` to the box (``lo``, ``hi``) as a step (the box checked by :func:`check_box`); its
+    values are :func:`crop_values` (``int8``)."""
 
     name = "crop"
+    dtype = np.int8
 
     def __init__(self, lo, hi):
         self.lo, self.hi = check_box(lo, hi)
 
     def tester(self, columns: dict):
-        inside = crop_tester(self.lo, self.hi)
-        return lambda part, block: inside(block)
+        values = crop_value_tester(self.lo, self.hi)
+        return lambda part, block: values(block)
 
-    def apply(self, rows: Rows, keep: np.ndarray) -> OpReport:
-        report = crop_report(keep, self.lo, self.hi, rows.alive)
-        rows.keep(keep)
+    def apply(self, rows: Rows, values: np.ndarray) -> OpReport:
+        report = crop_report(values, self.lo, self.hi, rows.alive)
+        rows.keep(values != OUTSIDE)
         return report
 
 
@@ -574,6 +605,6 @@ class MaxSplats(Step):
 
 __all__ = ["NONFINITE_RULES", "FINITE_GROUPS", "NAN_GROUPS", "undrawable_kinds", "drop_undrawable",
            "nonfinite_mask", "drop_nonfinite", "opacity_mask", "min_opacity",
-           "peak_time", "crop_mask", "check_box", "crop", "importance_key", "most_important",
+           "peak_time", "crop_mask", "crop_values", "OUTSIDE", "check_box", "crop", "importance_key", "most_important",
            "max_splats", "check_minimum", "check_count", "DropUndrawable", "DropNonfinite", "Crop", "MinOpacity",
            "MaxSplats"]

@@ -17,7 +17,7 @@ from ..progress import SILENT, Progress
 from . import camera as cam
 from . import diff as imgdiff
 from . import images
-from .frames import Frame, cameras_of, load, render_frames, resolve_view
+from .frames import Frame, cameras_of, check_fit, load, render_frames, resolve_view
 from .verify import DEFAULT_MIN_PSNR, Outcome, check_min_psnr, diff_scenes
 
 
@@ -30,12 +30,14 @@ MAX_FRAMES = 1000
 def render_file(input_path, output_path, *, time: float = DEFAULT_TIME, camera: int | None = None,
                 view: str | None = None, size: str | None = None, fx: float | None = None, fy: float | None = None,
                 frames: int = 1, reference: bool = False, color: str = "auto", force: bool = False,
-                progress: Progress = SILENT) -> str:
+                fit: bool = False, progress: Progress = SILENT) -> str:
     """Render a scene file to an image file; returns a one-line summary of what was written.
 
     Parameters mirror ``splatconv render``; ``view`` and ``size`` are the option
     strings (a JSON list, ``WxH``). ``size`` is each frame's size: a contact
-    sheet of several frames is larger, and the summary gives its size.
+    sheet of several frames is larger, and the summary gives its size. ``fit``
+    scales the camera's focal lengths with ``size`` so that its whole view shows
+    (:func:`splatconv.render.frames.resolve_view`).
     """
     output_path = os.fspath(output_path)
     if not 1 <= frames <= MAX_FRAMES:
@@ -53,11 +55,13 @@ def render_file(input_path, output_path, *, time: float = DEFAULT_TIME, camera: 
     for name, value in (("--fx", fx), ("--fy", fy)):
         if value is not None and not (math.isfinite(value) and value > 0):
             raise UsageError(f"{name} must be a positive number")
+    check_fit(fit, fx, fy)  # before the read
     check_output(output_path, [input_path], force)
     with progress.stage("reading", 1, "file") as advance:
         source = load(input_path, color=color, progress=progress)
         advance()
-    v = resolve_view(cameras_of(source), camera=camera, view=matrix, size=dims, fx=fx, fy=fy, path=source.path)
+    v = resolve_view(cameras_of(source), camera=camera, view=matrix, size=dims, fx=fx, fy=fy, fit=fit,
+                     path=source.path)
     times = [time] if frames == 1 else [float(t) for t in np.linspace(0.0, 1.0, frames)]
     if frames > 1 and suffix in images.STILL:
         cols, rows = images.sheet_grid(frames)

@@ -115,9 +115,16 @@ def cameras_of(*sources: Source) -> list:
     return [framing_camera(c["x"], c["y"], c["z"])]
 
 
+def check_fit(fit: bool, fx: float | None, fy: float | None) -> None:
+    """Refuse ``fit`` with ``fx`` or ``fy``: it scales the camera's focal lengths, they set them."""
+    if fit and (fx is not None or fy is not None):
+        raise UsageError("--fit scales the camera's fx and fy with --size; --fx and --fy set them: give one or "
+                         "the other")
+
+
 def resolve_view(cameras: list, *, camera: int | None = None, view: list | None = None,
                  size: tuple | None = None, fx: float | None = None, fy: float | None = None,
-                 path: str | None = None) -> View:
+                 fit: bool = False, path: str | None = None) -> View:
     """``render``'s options as a :class:`View`.
 
     The camera (``camera``, default 0) gives the view matrix unless ``view`` is
@@ -126,15 +133,24 @@ def resolve_view(cameras: list, *, camera: int | None = None, view: list | None 
     :func:`camera.fit`), so the preview frames what the camera saw. With an
     explicit ``size``, fx and fy stay the camera's, as in the viewer's window of
     that size (so a render at the viewer's window size draws what the viewer
-    draws). ``fx`` and ``fy`` replace either.
+    draws), unless ``fit``: then they scale by min(W / width, H / height), so the
+    camera's whole view shows at ``size`` (letterboxed along the other side when
+    the aspect ratios differ), as :func:`camera.fit` draws it for ``verify``.
+    ``fx`` and ``fy`` replace either (not with ``fit``).
+
+    Raises
+    ------
+    UsageError
+        For a camera the file does not have, or ``fit`` with ``fx`` or ``fy``.
     """
+    check_fit(fit, fx, fy)
     index = 0 if camera is None else camera
     if not 0 <= index < len(cameras):
         raise UsageError(f"--camera {index}: the file has {plural(len(cameras), 'camera')}, "
                          f"0..{len(cameras) - 1}", path)
     c = cameras[index]
-    if size is None:
-        width, height, cfx, cfy = cam.fit(c)
+    if size is None or fit:
+        width, height, cfx, cfy = cam.fit(c, size)
     else:
         (width, height), cfx, cfy = size, float(c["fx"]), float(c["fy"])
     matrix = view if view is not None else cam.view_matrix(c)
