@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import click
 
+from ..files.signals import consume_signals
 from ..server import ViewServer, can_open_browser
 from ._base import library_errors, main, notes, options
 
@@ -38,6 +39,6 @@ def view(files, port, no_open, durations):
             notes(["no display to open a browser on: open the address above in a browser"])
         server.serve(open_browser=opening)
     except KeyboardInterrupt:
-        pass  # Ctrl-C just before serving began: the same clean stop
+        consume_signals()  # Ctrl-C just before serving began: the same clean stop
     finally:
         server.close()

@@ -94,6 +94,15 @@ def check_signals() -> None:
         _raise_for(_received)
 
 
+def consume_signals() -> None:
+    """Forget the signals that asked the run to end: for a command whose normal end a Ctrl-C is (``view``).
+
+    Call it only where the exception the signal raised has been caught on purpose.
+    """
+    global _received, _pending
+    _received = _pending = None
+
+
 def exit_on_signals() -> None:
     """Make SIGTERM and SIGHUP raise ``SystemExit(128 + signal)`` in the main thread, SIGINT ``KeyboardInterrupt``.
 
