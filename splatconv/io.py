@@ -265,7 +265,7 @@ def _suffixes_taking(compat: str) -> list:
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
           force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None,
-          quality: str | None = None, progress=SILENT):
+          quality: str | None = None, precision: int | None = None, progress=SILENT):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -291,6 +291,9 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         A quality setting the output's format offers (``qualities``; ``.splatvq``,
         and ``.html``, which then embeds the scene as ``.splatvq``); None: the
         format's default.
+    precision : int, optional
+        A precision step beside the quality that the output's format offers
+        (``precisions``); None: the quality as named.
     progress : splatconv.progress.Progress
         Told the splats written as they are written, and, for a ``.zst``
         output, the bytes compressed after the last write.
@@ -303,19 +306,23 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     fmt = check_write_options(path, compat=compat, sort=sort, layout=layout, quality=quality)
     refuse_empty(fmt, scene.count, path)
     check_output(path, inputs, force)
+    if precision is not None and precision not in fmt.precisions:
+        raise UsageError(f"precision steps apply to {', '.join(s for s, f in REGISTRY.items() if f.precisions)} "
+                         "output only", path)
     with atomic_writer(path, replace=force) as stream:
         return _write_file(stream, fmt, scene, path, compat=compat, sort=sort, layout=layout, quality=quality,
-                           zstd_level=zstd_level, progress=progress)
+                           precision=precision, zstd_level=zstd_level, progress=progress)
 
 
 def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, sort: str | None = None,
-                layout: str | None = None, quality: str | None = None, zstd_level: int | None = None,
-                progress=SILENT):
+                layout: str | None = None, quality: str | None = None, precision: int | None = None,
+                zstd_level: int | None = None, progress=SILENT):
     """Write ``scene`` in format ``fmt`` to the binary ``stream`` that becomes ``path`` (``.zst``: compressed
     as it is written): what :func:`write` and :func:`write_each` do for each file. Errors name ``path``."""
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     # Only the options given: a writer that offers none takes none.
-    extra = {key: value for key, value in (("layout", layout), ("quality", quality)) if value is not None}
+    extra = {key: value for key, value in (("layout", layout), ("quality", quality), ("precision", precision))
+             if value is not None}
     try:
         with output_stream(stream, path, level, progress) as out:
             return fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,

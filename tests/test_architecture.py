@@ -249,6 +249,8 @@ def test_every_format_module_fills_the_one_contract():
                 assert type(value).__name__ == f.type, (fmt.name, f.name, value)
             elif f.type == "tuple":
                 assert isinstance(value, tuple) and all(isinstance(v, str) for v in value), (fmt.name, f.name)
+            elif f.type == "tuple[int, ...]":
+                assert isinstance(value, tuple) and all(type(v) is int for v in value), (fmt.name, f.name)
             elif f.type.startswith("Callable"):
                 assert callable(value) or (value is None and f.type.endswith("None")), (fmt.name, f.name)
         assert all(callable(getattr(fmt, name)) for name in ("info_fields", "storage")), fmt.name

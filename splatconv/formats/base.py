@@ -120,6 +120,10 @@ class Format:
         Record layouts its writer offers (``layout=``).
     qualities : tuple of str
         Quality settings its writer offers (``quality=``), the default first.
+    precisions : tuple of int
+        Steps of precision its writer offers beside each quality (``precision=``),
+        coarsest first: 0 is the quality as named, each step up about halves every
+        quantizer's step. ``convert --min-psnr`` and ``--max-bytes`` walk them.
     declared_size : callable or None
         ``declared_size(head) -> int or None``: the file size the header at the start
         of ``head`` (bytes) declares; bounds the decompression of a ``.zst`` file.
@@ -157,6 +161,7 @@ class Format:
     compat_modes: tuple = ()
     layouts: tuple = ()
     qualities: tuple = ()
+    precisions: tuple[int, ...] = ()
     declared_size: Callable | None = None
     texture: Texture | None = None
     plays_segments: bool = False

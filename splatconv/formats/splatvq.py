@@ -83,8 +83,8 @@ def _setting_name(quality: str | None) -> str:
     return name
 
 
-def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, level: int = 9,
-           progress=SILENT) -> tuple:
+def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, precision: int = 0,
+           level: int = 9, progress=SILENT) -> tuple:
     """A scene as ``.splatvq`` bytes, in memory.
 
     Parameters
@@ -94,6 +94,9 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         Blocks in importance order (default) or in the input order.
     quality : {None, "default", "small"}
         The quality setting (:data:`QUALITIES`).
+    precision : int
+        Steps finer (or, below 0, coarser) than the setting (:func:`splatvq_codec.refined`,
+        one of :data:`splatvq_codec.PRECISIONS`); the header names it ``"default+2"``.
     level : int
         Deflate level.
     progress : splatconv.progress.Progress
@@ -104,8 +107,11 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     data : bytes
     report : WriteReport
     """
-    name = _setting_name(quality)
-    setting = codec.SETTINGS[name]
+    base = _setting_name(quality)
+    if precision not in codec.PRECISIONS:
+        raise UsageError(f"precision {precision} is not one of {codec.PRECISIONS[0]}..{codec.PRECISIONS[-1]}")
+    setting = codec.refined(codec.SETTINGS[base], precision)
+    name = f"{base}{precision:+d}" if precision else base
     kinds = undrawable_kinds(scene.columns)
     keep = np.flatnonzero(kinds == -1)
     dropped = np.bincount(kinds[kinds != -1].astype(np.intp), minlength=len(UNDRAWABLE_KINDS))
@@ -180,10 +186,10 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
 
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
-          quality: str | None = None, **_options) -> WriteReport:
+          quality: str | None = None, precision: int = 0, **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`): ``progress`` counts the
     splats written, not those read (undrawable splats are left out)."""
-    data, report = encode(scene, sort=sort, quality=quality, progress=progress)
+    data, report = encode(scene, sort=sort, quality=quality, precision=precision, progress=progress)
     stream.write(data)
     return report
 
@@ -381,4 +387,5 @@ FORMAT = Format(
     expands=True,
     # The quality write option, the default setting first (for the help text).
     qualities=tuple(sorted(QUALITIES, key=lambda name: name != codec.DEFAULT_SETTING)),
+    precisions=codec.PRECISIONS,
 )

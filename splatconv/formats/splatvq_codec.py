@@ -108,6 +108,38 @@ SETTINGS = {
                      omega_shift=4, motion_shift=3, acceleration_shift=0, jerk_shift=0, alpha_levels=4),
 }
 DEFAULT_SETTING = "default"
+#: Precision steps beside a setting (:func:`refined`), coarsest first: 0 is the setting as named.
+PRECISIONS = tuple(range(-3, 7))
+
+
+def refined(setting: Setting, step: int) -> Setting:
+    """``setting`` made ``step`` times finer (``step`` < 0: coarser), every quantizer together.
+
+    Each step halves every geometric step (position, motion), the temporal
+    centre's and omega's lattice steps and each scale lattice step, and gives
+    the rotation a bit more: about 6 dB a step where the error is spread over
+    them all. The acceleration and jerk shifts and the alpha levels, which say
+    how steps relate to one another, are kept. Values are held to
+    :data:`SETTING_LIMITS`, so the far steps may change fewer of them.
+    """
+    def held(name, value):
+        low, high = SETTING_LIMITS[name]
+        return min(high, max(low, value))
+
+    def lattice(step_units):  # a factor of 2 in size is 1024 half-bit units
+        return max(1, round(step_units / 2.0 ** step))
+
+    return Setting(position_shift=held("position_shift", setting.position_shift - step),
+                   rotation_bits=held("rotation_bits", setting.rotation_bits + step),
+                   scale_step=held("scale_step", lattice(setting.scale_step)),
+                   trbf_scale_step=held("trbf_scale_step", lattice(setting.trbf_scale_step)),
+                   time_shift=held("time_shift", setting.time_shift + step),
+                   omega_shift=held("omega_shift", setting.omega_shift + step),
+                   motion_shift=held("motion_shift", setting.motion_shift - step),
+                   acceleration_shift=setting.acceleration_shift, jerk_shift=setting.jerk_shift,
+                   alpha_levels=setting.alpha_levels)
+
+
 #: Limits a header's setting is checked against.
 SETTING_LIMITS = {"position_shift": (-30, 30), "rotation_bits": (2, 16), "scale_step": (1, 255),
                   "trbf_scale_step": (1, 255), "time_shift": (0, 30), "omega_shift": (0, 30),

@@ -1,0 +1,137 @@
+"""What a compressed scene is proved by: the views a user will see it from, the times, and the worst frame.
+
+``convert --min-psnr`` measures each candidate file against the scene it
+encodes, and ``verify --proof-views`` draws the same frames, so the two agree:
+
+* each header camera (the first :data:`MAX_CAMERAS`), as the file stores it;
+* near it: orbited by :data:`NEAR_DEGREES` about the scene's centre, and
+  stepped :data:`NEAR_STEP` of the way towards it (a user's first drag or wheel);
+* the view splaTV opens every file at (:data:`SPLATV_VIEW`, its built-in
+  camera's focal lengths), which may be far from any header camera;
+
+each at :data:`PROOF_TIMES`, :data:`PROOF_WIDTH` pixels wide (the camera's
+aspect; splaTV's view at 16:9). Both scenes are drawn as the viewer draws them
+(the ``.splatv`` texture a conversion holds).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import viewer
+from ..cameras import camera_for_box, framing_box
+from ..model import Scene
+from ..progress import SILENT, Progress
+from . import camera as cam
+from .frames import Source, compare_frames
+from .preview import View
+
+#: The view matrix splaTV's ``hybrid.js`` opens every file at (column-major, world to camera).
+SPLATV_VIEW = [0.99, 0.01, -0.14, 0.0, 0.02, 0.99, 0.12, 0.0, 0.14, -0.12, 0.98, 0.0, -0.09, -0.26, 0.2, 1.0]
+#: Its built-in camera's focal lengths, in pixels of a window of :data:`SPLATV_WINDOW`.
+SPLATV_FOCAL = (1159.5880733038064, 1164.6601287484507)
+SPLATV_WINDOW = (1280, 720)
+PROOF_TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
+PROOF_WIDTH = 640
+MAX_CAMERAS = 4
+NEAR_DEGREES = 4.0
+NEAR_STEP = 0.1
+
+
+@dataclass
+class Proof:
+    """How a candidate scene draws against its source.
+
+    Attributes
+    ----------
+    worst, mean : float
+        PSNR in dB of the worst frame and the mean over frames (inf: identical).
+    where : str
+        The worst frame: its view's name and time.
+    frames : int
+        Frames compared.
+    """
+
+    worst: float
+    mean: float
+    where: str
+    frames: int
+
+
+def _orbited(camera: dict, centre: np.ndarray, degrees: float) -> dict:
+    """``camera`` turned by ``degrees`` about its own up axis through ``centre``."""
+    rotation = np.asarray(camera["rotation"], np.float64)  # camera-to-world: columns are its axes
+    up = rotation[:, 1] / max(np.linalg.norm(rotation[:, 1]), 1e-12)
+    a = math.radians(degrees)
+    k = np.array([[0, -up[2], up[1]], [up[2], 0, -up[0]], [-up[1], up[0], 0]])
+    turn = np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
+    position = centre + turn @ (np.asarray(camera["position"], np.float64) - centre)
+    return dict(camera, rotation=(turn @ rotation).tolist(), position=position.tolist())
+
+
+def _stepped(camera: dict, centre: np.ndarray, share: float) -> dict:
+    """``camera`` moved ``share`` of the way towards ``centre``, looking as before."""
+    position = np.asarray(camera["position"], np.float64)
+    return dict(camera, position=(position + share * (centre - position)).tolist())
+
+
+def proof_views(scene: Scene) -> list:
+    """(name, View) pairs a proof draws ``scene`` from (see the module docstring).
+
+    Parameters
+    ----------
+    scene : Scene
+        Its cameras (a framing camera when it has none) and its drawable splats'
+        centre (the middle of their 2nd..98th percentile box) place the near views.
+    """
+    cameras = list(scene.cameras[:MAX_CAMERAS])
+    drawn = ~viewer.undrawable(scene.columns) if scene.count else np.zeros(0, bool)
+    xyz = [np.asarray(scene.columns[a])[drawn] for a in "xyz"]
+    lo, hi = framing_box(*xyz) if drawn.any() else (np.zeros(3), np.zeros(3))
+    centre = (np.asarray(lo, np.float64) + np.asarray(hi, np.float64)) / 2
+    if not cameras:
+        cameras = [camera_for_box(np.asarray(lo, np.float64), np.asarray(hi, np.float64))]
+    views = []
+    for i, camera in enumerate(cameras):
+        size = (PROOF_WIDTH, max(1, round(PROOF_WIDTH * int(camera["height"]) / int(camera["width"]))))
+        for name, c in ((f"camera {i}", camera), (f"camera {i} orbited {NEAR_DEGREES:g} deg",
+                                                    _orbited(camera, centre, NEAR_DEGREES)),
+                        (f"camera {i} stepped in", _stepped(camera, centre, NEAR_STEP))):
+            w, h, fx, fy = cam.fit(c, size)
+            views.append((name, View(cam.view_matrix(c), fx, fy, w, h)))
+    scale = PROOF_WIDTH / SPLATV_WINDOW[0]
+    views.append(("splaTV's opening view", View(list(SPLATV_VIEW), SPLATV_FOCAL[0] * scale, SPLATV_FOCAL[1] * scale,
+                                                PROOF_WIDTH, round(SPLATV_WINDOW[1] * scale))))
+    return views
+
+
+def prove(source: Scene, candidate: Scene, views: list, times=PROOF_TIMES, *,
+          progress: Progress = SILENT) -> Proof:
+    """Draw ``source`` and ``candidate`` from each view at each time, as the viewer draws them, and compare.
+
+    Parameters
+    ----------
+    source, candidate : Scene
+    views : list of (str, View)
+        From :func:`proof_views`; views of different sizes are drawn a size at a time.
+    times : sequence of float
+    """
+    psnrs, where = [], []
+    by_size = {}
+    for name, view in views:
+        by_size.setdefault((view.width, view.height), []).append((name, view))
+    for group in by_size.values():
+        frames = compare_frames(lambda: Source("<source>", source).texture(),
+                                lambda: Source("<candidate>", candidate).texture(),
+                                [(i, view) for i, (_name, view) in enumerate(group)], times, progress=progress)
+        for frame in frames:
+            psnrs.append(frame.diff.psnr)
+            where.append(f"{group[frame.camera][0]} at t={frame.time:g}")
+    values = np.asarray(psnrs, np.float64)
+    worst = int(np.argmin(values))
+    finite = values[np.isfinite(values)]  # identical frames (inf) are left out of the mean
+    mean = float(finite.mean()) if len(finite) else float("inf")
+    return Proof(float(values[worst]), mean, where[worst], len(values))
