@@ -10,6 +10,7 @@ from ..jobs.bake import bake as bake_job
 from ..jobs.bake import bake_frames
 from ..jobs.merge import merge as merge_job
 from ..ops import make_transform
+from ..ops.bake import MAX_FRAMES
 from ..wording import plural
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
                     quality_option, quiet_option, wrote)
@@ -97,9 +98,9 @@ def _sort_option():
 @options(
     click.option("--time", "time", type=Moment(),
                  help="The moment to bake, in the viewer's time [0, 1]. OUTPUT is a file."),
-    click.option("--frames", type=click.IntRange(min=2), metavar="N",
+    click.option("--frames", type=click.IntRange(2, MAX_FRAMES), metavar="N",
                  help="Bake N moments, frame k at time k/(N-1), as OUTPUT/frame_0000.ply ... "
-                      "OUTPUT is a folder (made if missing); all frames are written or none."),
+                      f"OUTPUT is a folder (made if missing); all frames are written or none. At most {MAX_FRAMES:,}."),
     click.option("--frame-suffix", type=click.Choice(sorted(REGISTRY)), default=FRAME_SUFFIX, show_default=True,
                  help="File type of the --frames files."),
     _layout_option("3dgs"),
