@@ -157,7 +157,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, qual
                  help="Turn input N: steps AXIS:DEGREES (2:y:90 or 2:x:90,y:45; right-handed) or "
                       "2:quat:W,X,Y,Z."),
     click.option("--scale", type=PerInput(click.FloatRange(min=0, min_open=True), "S"), multiple=True,
-                 help="Scale input N uniformly by S > 0, e.g. --scale 2:0.5."),
+                 help="Scale input N uniformly by S > 0 (1.2e-38 to 3.4e38), e.g. --scale 2:0.5."),
     _layout_option("3dgs when every input is plain 3DGS (a 3DGS PLY, a .splat, a baked moment), else lite"),
     _sort_option(),
     quality_option(),
