@@ -314,6 +314,18 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
                            precision=precision, zstd_level=zstd_level, progress=progress)
 
 
+#: Bytes a splat in memory (the model's float32 columns): more than any format's file takes a splat
+#: but the rare worst case of a ``.splatvq`` (a .splatv 64, a PLY 68 or 128, the page 86).
+_MODEL_BYTES_A_SPLAT = 4 * len(COLUMNS)
+#: What a file holds besides its splats, about: header, cameras, the page's player.
+_HEADER_BYTES = 1 << 20
+
+
+def _size_hint(scene: Scene) -> int:
+    """About the bytes a file of ``scene`` takes, seldom fewer: sizes a ``.zst`` output's compressor."""
+    return scene.count * _MODEL_BYTES_A_SPLAT + _HEADER_BYTES
+
+
 def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, sort: str | None = None,
                 layout: str | None = None, quality: str | None = None, precision: int | None = None,
                 zstd_level: int | None = None, progress=SILENT):
@@ -324,7 +336,7 @@ def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, s
     extra = {key: value for key, value in (("layout", layout), ("quality", quality), ("precision", precision))
              if value is not None}
     try:
-        with output_stream(stream, path, level, progress) as out:
+        with output_stream(stream, path, level, progress, size_hint=_size_hint(scene)) as out:
             return fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,
                              name=os.path.basename(path), **extra)
     except SplatconvError as e:

@@ -72,11 +72,31 @@ class _Reporting:
                 self.done = consumed
 
 
-def compressor(level: int = DEFAULT_LEVEL):
-    """The ``zstandard.ZstdCompressor`` every ``.zst`` output and size goes through."""
+def compressor(level: int = DEFAULT_LEVEL, size_hint: int | None = None):
+    """The ``zstandard.ZstdCompressor`` every ``.zst`` output and size goes through.
 
+    ``size_hint``: about how many bytes it will be given, when that is not known
+    exactly (a size given to its stream writer is used exactly). The window and
+    match tables are then sized for that many bytes instead of the level's
+    largest: level 22 takes 128 MiB of window and some 640 MiB of context a
+    worker when the size is unknown, about 130 MiB in all for a 6 MB file. The
+    output decompresses to the same bytes whatever the hint; a hint below the
+    true size only shortens the distance matches are looked for.
+    """
     # threads=-1: one worker per core; the frame is the same format either way.
-    return zstandard.ZstdCompressor(level=level, threads=-1, write_content_size=True)
+    if size_hint is None:
+        return zstandard.ZstdCompressor(level=level, threads=-1, write_content_size=True)
+    params = zstandard.ZstdCompressionParameters.from_level(level, source_size=max(1, size_hint), threads=-1,
+                                                            write_content_size=1)
+    return zstandard.ZstdCompressor(compression_params=params)
+
+
+def _failure(e: Exception, level: int, path=None) -> SplatconvError:
+    """A compressor's failure as one line: zstd's own reason, and what to do when it is memory."""
+    reason = "not enough memory" if isinstance(e, MemoryError) else str(e).split("error: ", 1)[-1]
+    memory = isinstance(e, MemoryError) or "memory" in reason.lower() or "allocation" in reason.lower()
+    hint = "; a lower --zstd-level needs less" if memory else ""
+    return OutputError(f"zstd level {level} could not compress ({reason}){hint}", path)
 
 
 def compressed_bytes(pieces, size: int, level: int = DEFAULT_LEVEL, *, progress=SILENT,
@@ -90,9 +110,12 @@ def compressed_bytes(pieces, size: int, level: int = DEFAULT_LEVEL, *, progress=
     sink = _Reporting(_Counter(), cctx)
     with progress.stage(label, size, "byte") as advance:
         sink.advance = advance
-        with cctx.stream_writer(sink, size=size, closefd=False) as z:
-            for piece in pieces:
-                z.write(piece)
+        try:
+            with cctx.stream_writer(sink, size=size, closefd=False) as z:
+                for piece in pieces:
+                    z.write(piece)
+        except (zstandard.ZstdError, MemoryError) as e:
+            raise _failure(e, level) from None
         sink.report()
     return sink.out.count
 
@@ -273,27 +296,40 @@ def _decompress(f, out, path: str, ceiling: int, declared_size, advance) -> None
 
 
 @contextlib.contextmanager
-def output_stream(stream, path, level: int = DEFAULT_LEVEL, progress=SILENT):
+def output_stream(stream, path, level: int = DEFAULT_LEVEL, progress=SILENT, size_hint: int | None = None):
     """Wrap a binary output stream in a zstd compressor when ``path`` ends in ``.zst``.
 
     Finishing the frame, after the last write, compresses what the worker
     threads still hold (seconds at high levels): ``progress`` is told those
-    bytes in a "compressing" stage.
+    bytes in a "compressing" stage. ``size_hint``: about the bytes that will be
+    written (:func:`compressor`), so that a high level takes the memory the data
+    needs, not the level's most.
+
+    Raises
+    ------
+    OutputError
+        Naming ``path``, when the compressor fails (at a high level, out of memory).
     """
     if not is_compressed(path):
         yield stream
         return
-    cctx = compressor(level)
+    try:
+        cctx = compressor(level, size_hint)
+    except (zstandard.ZstdError, MemoryError) as e:
+        raise _failure(e, level, path) from None
     sink = _Reporting(stream, cctx)
     z = cctx.stream_writer(sink, closefd=False)
     # Not ``with``: on an error or a signal the frame is abandoned, not finished
     # (finishing compresses everything still buffered, seconds at high levels,
     # for a file that is about to be removed).
-    yield _Pieces(z)
+    yield _Pieces(z, level, path)
     ingested, consumed, _ = cctx.frame_progression()
     with progress.stage("compressing", ingested - consumed, "byte") as advance:
         sink.advance, sink.done = advance, consumed
-        z.close()
+        try:
+            z.close()
+        except (zstandard.ZstdError, MemoryError) as e:
+            raise _failure(e, level, path) from None
 
 
 class _Pieces:
@@ -301,15 +337,21 @@ class _Pieces:
 
     A signal handler (SIGTERM, Ctrl-C) runs only between two calls into C; one
     multi-megabyte write at zstd's highest levels takes seconds, a piece a fraction of one.
+    A compressor's failure is an :class:`OutputError` naming the output.
     """
 
-    def __init__(self, out):
+    def __init__(self, out, level: int, path):
         self.out = out
+        self.level = level
+        self.path = path
 
     def write(self, data) -> int:
         view = memoryview(data).cast("B")
-        for start in range(0, len(view), _WRITE_STEP):
-            self.out.write(view[start:start + _WRITE_STEP])
+        try:
+            for start in range(0, len(view), _WRITE_STEP):
+                self.out.write(view[start:start + _WRITE_STEP])
+        except (zstandard.ZstdError, MemoryError) as e:
+            raise _failure(e, self.level, self.path) from None
         return len(view)
 
 

@@ -19,7 +19,9 @@ from splatconv.cameras import load_cameras
 from splatconv.cli import main
 from splatconv.formats import base
 from splatconv.model import Scene
-from splatconv.ops.bake import bake, baked_opacity, frame_times
+from splatconv.errors import UsageError
+from splatconv.jobs.bake import bake_frames as bake_frames_job
+from splatconv.ops.bake import MAX_FRAMES, bake, baked_opacity, frame_times
 from splatconv.wording import kinds_text
 from splatconv.render import camera as cam
 from splatconv.render.diff import compare
@@ -182,6 +184,27 @@ def test_frame_times():
     assert list(frame_times(5)) == [0.0, 0.25, 0.5, 0.75, 1.0]
     with pytest.raises(Exception, match="at least 2 frames"):
         frame_times(1)
+    for count in (MAX_FRAMES + 1, 10 ** 20):
+        with pytest.raises(UsageError, match=f"--frames {count}: at most 100,000 frames"):
+            frame_times(count)
+    assert len(frame_times(MAX_FRAMES)) == MAX_FRAMES == 100_000
+
+
+def test_a_frame_count_past_the_most_is_refused_before_reading(tmp_path):
+    """A usage error at once: no frame name made, the input (damaged here) never read, no folder made.
+    (10**20, which once built names without end, takes the same path; not run here, so that this test
+    cannot exhaust memory on the code before it.)"""
+    count = MAX_FRAMES + 1
+    bad = tmp_path / "bad.splat"
+    bad.write_bytes(b"\0" * 33)
+    out = tmp_path / "frames"
+    r = run("bake", bad, out, "--frames", count)
+    assert r.exit_code == 2
+    assert r.stderr.splitlines()[-1].startswith(f"Error: Invalid value for '--frames': {count} is not in the range "
+                                                "2<=x<=100000.")
+    with pytest.raises(UsageError, match="at most 100,000 frames"):
+        bake_frames_job(bad, out, frames=count)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bad.splat"]
 
 
 # --------------------------------------------------------------------------
@@ -263,7 +286,7 @@ def test_bake_frames_all_or_nothing(tmp_path):
     (["--time", "nan"], 2, "Invalid value for '--time': 'nan' is not a finite number. See 'main bake --help'."),
     (["--time", "1.5"], 2, "Invalid value for '--time': '1.5' is not in the viewer's time range [0, 1]."
                            " See 'main bake --help'."),
-    (["--frames", "1"], 2, "Invalid value for '--frames': 1 is not in the range x>=2. See 'main bake --help'."),
+    (["--frames", "1"], 2, "Invalid value for '--frames': 1 is not in the range 2<=x<=100000. See 'main bake --help'."),
 ])
 def test_bake_usage_errors(tmp_path, sample_splatv, args, code, message):
     r = run("bake", sample_splatv, tmp_path / "m.ply", *args)

@@ -191,7 +191,7 @@ def test_usage_errors_exit_2(tmp_path, lite_ply):
     (["--max-decompressed", "3X", "info", "a.splatv"],
      "Invalid value for '--max-decompressed': expected a byte count such as 4G, 512M or 1000000, got '3X'. "
      "See 'main --help'."),
-    (["bake", "a.splatv", "out", "--frames", "1"], "Invalid value for '--frames': 1 is not in the range x>=2. "
+    (["bake", "a.splatv", "out", "--frames", "1"], "Invalid value for '--frames': 1 is not in the range 2<=x<=100000. "
                                                     "See 'main bake --help'."),
 ])
 def test_click_usage_errors_are_one_error_line_too(tmp_path, monkeypatch, args, message):

@@ -284,6 +284,50 @@ def test_scale_below_float32s_smallest_normal_is_refused(tmp_path, lite_ply, sca
     assert run("convert", lite_ply, out, "--scale", "1.2e-38").exit_code == 0
 
 
+@pytest.mark.parametrize("suffix", [".splatv", ".ply", ".splat", ".splatvq", ".html", ".splatv.zst"])
+def test_scale_past_float32s_largest_number_is_refused(tmp_path, lite_ply, suffix):
+    # 1e308 once made every position and the stored cameras infinite: a "not JSON compliant" traceback.
+    out = tmp_path / f"o{suffix}"
+    cams = tmp_path / "cams.json"
+    cams.write_text(json.dumps([CAMERA]))
+    for args in (["convert", lite_ply, out, "--cameras", cams, "--scale", "1e308"],
+                 ["merge", lite_ply, lite_ply, out, "--scale", "2:1e308"]):
+        r = run(*args)
+        assert (r.exit_code, r.stderr) == (2, "Error: --scale: 1e+308 is above float32's largest number (3.4e+38): "
+                                              "positions would overflow to infinity\n"), r.output
+    r = run("convert", lite_ply, out, "--translate", "0,-4e38,0")
+    assert r.exit_code == 2 and r.stderr.startswith("Error: --translate: -4e+38 is past float32's largest number")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cams.json", "scene.ply"]
+
+
+def test_scale_up_to_float32s_largest_number_counts_what_overflows(tmp_path, lite_ply):
+    out = tmp_path / "o.splatv"
+    r = run("convert", lite_ply, out, "--scale", "3.4e38")
+    assert r.exit_code == 0, r.output
+    assert "finite values grew beyond float32 and are now infinite" in r.stderr
+    assert np.isinf(splatconv.read(out).columns["x"]).any()
+
+
+def test_a_camera_the_transform_moves_past_a_double_is_refused(tmp_path, lite_ply):
+    """Cameras are float64 JSON: a far one scaled further is an Error line naming it, not a
+    traceback when the header is written, and nothing is written."""
+    cams = tmp_path / "cams.json"
+    cams.write_text(json.dumps([CAMERA, dict(CAMERA, position=[0, 1e300, 0])]))
+    with_cams = tmp_path / "with.splatv"
+    assert run("convert", lite_ply, with_cams, "--cameras", cams).exit_code == 0
+    out = tmp_path / "o.splatv"
+    for args, where in ((["convert", lite_ply, out, "--cameras", cams, "--scale", "1e30"], cams),
+                        (["convert", with_cams, out, "--scale", "1e30"], with_cams),
+                        (["convert", with_cams, out, "--rotate", "x:90", "--scale", "1e9"], with_cams),
+                        (["merge", lite_ply, with_cams, out, "--scale", "2:1e30"], with_cams)):
+        r = run(*args)
+        assert r.exit_code == 1, r.output
+        assert r.stderr.startswith(f"Error: {where}: camera 1: the transform (S = 1e+"), r.stderr
+        assert r.stderr.endswith("moves it past what a double holds (1.8e+308)\n") and r.stderr.count("\n") == 1
+        assert not out.exists()
+    assert run("convert", with_cams, out, "--scale", "1e8").exit_code == 0
+
+
 # --------------------------------------------------------------------------
 # Silent data loss
 

@@ -13,6 +13,7 @@ from splatconv import io
 from splatconv.cli import main
 from splatconv.formats import splatvq
 from splatconv.viewer import undrawable
+from tests import splatvq_files as damage
 from tests.real_scenes import real_scene
 
 QUALITIES = splatvq.QUALITIES
@@ -251,3 +252,45 @@ def test_pages_of_several_scenes_and_external_pages_take_it(tmp_path, source):
     assert r.exit_code == 1
     assert r.stderr == f"Error: {site / 'scene.splatvq'}: is the input file; refusing to write onto it\n"
     assert (site / "scene.splatvq").read_bytes() == before
+
+
+# --------------------------------------------------------------------------
+# A damaged .splatvq is never published: every page path that plays its bytes as they are decodes it whole first.
+
+DAMAGED = {
+    "window": lambda d: damage.with_codes(d, damage.bad_window),
+    "position step": lambda d: damage.with_codes(d, damage.bad_position_step),
+    "width": lambda d: damage.with_width(d, "x_step[0]", 5),
+    "corrupt stream": lambda d: damage.with_entry(d, body=b"\xff" * len(d[damage.layout(d)[2]:])),
+    "payload cut": lambda d: damage.with_payload(d, damage.payload(d)[:-1]),
+    "payload has more": lambda d: damage.with_payload(d, damage.payload(d) + bytes(64)),
+}
+PAGES = {
+    "external": lambda bad, good, site: [bad, site / "page.html", "--external"],
+    "several inputs": lambda bad, good, site: [bad, good, site / "page.html"],
+    "several inputs, external": lambda bad, good, site: [good, bad, site / "page.html", "--external"],
+    "played where it is": lambda bad, good, site: [bad, site / "bad.html", "--external"],
+}
+
+
+@pytest.fixture(scope="module")
+def good_splatvq(tmp_path_factory):
+    path = tmp_path_factory.mktemp("vq") / "good.splatvq"
+    path.write_bytes(splatvq.encode(real_scene(300, seed=1)[0])[0])
+    return path
+
+
+@pytest.mark.parametrize("page", PAGES)
+@pytest.mark.parametrize("kind", DAMAGED)
+def test_a_damaged_splatvq_is_refused_by_every_page_path(tmp_path, good_splatvq, kind, page):
+    """The same Error: line as converting it to .splatv, and no file written: no page, no .splatvq beside it."""
+    site = tmp_path / "site"
+    site.mkdir()
+    bad = site / "bad.splatvq"
+    bad.write_bytes(DAMAGED[kind](good_splatvq.read_bytes()))
+    expected = run("convert", bad, tmp_path / "x.splatv")
+    assert expected.exit_code == 1 and expected.stderr.startswith(f"Error: {bad}: block 0: "), expected.stderr
+    r = run("convert", *PAGES[page](bad, good_splatvq, site))
+    assert (r.exit_code, r.stderr) == (1, expected.stderr), r.output
+    assert sorted(p.name for p in site.iterdir()) == ["bad.splatvq"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["site"]

@@ -337,7 +337,7 @@ def test_view_server_serves_the_splatvq_as_it_is(small):
 
 @pytest.mark.parametrize("external", [False, True])
 def test_a_damaged_splatvq_is_refused_not_published(small, tmp_path, external):
-    """`view` and `--external` pass a .splatvq on as it is, after checking its header and block table."""
+    """`view` and `--external` pass a .splatvq on as it is, after decoding it whole as every command reads it."""
     bad = tmp_path / "bad.splatvq"
     bad.write_bytes(damage.with_entry(small.read_bytes(), 0, coded=0, raw=0))
     with pytest.raises(FormatError, match="holds 0 splats"):

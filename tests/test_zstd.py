@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import json
+import os
+import subprocess
+import sys
 
 import numpy as np
 import pytest
@@ -124,8 +127,8 @@ def compressor_writes(monkeypatch):
     sizes, real = [], zstd.compressor
 
     class Spy:
-        def __init__(self, level):
-            self.real = real(level)
+        def __init__(self, level, size_hint=None):
+            self.real = real(level, size_hint)
 
         def stream_writer(self, *args, **kwargs):
             return _SpyWriter(self.real.stream_writer(*args, **kwargs), sizes)
@@ -212,3 +215,70 @@ def test_compressing_and_decompressing_report_progress(tmp_path):
                                           ["decompressing big.splatv.zst", packed.stat().st_size, "byte"],
                                           ["writing", STREAM_SPLATS, "splat"]]
     assert all(done == total for _label, total, _unit, done in rec.stages), rec.stages
+
+
+# --------------------------------------------------------------------------
+# zstd's highest levels and memory
+
+#: Run in a child process: one conversion to .zst at level 1 (every module loaded, the allocator
+#: warm), then the address space limited to what the process holds plus MARGIN bytes, then the
+#: conversion at level 22, as the command line runs it.
+_UNDER_A_LIMIT = """
+import resource, sys
+from splatconv.cli import main
+src, warm, out, margin = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+main(["convert", src, warm, "--zstd-level", "1", "--quiet"], standalone_mode=False)
+with open("/proc/self/status") as f:
+    held = next(int(line.split()[1]) for line in f if line.startswith("VmSize:")) * 1024
+resource.setrlimit(resource.RLIMIT_AS, (held + margin, resource.RLIM_INFINITY))
+sys.argv = ["splatconv", "convert", src, out, "--zstd-level", "22", "--quiet"]
+main()
+"""
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="reads the address space from /proc")
+@pytest.mark.parametrize("margin_mib, written", [(512, True), (8, False)])
+def test_level_22_takes_what_the_data_needs_or_says_so_in_one_line(tmp_path, lite_ply, margin_mib, written):
+    """Level 22 took 640 MiB of context a worker whatever the data (3 GB of address space for a
+    200 KB file was an "Allocation error" traceback): sized for the data it fits in 512 MiB more
+    than the process holds; in 8 MiB more it is one Error line, and no file nor part file is left."""
+    warm, out = tmp_path / "warm.splatv.zst", tmp_path / "out.splatv.zst"
+    r = subprocess.run([sys.executable, "-c", _UNDER_A_LIMIT, str(lite_ply), str(warm), str(out),
+                        str(margin_mib << 20)], capture_output=True, text=True, timeout=120,
+                       env=dict(os.environ, OPENBLAS_NUM_THREADS="1"))
+    assert "Traceback" not in r.stderr, r.stderr
+    if written:
+        assert r.returncode == 0, r.stderr
+        assert unzstd(out) == unzstd(warm)
+    else:
+        assert r.returncode == 1
+        errors = [line for line in r.stderr.splitlines() if not line.startswith("note: ")]
+        assert len(errors) == 1 and errors[0].startswith(f"Error: {out}: zstd level 22 could not compress (") and \
+            errors[0].endswith("; a lower --zstd-level needs less"), r.stderr
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["scene.ply", "warm.splatv.zst"]
+
+
+def test_the_window_is_sized_for_the_data(tmp_path, lite_ply):
+    """A .zst output's compressor is sized for about the file's bytes (the frame header's window), and
+    the file's bytes never exceed that estimate by more than zstd's window covers."""
+    from splatconv import io
+    from splatconv.formats import REGISTRY
+
+    from splatconv.ops.bake import bake
+
+    scene = io.read(lite_ply)
+    moment = bake(scene, 0.5)[0]
+    for fmt in {f for f in REGISTRY.values() if f.write is not None}:
+        suffix = fmt.suffixes[0]
+        for layout in fmt.layouts or (None,):
+            plain = tmp_path / f"s{suffix}"
+            for written in (scene, moment):  # the moment for the static ones
+                try:
+                    io.write(written, plain, force=True, layout=layout)
+                except io.UnsupportedError:
+                    continue
+                assert plain.stat().st_size <= io._size_hint(written), (suffix, layout)
+    packed = tmp_path / "s.splatv.zst"
+    io.write(scene, packed, zstd_level=22)
+    window = zstandard.get_frame_parameters(packed.read_bytes()).window_size
+    assert (tmp_path / "s.splatv").stat().st_size <= window <= 2 * io._size_hint(scene)

@@ -103,7 +103,8 @@ def edit_options():
                      help="Turn the scene: steps AXIS:DEGREES applied left to right (x:90,y:45; right-handed, "
                           "x:90 takes +y to +z) or quat:W,X,Y,Z."),
         click.option("--scale", type=_POSITIVE_SCALE, metavar="S",
-                     help="Scale the scene uniformly by S > 0 (at least float32's smallest normal, 1.2e-38)."),
+                     help="Scale the scene uniformly by S > 0 (float32's smallest normal, 1.2e-38, to its largest "
+                          "number, 3.4e38)."),
     )
 
     def apply(fn):

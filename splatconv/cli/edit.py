@@ -10,6 +10,7 @@ from ..jobs.bake import bake as bake_job
 from ..jobs.bake import bake_frames
 from ..jobs.merge import merge as merge_job
 from ..ops import make_transform
+from ..ops.bake import MAX_FRAMES
 from ..wording import plural
 from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
                     quality_option, quiet_option, wrote)
@@ -97,9 +98,9 @@ def _sort_option():
 @options(
     click.option("--time", "time", type=Moment(),
                  help="The moment to bake, in the viewer's time [0, 1]. OUTPUT is a file."),
-    click.option("--frames", type=click.IntRange(min=2), metavar="N",
+    click.option("--frames", type=click.IntRange(2, MAX_FRAMES), metavar="N",
                  help="Bake N moments, frame k at time k/(N-1), as OUTPUT/frame_0000.ply ... "
-                      "OUTPUT is a folder (made if missing); all frames are written or none."),
+                      f"OUTPUT is a folder (made if missing); all frames are written or none. At most {MAX_FRAMES:,}."),
     click.option("--frame-suffix", type=click.Choice(sorted(REGISTRY)), default=FRAME_SUFFIX, show_default=True,
                  help="File type of the --frames files."),
     _layout_option("3dgs"),
@@ -156,7 +157,7 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, qual
                  help="Turn input N: steps AXIS:DEGREES (2:y:90 or 2:x:90,y:45; right-handed) or "
                       "2:quat:W,X,Y,Z."),
     click.option("--scale", type=PerInput(click.FloatRange(min=0, min_open=True), "S"), multiple=True,
-                 help="Scale input N uniformly by S > 0, e.g. --scale 2:0.5."),
+                 help="Scale input N uniformly by S > 0 (1.2e-38 to 3.4e38), e.g. --scale 2:0.5."),
     _layout_option("3dgs when every input is plain 3DGS (a 3DGS PLY, a .splat, a baked moment), else lite"),
     _sort_option(),
     quality_option(),

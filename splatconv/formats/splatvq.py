@@ -271,6 +271,27 @@ def _header(f, path: str, file_size: int):
 READ_WORKERS = 2
 
 
+def _decoded_blocks(f, path: str, setting, blocks):
+    """Each block's records, ``(n, 16) uint32``, in file order: the reader's one decoding and validation.
+
+    Two blocks are decoded at a time, their stored bytes read from ``f`` in file
+    order as the helpers ask for the next, so a damaged block is reported before
+    any block after it and at most a few blocks are held at once.
+    """
+
+    def job(i, data):
+        b, where = blocks[i], (f"block {i}",)
+        return codec.decode_block(codec.inflate(data, b.payload, path, where), b.coded, b.raw, setting, path, where)
+
+    def stored(i):
+        f.seek(blocks[i].offset)
+        return f.read(blocks[i].stored)
+
+    with ThreadPoolExecutor(max_workers=READ_WORKERS) if len(blocks) > 1 else contextlib.nullcontext() as pool:
+        yield from engine.ahead(pool, lambda item: job(*item), ((i, stored(i)) for i in range(len(blocks))),
+                                READ_WORKERS)
+
+
 def read_records(path: str | os.PathLike):
     """Decode a ``.splatvq`` file to the records a ``.splatv`` holds.
 
@@ -291,23 +312,10 @@ def read_records(path: str | os.PathLike):
         file_size = os.fstat(f.fileno()).st_size
         setting, meta, blocks = _header(f, path, file_size)
         records = np.empty((sum(b.coded + b.raw for b in blocks), WORDS_PER_SPLAT), dtype="<u4")
-
-        def job(i, data):
-            b, where = blocks[i], (f"block {i}",)
-            return codec.decode_block(codec.inflate(data, b.payload, path, where), b.coded, b.raw, setting, path,
-                                      where)
-
-        def stored(i):
-            f.seek(blocks[i].offset)
-            return f.read(blocks[i].stored)
-
         at = 0
-        # The stored bytes are read here, in file order, as the helpers ask for the next block.
-        with ThreadPoolExecutor(max_workers=READ_WORKERS) if len(blocks) > 1 else contextlib.nullcontext() as pool:
-            for out in engine.ahead(pool, lambda item: job(*item), ((i, stored(i)) for i in range(len(blocks))),
-                                    READ_WORKERS):
-                records[at:at + len(out)] = out
-                at += len(out)
+        for out in _decoded_blocks(f, path, setting, blocks):
+            records[at:at + len(out)] = out
+            at += len(out)
     info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
             "records": int(len(records))}
     return records, list(meta.get("cameras", [])), info
@@ -346,16 +354,23 @@ def most_splats(path: str | os.PathLike) -> int:
 
 
 def check(path: str | os.PathLike) -> None:
-    """Check a ``.splatvq`` file's preamble, header and block table without decoding its blocks.
+    """Prove a ``.splatvq`` file whole, as :func:`read` would, without holding its records.
+
+    The preamble, header and block table are checked, then every block is
+    decoded and checked as :func:`read` decodes it, block by block and each
+    dropped once checked: memory stays a few blocks whatever the file's size.
+    What the page plays and ``--external`` publishes as it is passes this first.
 
     Raises
     ------
     FormatError
-        As :func:`read` would for these parts.
+        Exactly as :func:`read` would.
     """
     path = os.fspath(path)
     with open_input(path) as f:
-        _header(f, path, os.fstat(f.fileno()).st_size)
+        setting, _meta, blocks = _header(f, path, os.fstat(f.fileno()).st_size)
+        for _ in _decoded_blocks(f, path, setting, blocks):
+            pass
 
 
 def storage(scene: Scene) -> dict:
@@ -379,8 +394,8 @@ FORMAT = Format(
     write=write,
     info_fields=info_fields, storage=storage,
     # Decoded to the viewer's texture, but not the texture itself: the page decodes
-    # it in a worker, so it plays a .splatvq's bytes as they are, once its preamble,
-    # header and block table check out (the page checks each block as it decodes it).
+    # it in a worker, so it plays a .splatvq's bytes as they are, once every block
+    # decodes as read() decodes it (a damaged file is never published).
     check_playable=check,
     # Its blocks inflate: a small file can declare millions of splats, so a read is held to the
     # decompression ceiling (the block table's count, before a block is decoded).

@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 
 from ..cameras import load_cameras
+from ..errors import UnsupportedError
 from ..io import reading_for, refuse_empty, write
 from ..progress import SILENT
 from ._steps import check_job, read_input, silent
@@ -46,7 +47,13 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     if camera_list is not None:
         scene.cameras = camera_list
     if edit is not None:
-        scene = edit(scene)
+        try:
+            scene = edit(scene)
+        except UnsupportedError as e:  # a camera the transform cannot move: say whose
+            given = isinstance(cameras, (str, os.PathLike))
+            if e.path is not None or (camera_list is not None and not given):
+                raise
+            raise UnsupportedError(e.message, cameras if given else source, e.where) from None
     report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
                    layout=layout, quality=quality, progress=progress)
     tell(scene.notes)

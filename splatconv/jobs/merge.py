@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..errors import UnsupportedError
 from ..io import reading_for, write
 from ..ops import apply_transform
 from ..ops import drop_nonfinite as drop_nonfinite_splats
@@ -43,7 +44,10 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=No
         if drop_nonfinite:
             scene, _report = drop_nonfinite_splats(scene)
         if number in placements:
-            scene, _report = apply_transform(scene, placements[number])
+            try:
+                scene, _report = apply_transform(scene, placements[number])
+            except UnsupportedError as e:  # a camera it cannot move: say whose
+                raise UnsupportedError(e.message, path, e.where) from None
         tell(f"input {number} ({path}): {line}" for line in scene.notes)
         scenes.append(scene)
     merged, report = overlay(scenes)

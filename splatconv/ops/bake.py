@@ -39,6 +39,25 @@ from . import filters
 from .report import OpReport
 
 
+#: Most frames ``bake --frames`` writes: far past any flipbook (an hour at 25 frames a second is
+#: 90,000), and a folder's worth (frame names, one file each, are made before anything is read).
+MAX_FRAMES = 100_000
+
+
+def check_frame_count(count: int) -> None:
+    """Refuse a frame count outside 2 to :data:`MAX_FRAMES`.
+
+    Raises
+    ------
+    UsageError
+        For fewer than two frames (one frame has no k / (N - 1)) or more than :data:`MAX_FRAMES`.
+    """
+    if count < 2:
+        raise UsageError(f"--frames {count}: at least 2 frames (frame k is at time k/(N-1))")
+    if count > MAX_FRAMES:
+        raise UsageError(f"--frames {count}: at most {MAX_FRAMES:,} frames")
+
+
 def frame_times(count: int) -> np.ndarray:
     """Times of ``count`` frames spread over the viewer's clip: ``(count,) float64``, k / (count - 1).
 
@@ -48,10 +67,9 @@ def frame_times(count: int) -> np.ndarray:
     Raises
     ------
     UsageError
-        For fewer than two frames (one frame has no k / (N - 1)).
+        For a count :func:`check_frame_count` refuses.
     """
-    if count < 2:
-        raise UsageError(f"--frames {count}: at least 2 frames (frame k is at time k/(N-1))")
+    check_frame_count(count)
     return np.arange(count, dtype=np.float64) / (count - 1)
 
 
@@ -237,14 +255,21 @@ def bake_frames(scene: Scene, count: int, *, drop_nonfinite: bool = False):
     Raises
     ------
     UsageError
-        For fewer than two frames (at once, not on the first frame).
+        For a count :func:`check_frame_count` refuses (at once, not on the first frame).
     """
     times = frame_times(count)
     return ((float(t), *bake(scene, float(t), drop_nonfinite=drop_nonfinite)) for t in times)
 
 
 def frame_names(count: int, suffix: str) -> list:
-    """``frame_0000`` + ``suffix`` ... one name a frame, numbered from 0 with at least 4 digits."""
+    """``frame_0000`` + ``suffix`` ... one name a frame, numbered from 0 with at least 4 digits.
+
+    Raises
+    ------
+    UsageError
+        For a count :func:`check_frame_count` refuses, before a name is made.
+    """
+    check_frame_count(count)
     width = max(4, len(str(count - 1)))
     return [f"frame_{k:0{width}d}{suffix}" for k in range(count)]
 

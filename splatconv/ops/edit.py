@@ -121,6 +121,8 @@ def _copy_survivors(rows: Rows, transform: Transform | None, cameras, reports: l
     once (block by block, transformed as copied); the transform's report goes to ``reports``."""
     columns = rows.columns
     removed = rows.alive is not None and not rows.alive.all()
+    if transform is not None:
+        cameras = transform_cameras(cameras, transform)  # first: a camera it cannot move is refused at once
     if transform is not None and rows.owned and not removed:
         grown = transform_columns(columns, transform)
     elif transform is not None or removed:
@@ -128,7 +130,6 @@ def _copy_survivors(rows: Rows, transform: Transform | None, cameras, reports: l
         each = block_transformer(transform) if transform is not None else None
         columns, grown = (compact if rows.owned and removed else copy_rows)(columns, index, each=each)
     if transform is not None:
-        cameras = transform_cameras(cameras, transform)
         reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
     return columns, cameras
 

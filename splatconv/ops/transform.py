@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import UsageError
+from ..errors import UnsupportedError, UsageError
 from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
 from ..wording import plural
 from ._table import copy_rows, derive, run_blocks, store_fields
@@ -45,6 +45,8 @@ from .report import OpReport
 _AXES = {"x": 0, "y": 1, "z": 2}
 #: float32's smallest normal number: the least --scale taken.
 _FLOAT32_TINY = float(np.finfo(np.float32).tiny)
+#: float32's largest number: the largest --scale and --translate taken.
+_FLOAT32_MAX = float(np.finfo(np.float32).max)
 
 
 def quaternion_matrix(q) -> np.ndarray:
@@ -134,6 +136,10 @@ class Transform:
             # subnormal or 0 (1e-320 collapsed a scene to a point without a word).
             raise UsageError(f"--scale: {s:.3g} is below float32's smallest normal number ({_FLOAT32_TINY:.3g}): "
                              "positions would collapse to 0")
+        if s > _FLOAT32_MAX:
+            # Scaled by more, every position but 0 outgrows float32 (1e308 made them all infinite).
+            raise UsageError(f"--scale: {s:.3g} is above float32's largest number ({_FLOAT32_MAX:.3g}): "
+                             "positions would overflow to infinity")
         q = np.asarray(self.rotation, dtype=np.float64)
         norm = float(np.sqrt(q @ q)) if q.shape == (4,) else 0.0
         if not (math.isfinite(norm) and norm > 0):
@@ -141,6 +147,9 @@ class Transform:
         t = np.asarray(self.translation, dtype=np.float64)
         if t.shape != (3,) or not np.isfinite(t).all():
             raise UsageError("--translate: expected three finite numbers X,Y,Z")
+        if (np.abs(t) > _FLOAT32_MAX).any():
+            raise UsageError(f"--translate: {float(t[np.argmax(np.abs(t))]):.3g} is past float32's largest number "
+                             f"({_FLOAT32_MAX:.3g}): positions would overflow to infinity")
         q = q / norm
         object.__setattr__(self, "scale", s)
         object.__setattr__(self, "rotation", tuple(float(v) for v in q))
@@ -368,15 +377,27 @@ def transform_cameras(cameras, transform: Transform):
     """Cameras (``cameras.json`` form) moved with the scene: centre R S c + T, rotation R @ rotation.
 
     Returns new dicts (other keys copied); None stays None.
+
+    Raises
+    ------
+    UnsupportedError
+        For a camera the transform moves past what a double holds (a camera file
+        holds finite numbers only; an infinite centre places the viewer nowhere).
     """
     if cameras is None:
         return None
     out = []
     r = np.asarray(transform.matrix)
-    for cam in cameras:
+    for i, cam in enumerate(cameras):
         moved = dict(cam)
-        moved["position"] = [float(v) for v in transform.apply_points(np.asarray([cam["position"]]))[0]]
-        moved["rotation"] = [[float(v) for v in row] for row in r @ np.asarray(cam["rotation"], dtype=np.float64)]
+        position = transform.apply_points(np.asarray([cam["position"]]))[0]
+        with np.errstate(over="ignore", invalid="ignore"):
+            rotation = r @ np.asarray(cam["rotation"], dtype=np.float64)
+        if not (np.isfinite(position).all() and np.isfinite(rotation).all()):
+            raise UnsupportedError(f"the transform ({transform.describe()}) moves it past what a double holds "
+                                   f"({float(np.finfo(np.float64).max):.3g})", where=(f"camera {i}",))
+        moved["position"] = [float(v) for v in position]
+        moved["rotation"] = [[float(v) for v in row] for row in rotation]
         out.append(moved)
     return out
 
@@ -400,8 +421,8 @@ def apply_transform(scene: Scene, transform: Transform) -> tuple[Scene, OpReport
     (Scene, OpReport)
         A new scene (no splat removed).
     """
+    cameras = transform_cameras(scene.cameras, transform)  # first: a camera it cannot move is refused at once
     columns, grown = copy_rows(scene.columns, each=block_transformer(transform))
-    cameras = transform_cameras(scene.cameras, transform)
     report = transform_report(scene.count, len(cameras or []), transform, grown)
     return derive(scene, columns, report.notes, cameras=cameras), report
 
