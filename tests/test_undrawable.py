@@ -162,10 +162,14 @@ def test_stats_counts_undrawable_and_never_counts_them_drawn(scene_files, name):
     drawn = drawn_over_time(cols, times)
     assert data["time"]["visible"] == drawn
     assert max(drawn) <= 600 - sum(counts(cols).values())
-    text = run("stats", folder / name, "--zstd-level", "1").stdout
-    assert f"time: 20 steps over [0, 1]: {min(drawn):,} to {max(drawn):,} splats drawn" in text
+    text = " ".join(run("stats", folder / name, "--zstd-level", "1").stdout.split())
+    # The PLY is described as converting would make it; the .splatv alone, as stored.
+    role = "CONVERTED" if name.endswith(".ply") else "SOURCE"
+    assert data["described"]["role"] == role.lower() and data["described"]["count"] == 600
+    assert f"time ({role}): 20 steps over [0, 1]: {min(drawn):,} to {max(drawn):,} splats drawn" in text
     total = sum(counts(cols).values())
-    assert f"undrawable: {total:,} of 600 splats ({100 * total / 600:.3g}%) the viewer can never draw" in text
+    assert (f"undrawable ({role}): {total:,} of 600 splats ({100 * total / 600:.3g}%) the viewer can never "
+            "draw") in text
 
 
 def test_a_splatv_splat_whose_stored_peak_is_just_under_the_cut_is_hidden_in_time(tmp_path):
