@@ -97,10 +97,205 @@ def _byte_key(cols: dict) -> np.ndarray:
     return np.nan_to_num(np.round(v * 255.0), nan=0.0).astype(np.uint8)
 
 
-def _value_key(cols: dict) -> np.ndarray:
-    """Opacity and colour bytes, then the position's values: ``(N, 7) float64``."""
-    position = np.stack([np.asarray(cols[c], dtype=np.float64) for c in ("x", "y", "z")], axis=1)
-    return np.concatenate([_byte_key(cols).astype(np.float64), position], axis=1)
+def _colour_words(cols: dict) -> np.ndarray:
+    """The RGBA8 word a writer stores (R in the low byte, alpha in the high): ``(N,) uint32``."""
+    b = _byte_key(cols).astype(np.uint32)
+    return b[:, 1] | b[:, 2] << 8 | b[:, 3] << 16 | b[:, 0] << 24
+
+
+def _ordered_bits(bits: np.ndarray) -> np.ndarray:
+    """float32 bit patterns ``uint32`` as unsigned integers in the floats' order (NaN bits as they come)."""
+    negative = (bits >> 31).astype(bool)
+    return np.where(negative, ~bits, bits | np.uint32(0x80000000))
+
+
+def _spread21(v: np.ndarray) -> np.ndarray:
+    """The low 21 bits of ``v`` (uint64) spread out to every third bit."""
+    v = v & np.uint64(0x1FFFFF)
+    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+        v = (v | v << np.uint64(shift)) & np.uint64(mask)
+    return v
+
+
+def _morton(top: np.ndarray) -> np.ndarray:
+    """Morton code of ``(N, 3)`` 21-bit integers: ``(N,) uint64``."""
+    return _spread21(top[:, 0]) | _spread21(top[:, 1]) << np.uint64(1) | _spread21(top[:, 2]) << np.uint64(2)
+
+
+#: Neighbours each side looked at in each sorted order when candidates are gathered (:func:`_candidates`).
+_WINDOW = 3
+#: Offsets of the grids whose Morton orders give the candidates, in units of the finest cell: a splat's
+#: partner sits just across a cell boundary of one grid and rarely of all four.
+_GRID_SHIFTS = ((0, 0, 0), (0x0AAAAA, 0x155555, 0x0CCCCC), (0x155555, 0x0CCCCC, 0x0AAAAA),
+                (0x0CCCCC, 0x0AAAAA, 0x155555))
+
+
+def _candidates(word: np.ndarray, side: np.ndarray, orders: list) -> tuple:
+    """Distinct pairs (source element, converted element) of one colour word that sit within :data:`_WINDOW`
+    places of each other in any of ``orders`` (each an ``(K,) uint64`` key; elements sorted by word, then key)."""
+    found = []
+    for key in orders:
+        s = np.argsort(key, kind="stable")
+        s = s[np.argsort(word[s], kind="stable")]
+        ws, ss = word[s], side[s]
+        for k in range(1, _WINDOW + 1):
+            hit = np.flatnonzero((ws[:-k] == ws[k:]) & (ss[:-k] != ss[k:]))
+            left, right = s[hit], s[hit + k]
+            source_left = ss[hit] == 0
+            found.append(np.where(source_left, left, right).astype(np.int64) << 32
+                         | np.where(source_left, right, left).astype(np.int64))
+    both = np.concatenate(found) if found else np.zeros(0, np.int64)
+    if not len(both):
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    both.sort()
+    both = both[np.concatenate([[True], both[1:] != both[:-1]])]
+    return (both >> 32).astype(np.intp), (both & 0xFFFFFFFF).astype(np.intp)
+
+
+def _nearness(pos: list, keys: list, centre: list, i: np.ndarray, j: np.ndarray) -> np.ndarray:
+    """How near each candidate pair (rows ``i`` of the first side, ``j`` of the second) is, as one
+    float64 key to sort by, nearest first: the squared distance of their positions (infinite where
+    it is not finite); a pair whose positions are alike bit for bit (NaN too) comes before every
+    other, ordered by the gap between their temporal centres, so a copy of a splat at another time
+    pairs with its own time."""
+    d = np.zeros(len(i), dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        for a, b in zip(*pos):
+            d += np.square(a[i] - b[j])
+        d[~np.isfinite(d)] = np.inf
+        same = (keys[0][i] == keys[1][j]).all(axis=1)
+        gap = np.abs(centre[0][i[same]] - centre[1][j[same]])
+    gap[~(gap >= 0)] = np.inf  # NaN: as far as can be
+    d[same] = -1.0 / (1.0 + gap)  # in [-1, 0): before any distance, smaller gaps first
+    return d
+
+
+def _greedy(i: np.ndarray, j: np.ndarray, near: np.ndarray, na: int, nb: int) -> tuple:
+    """Pairs taken from candidates (i, j) nearest first, each element in one pair at most.
+
+    ``near`` orders the candidates (:func:`_nearness`); ties keep the candidates' order (:func:`_candidates` gives them by row numbers). Each round takes every
+    candidate that is the best left for both its elements, which takes the same pairs as going
+    down the sorted list one by one.
+    """
+    o = np.argsort(near, kind="stable")
+    i, j = i[o], j[o]
+    took_a, took_b = np.zeros(na, bool), np.zeros(nb, bool)
+    first_a, first_b = np.empty(na, np.int64), np.empty(nb, np.int64)
+    pairs_a, pairs_b = [], []
+    while len(i):
+        rank = np.arange(len(i))
+        first_a[i] = len(i)
+        first_b[j] = len(i)
+        np.minimum.at(first_a, i, rank)
+        np.minimum.at(first_b, j, rank)
+        best = (first_a[i] == rank) & (first_b[j] == rank)
+        pairs_a.append(i[best])
+        pairs_b.append(j[best])
+        took_a[i[best]] = True
+        took_b[j[best]] = True
+        left = ~(took_a[i] | took_b[j])
+        i, j = i[left], j[left]
+    if not pairs_a:
+        return np.zeros(0, np.intp), np.zeros(0, np.intp)
+    return np.concatenate(pairs_a), np.concatenate(pairs_b)
+
+
+def _lone_rows(w: np.ndarray) -> tuple:
+    """Words held by exactly one row of ``w`` ``(N,) uint32``, ascending, and those rows."""
+    s = np.argsort(w, kind="stable")
+    ws = w[s]
+    edge = np.flatnonzero(np.concatenate([[True], ws[1:] != ws[:-1], [True]]))
+    lone = edge[:-1][np.diff(edge) == 1]
+    return ws[lone], s[lone]
+
+
+def _lone_pairs(words: list) -> tuple:
+    """Rows (a, b) whose colour word is held by exactly one row on each side: paired at once."""
+    (va, ra), (vb, rb) = (_lone_rows(w) for w in words)
+    at = np.minimum(np.searchsorted(vb, va), max(len(vb) - 1, 0))
+    hit = (at < len(vb)) & (vb[at] == va) if len(vb) else np.zeros(len(va), bool)
+    return ra[hit], rb[at[hit]]
+
+
+def _content_pairs(a_cols: dict, b_cols: dict, *, ignore_colour: bool = False) -> np.ndarray:
+    """Rows of ``a_cols`` paired with rows of ``b_cols`` by what they hold, not by where they are.
+
+    A splat pairs only with one of the same colour word (the RGBA8 word a writer keeps
+    exactly: ``.splatv`` and ``.splatvq`` alike), and among those with the nearest by
+    position (bit-for-bit equal positions, NaN included, at distance 0), ties going to
+    the nearest temporal centre and scales: nearest first over all candidates, each splat
+    in one pair at most. A colour held by one splat on each side pairs them at once; for
+    the others, the candidates of each splat are the splats of its colour within
+    :data:`_WINDOW` places in the Morton orders of four offset grids over the positions
+    (a grid of the floats' top bits, which needs no bounds), gathered again among the
+    splats left until no colour has splats left on both sides. No per-splat loop.
+
+    Returns
+    -------
+    (M,) int64 ndarray
+        The ``a_cols`` row paired with each ``b_cols`` row, or -1 where none is (its
+        colour word is not among the ``a_cols`` rows left).
+    """
+    na, nb = len(a_cols["x"]), len(b_cols["x"])
+    words = [np.zeros(n, np.uint32) if ignore_colour else _colour_words(c) for n, c in ((na, a_cols), (nb, b_cols))]
+    order = np.full(nb, -1, dtype=np.int64)
+    lone_a, lone_b = _lone_pairs(words)
+    order[lone_b] = lone_a
+    rest_a = np.ones(na, bool)
+    rest_a[lone_a] = False
+    rest_a = np.flatnonzero(rest_a)
+    rest_b = np.flatnonzero(order < 0)
+    if not len(rest_a) or not len(rest_b):
+        return order
+    a_cols = {k: np.asarray(a_cols[k])[rest_a] for k in _CONTENT_READS}
+    b_cols = {k: np.asarray(b_cols[k])[rest_b] for k in _CONTENT_READS}
+    na, nb = len(rest_a), len(rest_b)
+    keys = [_position_key(c) for c in (a_cols, b_cols)]
+    pos = [[viewer.wide(c[n]) for n in ("x", "y", "z")] for c in (a_cols, b_cols)]
+    centre = [viewer.wide(c["trbf_center"]) for c in (a_cols, b_cols)]
+    top = (np.concatenate([_ordered_bits(keys[0]), _ordered_bits(keys[1])]) >> np.uint32(11)).astype(np.uint64)
+    word = np.concatenate([words[0][rest_a], words[1][rest_b]])
+    side = np.concatenate([np.zeros(na, np.int8), np.ones(nb, np.int8)])
+    orders = [_morton(top + np.array(shift, np.uint64)) for shift in _GRID_SHIFTS]
+    left = np.arange(na + nb)
+    while len(left):
+        ci, cj = _candidates(word[left], side[left], [o[left] for o in orders])
+        if not len(ci):
+            break
+        i, j = left[ci], left[cj] - na
+        pa, pb = _greedy(i, j, _nearness(pos, keys, centre, i, j), na, nb)
+        order[rest_b[pb]] = rest_a[pa]
+        taken = np.zeros(na + nb, bool)
+        taken[pa] = True
+        taken[pb + na] = True
+        left = left[~taken[left]]
+    return order
+
+
+#: Columns :func:`_content_pairs` reads.
+_CONTENT_READS = ("x", "y", "z", "trbf_center", "scale_0", "scale_1", "scale_2", "opacity", "f_dc_0", "f_dc_1",
+                  "f_dc_2")
+
+
+def content_order(source: Scene, converted: Scene, *, complete: bool) -> np.ndarray:
+    """Row order of ``source`` matching ``converted`` by content (:func:`_content_pairs`): ``(M,) int64``.
+
+    With ``complete``, the splats whose colour word has no partner left (a damaged
+    file) are then paired among themselves by position alone, and any still left in
+    row order, so that every row has a partner (``verify`` needs one, and reports
+    their errors); without it, they are -1 (``stats`` counts them as unpaired).
+    """
+    order = _content_pairs(source.columns, converted.columns)
+    if complete and (order < 0).any():
+        rows_b = np.flatnonzero(order < 0)
+        rows_a = np.setdiff1d(np.arange(source.count), order[order >= 0])
+        sub = _content_pairs({k: np.asarray(v)[rows_a] for k, v in source.columns.items()},
+                             {k: np.asarray(v)[rows_b] for k, v in converted.columns.items()}, ignore_colour=True)
+        order[rows_b[sub >= 0]] = rows_a[sub[sub >= 0]]
+        rest_b = rows_b[sub < 0]
+        order[rest_b] = np.setdiff1d(rows_a, rows_a[sub[sub >= 0]])[:len(rest_b)]
+    return order
 
 
 def _matching_rows(a: np.ndarray, b: np.ndarray, order: np.ndarray) -> int:
@@ -109,31 +304,27 @@ def _matching_rows(a: np.ndarray, b: np.ndarray, order: np.ndarray) -> int:
 
 
 def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED", *,
-          storage: dict):
+          storage: dict, complete: bool = True):
     """Row order of ``source`` matching ``converted`` row by row.
 
     Tries the orders a writer produces (input order; importance, double or
-    float32 key). Conversion keeps positions exact, so an order whose positions
-    match is the writer's, unless splats share positions (or all are NaN): then
-    several orders match, and the one whose other attributes agree wins (fewest
-    values off by more than quantization explains; the first listed on a tie).
-    When none matches every row (a damaged file, another writer's order,
-    quantized positions), rows are also matched by sorting both sides by
-    position, ties broken by opacity and colour bytes, and by those bytes, ties
-    broken by position value (a quantizer moves positions but keeps the bytes),
-    and the order whose positions agree on the most rows wins (a writer's order
-    on a tie, then as above). A damaged file keeps the
-    writer's order for its undamaged rows, so the damage is all that differs:
-    sorting by position would shift every row between a changed position's old
-    and new places onto another splat.
+    float32 key). Conversion to a ``.splatv`` or PLY keeps positions exact, so an
+    order whose positions match on every row is the writer's, unless splats share
+    positions (or all are NaN): then several orders match, and the one whose other
+    attributes agree wins (fewest values off by more than quantization explains;
+    the first listed on a tie). When none matches every row (quantized positions,
+    another writer's order, a shuffled source, a damaged file), rows are paired by
+    content (:func:`content_order`): the same colour word, then the nearest
+    position. A damaged file's undamaged rows are then paired with their own
+    splats, so the damage is all that differs.
 
     ``storage`` (group -> :data:`STORAGE_KINDS` name) is the quantization the
-    tie-break allows for.
+    tie-break allows for. ``complete``: as :func:`content_order`.
 
     Returns
     -------
     (N,) int64 ndarray
-        ``source`` row for each ``converted`` row.
+        ``source`` row for each ``converted`` row (-1 for one left unpaired, without ``complete``).
 
     Raises
     ------
@@ -149,18 +340,7 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
         candidates = [np.arange(n), viewer.importance_order(key), viewer.importance_order(key.astype(np.float32))]
     scored = _distinct_scored(candidates, a, b)
     if scored[0][0] < n:
-        sa = np.lexsort(np.concatenate([a, _byte_key(source.columns)], axis=1).T[::-1])
-        sb = np.lexsort(np.concatenate([b, _byte_key(converted.columns)], axis=1).T[::-1])
-        by_position = np.empty(n, dtype=np.int64)
-        by_position[sb] = sa
-        # Positions quantized (a .splatvq): colour and opacity bytes are kept exactly, so rows
-        # sorted by them first, then by position value, pair a splat with itself however its
-        # position moved (in step with its neighbours'); the verbatim rows decide the score.
-        sa = np.lexsort(_value_key(source.columns).T[::-1])
-        sb = np.lexsort(_value_key(converted.columns).T[::-1])
-        by_bytes = np.empty(n, dtype=np.int64)
-        by_bytes[sb] = sa
-        scored = _distinct_scored(candidates + [by_position, by_bytes], a, b)
+        return content_order(source, converted, complete=complete)
     best = [order for count, _, order in scored if count == scored[0][0]]
     if len(best) == 1:
         return best[0]
@@ -168,7 +348,7 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
 
 
 def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED", *,
-         storage: dict) -> tuple:
+         storage: dict, complete: bool = True) -> tuple:
     """Row order of ``source`` matching ``converted`` (:func:`align`), also when only its drawable splats were kept.
 
     A writer may leave out the splats the viewer never draws
@@ -180,7 +360,8 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
     Returns
     -------
     order : (M,) int64 ndarray
-        ``source`` row for each of the M ``converted`` rows.
+        ``source`` row for each of the M ``converted`` rows; without ``complete``,
+        -1 for a row no splat of ``source`` pairs with (:func:`content_order`).
     notes : list of str
     """
     n, m = source.count, converted.count
@@ -190,12 +371,13 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
         if len(keep) == m:
             drawable = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
                              meta=source.meta)
-            order = keep[align(drawable, converted, source_name, converted_name, storage=storage)]
+            found = align(drawable, converted, source_name, converted_name, storage=storage, complete=complete)
+            order = np.where(found < 0, -1, keep[found])
             left = kinds_text(viewer.kind_counts(kinds))
             return order, [f"{converted_name} holds the {plural(m, 'drawable splat')} of {source_name}'s {n:,} "
                            f"(the {n - m:,} undrawable ones, {left}, left out: no frame changes); "
                            "compared against those"]
-    return align(source, converted, source_name, converted_name, storage=storage), []
+    return align(source, converted, source_name, converted_name, storage=storage, complete=complete), []
 
 
 def _distinct_scored(orders: list, a: np.ndarray, b: np.ndarray) -> list:

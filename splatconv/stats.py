@@ -134,7 +134,10 @@ def _texture(scene: Scene) -> dict:
 #: 2: ``time.visible`` leaves out the splats the viewer can never draw (``undrawable``).
 #: 3: ``attributes.rotation`` and ``.omega`` of a file that does not keep the rotation's own values (a
 #: ``.splatvq``) compare them as the viewer turns a splat; ``quantized`` is new.
-STATS_SCHEMA = "splatconv.stats/3"
+#: 4: rows are paired by content (colour word, then nearest position; ``pairing`` counts what could not be);
+#: ``attributes.*.nonfinite`` leaves out the NaN and infinities SOURCE holds too; ``motion`` is over the
+#: drawable splats; ``described`` and ``viewer.role``/``viewer.path`` say which file the summary describes.
+STATS_SCHEMA = "splatconv.stats/4"
 #: Time steps at which the number of drawn splats is counted.
 TIME_STEPS = 20
 #: GPU texture size limits the findings check the texture height against.
@@ -208,7 +211,9 @@ def _counts(a: np.ndarray, b: np.ndarray, raw: dict, group: str) -> dict:
     """
     finite = np.isfinite(a)
     out = dict.fromkeys(COUNT_KEYS, 0)
-    out["nonfinite"] = int(np.count_nonzero(~np.isfinite(b)))
+    # A NaN or an infinity SOURCE holds too is no loss: only those the conversion made count.
+    shared = (np.isnan(a) & np.isnan(b)) | (np.isinf(a) & (a == b))
+    out["nonfinite"] = int(np.count_nonzero(~np.isfinite(b) & ~shared))
     if group in HALF_GROUPS:
         # Both writers round to float32 first; compared there, a value a hair past
         # 65504 in double (exp of a stored half's logarithm) is 65504 again.
@@ -357,8 +362,8 @@ def _quantized_sizes(source: Scene, source_bytes: int, progress) -> tuple:
     return entries, notes
 
 
-def _viewer_limits(scene: Scene) -> dict:
-    """The ``viewer`` checks of the file the viewer would load (``scene``)."""
+def _viewer_limits(scene: Scene, role: str, path) -> dict:
+    """The ``viewer`` checks of the file the viewer would load (``scene``, the file of ``role`` at ``path``)."""
     # A .splatv's texture is as tall as its header says, whatever it holds;
     # anything else is as tall as converting it would declare.
     texheight = scene.meta.get("texheight", viewer.texture_height(scene.count))
@@ -366,6 +371,8 @@ def _viewer_limits(scene: Scene) -> dict:
     for c in ("x", "y", "z"):
         nan |= ~np.isfinite(scene.columns[c])
     return {
+        "role": role,
+        "path": path,
         "texture_height": texheight,
         "fits_max_texture_size": {str(s): texheight <= s for s in MAX_TEXTURE_SIZES},
         "cameras": len(scene.cameras or []),
@@ -409,20 +416,26 @@ class _Tally:
         self.counts = {g: dict.fromkeys(COUNT_KEYS, 0) for g in GROUPS} if compare else None
         self.damage = {g: {"infinity": 0, "garbled": 0} for g in HALF_GROUPS} if damage else None
 
-    def add(self, rows: slice, src: dict, conv: dict) -> None:
-        """Rows ``rows`` of the converted scene (``conv``) and the source rows matching them (``src``)."""
+    def add(self, rows: slice, src: dict, conv: dict, paired: np.ndarray | None = None) -> None:
+        """Rows ``rows`` of the converted scene (``conv``) and the source rows matching them (``src``).
+
+        ``paired`` ``(k,) bool``: the rows of ``conv`` that ``src`` pairs with (all when None); the others,
+        which no source splat pairs with, are left out of the comparison.
+        """
         kinds = viewer.undrawable_kinds(conv)
         self.undrawable += np.bincount(kinds.astype(np.intp) + 1, minlength=len(self.undrawable))
         self.visible += _visible_counts(conv, self.times, kinds == viewer.DRAWABLE)
         for term, names in MOTION_TERMS.items():
-            self.magnitudes[term][rows] = _magnitudes(conv, names)
+            # The speeds of what the viewer draws: an undrawable splat (a zero rotation's omega 0) says nothing.
+            self.magnitudes[term][rows] = np.where(kinds == viewer.DRAWABLE, _magnitudes(conv, names), np.nan)
         pos = viewer.positions(conv)
         pos = pos[np.isfinite(pos).all(axis=1)]
         if len(pos):
             self.lo = np.minimum(self.lo, pos.min(axis=0))
             self.hi = np.maximum(self.hi, pos.max(axis=0))
         if self.comparison is not None:
-            self.comparison.add(src, conv, each=lambda group, a, b: self._count(group, a, b, src))
+            mine = conv if paired is None else {name: v[paired] for name, v in conv.items()}
+            self.comparison.add(src, mine, each=lambda group, a, b: self._count(group, a, b, src))
         if self.damage is not None:
             for group, d in splatvjs_damage(src).items():
                 for key, count in d.items():
@@ -450,6 +463,13 @@ class _Tally:
 def _finite(v: float):
     """``v``, or None (JSON null) where it is infinite: JSON has no infinity."""
     return v if math.isfinite(v) else None
+
+
+def _pairing(order, n: int) -> dict:
+    """The ``pairing`` block: how many of the ``n`` compared rows found their splat (``order`` -1 where none did;
+    None: row by row). Counts match on both sides, so as many source splats are left unpaired."""
+    unpaired = 0 if order is None else int(np.count_nonzero(order < 0))
+    return {"paired": n - unpaired, "unpaired": unpaired}
 
 
 def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_level: int | None = None,
@@ -486,7 +506,7 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         conv_fmt = format_for(converted_path)
         # Ties between a writer's orders are broken as the viewer's texture would store the values.
         order, notes = pair(source, converted, source_path, converted_path,
-                            storage=texture_format().storage(converted))
+                            storage=texture_format().storage(converted), complete=False)
         files.append(_file_entry("converted", converted_path, conv_fmt.name, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
     elif src_fmt.stores_texture or source.count == 0:
@@ -494,7 +514,7 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
     else:
         converted, size, zstd_bytes = _simulated_conversion(source, level, progress)
         conv_fmt = texture_format()
-        order, notes = pair(source, converted, storage=texture_format().storage(converted))
+        order, notes = pair(source, converted, storage=texture_format().storage(converted), complete=False)
         files.append(_file_entry("converted", None, conv_fmt.name, size, source.count, zstd_bytes, level, src_bytes))
     if converted_path is None and source.count:
         quantized, refused = _quantized_sizes(source, src_bytes, progress)
@@ -505,21 +525,37 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         for start in range(0, n, BLOCK):
             rows = slice(start, min(start + BLOCK, n))
             conv = _rows(converted.columns, rows)
-            src = conv if not compare else _rows(source.columns, rows if order is None else order[rows])
-            tally.add(rows, src, conv)
+            paired = None
+            if not compare:
+                src = conv
+            elif order is None:
+                src = _rows(source.columns, rows)
+            else:
+                pick = order[rows]
+                paired = pick >= 0
+                src = _rows(source.columns, pick[paired])
+                paired = None if paired.all() else paired
+            tally.add(rows, src, conv, paired)
             advance(rows.stop - rows.start)
     # The viewer loads the texture side; with none (PLY to PLY), the converted file as converting would make it.
-    viewed = source if src_fmt.stores_texture and not conv_fmt.stores_texture else converted
+    viewed_role = "source" if src_fmt.stores_texture and not conv_fmt.stores_texture else files[-1]["role"]
+    viewed = source if viewed_role == "source" else converted
+    described = files[-1] if compare else files[0]
     return {
         "schema": STATS_SCHEMA,
         "files": files,
         "quantized": quantized,
         "count": source.count,
+        "described": {"role": described["role"], "path": described["path"], "count": n,
+                      "omega": "per unit quaternion" if conv_fmt.storage(converted)["rotation"] == "none"
+                      else "as stored"},
         "undrawable": tally.undrawable_counts(),
         "bounds": tally.bounds(),
         "time": {"times": [round(float(t), 6) for t in tally.times], "visible": tally.visible.tolist()},
         "motion": {term: _percentiles(v) for term, v in tally.magnitudes.items()},
         "attributes": tally.attributes(),
-        "viewer": {**_viewer_limits(viewed), "splatv_js_damage": tally.damage},
+        "pairing": _pairing(order, n) if compare else None,
+        "viewer": {**_viewer_limits(viewed, viewed_role, files[0 if viewed_role == "source" else -1]["path"]),
+                   "splatv_js_damage": tally.damage},
         "notes": notes,
     }

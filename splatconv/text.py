@@ -227,7 +227,11 @@ def _stats_tables(data: dict) -> list:
         tables.append((f"{name}, each setting (encoded in memory; B/splat: per drawable splat, the only ones held)",
                        ["setting", "splats", "bytes", "B/splat", "ratio"], rows, 1))
     m = data["motion"]
-    tables.append(("motion and rotation speed (per unit time)", ["magnitude", "p50", "p90", "p99", "max"],
+    d = data["described"]
+    per_unit = d["omega"] == "per unit quaternion"
+    title = (f"motion and rotation speed of {_role(d['role'])}'s drawable splats (per unit time"
+             + ("; omega per unit quaternion)" if per_unit else ")"))
+    tables.append((title, ["magnitude", "p50", "p90", "p99", "max"],
                    [[k, _g(v["p50"]), _g(v["p90"]), _g(v["p99"]), _g(v["max"])] for k, v in m.items()], 1))
     if data["attributes"] is not None:
         keys = ["max_abs_error", "max_rel_error", "rmse", "nonfinite", "overflow", "underflow", "subnormal",
@@ -242,30 +246,49 @@ def _stats_tables(data: dict) -> list:
     return tables
 
 
+def _role(role: str) -> str:
+    """SOURCE or CONVERTED, as the command line names its arguments."""
+    return role.upper()
+
+
+def _file_name(f: dict) -> str:
+    return f["path"] if f["path"] is not None else "(as converted, in memory)"
+
+
 def _summary_lines(data: dict) -> list:
-    lines = [f"count: {plural(data['count'], 'splat')}",
-             "undrawable: " + undrawable_text(data["undrawable"], data["count"])]
+    """Summary lines, each naming the file it describes (SOURCE or CONVERTED)."""
+    d = data["described"]
+    of = f"({_role(d['role'])})"
+    counts = "; ".join(f"{_role(f['role'])} {_file_name(f)}: {plural(data['count'] if f['role'] == 'source' else d['count'], 'splat')}"
+                       for f in data["files"])
+    lines = [f"count: {counts}",
+             f"undrawable {of}: " + undrawable_text(data["undrawable"], d["count"])]
     if data["attributes"] is None:
         source = data["files"][0]
         why = ("SOURCE holds no splats" if data["count"] == 0
                else f"SOURCE alone is a {source['format']} file, which the viewer loads as stored")
         lines.append(f"attributes: none compared ({why})")
+    p = data.get("pairing")
+    if p and p["unpaired"]:
+        lines.append(f"pairing: {p['unpaired']:,} of CONVERTED's {plural(p['paired'] + p['unpaired'], 'splat')} have no "
+                     "splat of their colour left in SOURCE (nor as many of SOURCE's in CONVERTED): left out of the "
+                     "errors above")
     b = data["bounds"]
     if b:
         lo = ", ".join(f"{v:.4g}" for v in b["min"])
         hi = ", ".join(f"{v:.4g}" for v in b["max"])
-        lines.append(f"bounds: min ({lo}) max ({hi})")
+        lines.append(f"bounds {of}: min ({lo}) max ({hi})")
     t = data["time"]
     vis = t["visible"]
     lo_i, hi_i = vis.index(min(vis)), vis.index(max(vis))
     if min(vis) == max(vis):
-        lines.append(f"time: {len(vis)} steps over [0, 1]: {plural(min(vis), 'splat')} drawn at each")
+        lines.append(f"time {of}: {len(vis)} steps over [0, 1]: {plural(min(vis), 'splat')} drawn at each")
     else:
-        lines.append(f"time: {len(vis)} steps over [0, 1]: {min(vis):,} to {plural(max(vis), 'splat')} drawn "
+        lines.append(f"time {of}: {len(vis)} steps over [0, 1]: {min(vis):,} to {plural(max(vis), 'splat')} drawn "
                      f"(fewest at t={t['times'][lo_i]:.3g}, most at t={t['times'][hi_i]:.3g})")
     v = data["viewer"]
     fits = ", ".join(f"{k}: {'yes' if ok else 'NO'}" for k, ok in v["fits_max_texture_size"].items())
-    lines.append(f"viewer: texture 4096x{v['texture_height']} (fits {fits}); "
+    lines.append(f"viewer ({_role(v['role'])}): texture 4096x{v['texture_height']} (fits {fits}); "
                  f"cameras {v['cameras']}{' (EMPTY: the viewer needs one)' if v['empty_cameras'] else ''}; "
                  f"NaN positions {v['nan_positions']:,}")
     dmg = v.get("splatv_js_damage")
@@ -274,7 +297,7 @@ def _summary_lines(data: dict) -> list:
                 if d["infinity"] or d["garbled"]]
         why = (" (garbled: a nonzero half written where the nearest half is zero)"
                if any(d["garbled"] for d in dmg.values()) else "")
-        lines.append("splaTV's own converter would corrupt: " + ("; ".join(hurt) if hurt else "nothing") + why)
+        lines.append("splaTV's own converter would corrupt in SOURCE: " + ("; ".join(hurt) if hurt else "nothing") + why)
     return lines
 
 

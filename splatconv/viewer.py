@@ -305,7 +305,8 @@ def without_meaning(values: np.ndarray, name: str) -> np.ndarray:
 #: opacity is NaN, which writers store as 0): the splat adds nothing to any pixel.
 #: ``hidden_in_time``: the temporal opacity is below the 0.02 cut at every t in
 #: [0, 1], whether the time values are kept as float32 or stored as the viewer's
-#: half floats (either rounding), with a margin for the GPU's float32 exp and pow.
+#: half floats (the centre and the linear scale exp(trbf_scale), either rounding),
+#: with a margin for the GPU's float32 exp and pow.
 UNDRAWABLE_KINDS = ("zero_rotation", "nan_position", "alpha_zero", "hidden_in_time")
 #: Code of a drawable splat in :func:`undrawable_kinds`.
 DRAWABLE = -1
@@ -374,11 +375,16 @@ def _best_temporal(centre: np.ndarray, scale: np.ndarray) -> np.ndarray:
 def hidden_in_time(cols: dict) -> np.ndarray:
     """Rows below the temporal cut at every t in [0, 1]: ``(N,) bool``.
 
-    Checked on the float32 values and on both half-float roundings of the centre
-    and the log scale (the viewer's texture stores halves), each below
-    ``TEMPORAL_CUTOFF * (1 - 1e-3)``. A NaN centre or scale is never hidden:
-    NaN passes the shader's ``topacity < 0.02`` test. Nor is a centre in [0, 1]
-    (its halves stay there): at t = centre the basis is 1, or NaN for a zero scale.
+    Checked on the values as read, and on what a ``.splatv`` stores of them: the
+    half of the centre and the half of the linear scale exp(trbf_scale) that the
+    viewer reads (either rounding), each below ``TEMPORAL_CUTOFF * (1 - 1e-3)``.
+    For values read from a ``.splatv`` those halves are the values again, so the
+    test is of what the file holds. The log scale is never stored, so it is never
+    rounded: a half of it is a temporal scale no file holds (it once made a splat
+    whose stored peak is 0.019849 drawable).
+    A NaN centre or scale is never hidden: NaN passes the shader's
+    ``topacity < 0.02`` test. Nor is a centre in [0, 1] (its halves stay there):
+    at t = centre the basis is 1, or NaN for a zero scale.
     """
     below = TEMPORAL_CUTOFF * (1.0 - _CUT_MARGIN)
     centre = np.asarray(cols["trbf_center"], dtype=np.float32)
@@ -387,12 +393,14 @@ def hidden_in_time(cols: dict) -> np.ndarray:
     if not len(rows):
         return hidden
     centre = centre[rows]
-    log_scale = np.asarray(cols["trbf_scale"], dtype=np.float32)[rows]
-    keep = _best_temporal(wide(centre), exp(log_scale)) < below
+    scale = exp(np.asarray(cols["trbf_scale"], dtype=np.float32)[rows])
+    keep = _best_temporal(wide(centre), scale) < below
+    with np.errstate(over="ignore"):
+        scale32 = scale.astype(np.float32)  # both writers store exp(trbf_scale) through a float32
     for splatvjs in (False, True):
         c = packing.half_to_float(packing.float_to_half_exact(centre, splatvjs=splatvjs)[0])
-        s = packing.half_to_float(packing.float_to_half_exact(log_scale, splatvjs=splatvjs)[0])
-        keep &= _best_temporal(wide(c), exp(s)) < below
+        s = packing.half_to_float(packing.float_to_half_exact(scale32, splatvjs=splatvjs)[0])
+        keep &= _best_temporal(wide(c), wide(s)) < below
     hidden[rows[keep]] = True
     return hidden
 

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from splatconv import io
 from splatconv.cli import main
-from splatconv.formats import splatvq
+from splatconv.formats import splatv, splatvq
 from splatconv.viewer import undrawable
 from tests.real_scenes import real_scene, unpadded_splatv
 
@@ -133,3 +133,117 @@ def test_the_rotation_of_a_file_that_keeps_it_is_compared_as_stored(tmp_path, fi
     assert kept["rotation"].max_abs_error > 1 and kept["rotation"].unexplained > 0
     as_drawn = compare_scenes(scene, other, None, splatvq.STORAGE)
     assert as_drawn["rotation"].max_abs_error < 1e-6 and as_drawn["omega"].max_abs_error < 1e-5
+
+
+# --------------------------------------------------------------------------
+# Pairing by content, and a summary that says which file it describes
+
+
+def position_bound(path, quality: str) -> float:
+    """The largest position move the setting allows any splat of the file: 2^(k - 1), k = s + position_shift + c
+    (specs/splatvq.md), from the file's decoded scales and alpha bytes; independent of any pairing."""
+    from splatconv.packing import float_to_half
+
+    cols = io.read(path).columns
+    setting = splatvq.codec.SETTINGS[quality]
+    halves = np.stack([float_to_half(np.exp(cols[f"scale_{i}"].astype(np.float64)).astype(np.float32))
+                       for i in range(3)], axis=1).astype(np.int64)
+    s = np.clip((np.sort(halves, axis=1)[:, 1] >> 10) - 15, -15, 16)
+    alpha = np.rint(255 / (1 + np.exp(-cols["opacity"].astype(np.float64))))
+    c = np.minimum(setting.alpha_levels, 7 - np.floor(np.log2(np.maximum(alpha, 1)))).astype(np.int64)
+    return float(np.max(2.0 ** (s + setting.position_shift + c - 1)))
+
+
+@pytest.fixture(scope="module")
+def shuffled(files, real):
+    """The real-like scene's .splatv with its splats in another order (written as they come), and the .splatvq
+    converted from the unshuffled file."""
+    scene = io.read(files / "real.splatv")
+    order = np.random.default_rng(11).permutation(scene.count)
+    moved = type(scene)(columns=scene.take(order), cameras=scene.cameras)
+    io.write(moved, files / "shuffled.splatv", sort="none")
+    assert run("convert", files / "real.splatv", files / "real.splatvq").exit_code == 0
+    return files / "shuffled.splatv", files / "real.splatvq"
+
+
+def test_a_shuffled_source_gives_the_same_errors_and_positions_within_the_quantization(files, shuffled):
+    """Rows are paired by content (colour word, then nearest position), never by the source's file order:
+    the source in any order gives the same errors, the positions within what the setting allows, and the
+    infinite temporal scales both sides hold are not counted."""
+    source, quantized = shuffled
+    plain = stats_json(files / "real.splatv", quantized)
+    mixed = stats_json(source, quantized)
+    assert plain["pairing"] == mixed["pairing"] == {"paired": plain["described"]["count"], "unpaired": 0}
+    for group, errors in plain["attributes"].items():
+        for key, value in errors.items():
+            assert mixed["attributes"][group][key] == pytest.approx(value, rel=1e-9, abs=1e-15), (group, key)
+    assert 0 < mixed["attributes"]["position"]["max_abs_error"] <= position_bound(quantized, "default")
+    assert mixed["attributes"]["trbf"]["nonfinite"] == 0
+    assert io.read(source).columns["trbf_scale"].max() == np.inf  # the scene holds some
+
+
+def test_a_splat_no_colour_pairs_with_is_counted_unpaired_never_as_an_error(tmp_path, files):
+    """A CONVERTED splat whose colour word SOURCE does not hold is left out of the errors and counted (the
+    records in another order, so no writer's order pairs them)."""
+    from .conftest import splatv_bytes
+
+    records, _ = splatv.encode(io.read(files / "real.splatv"))
+    n = io.read(files / "real.splatv").count
+    records = records[:n].copy()
+    words = records[:, 7]
+    row = int(np.flatnonzero(words >> 24 > 0)[0])
+    unused = next(w for w in range(1 << 24, 1 << 25) if w not in set(words.tolist()))
+    records[row, 7] = np.uint32(unused | int(words[row]) & 0xFF000000)
+    records = records[np.random.default_rng(5).permutation(n)]
+    (tmp_path / "other.splatv").write_bytes(splatv_bytes(records, pad=False))
+    data = stats_json(files / "real.splatv", tmp_path / "other.splatv")
+    assert data["pairing"] == {"paired": n - 1, "unpaired": 1}
+    assert data["attributes"]["color"]["max_abs_error"] == 0
+    assert data["attributes"]["position"]["max_abs_error"] == 0
+    text = run("stats", files / "real.splatv", tmp_path / "other.splatv", "--zstd-level", "1").stdout
+    assert "pairing: 1 of CONVERTED's" in " ".join(text.split())
+
+
+def test_each_summary_line_names_the_file_it_describes(files, shuffled, real):
+    """SOURCE holds NaN positions and undrawable splats, the .splatvq neither: each line says whose it is."""
+    _, quantized = shuffled
+    source = files / "real.splatv"
+    scene = io.read(source)
+    drawable = int(np.count_nonzero(~undrawable(scene.columns)))
+    nan = int(np.count_nonzero((~np.isfinite(np.stack([scene.columns[c] for c in "xyz"]))).any(axis=0)))
+    assert nan > 0 and drawable < scene.count
+    data = stats_json(source, quantized)
+    assert data["count"] == scene.count
+    assert data["described"] == {"role": "converted", "path": str(quantized), "count": drawable,
+                                 "omega": "per unit quaternion"}
+    assert sum(data["undrawable"].values()) == 0
+    assert (data["viewer"]["role"], data["viewer"]["path"], data["viewer"]["nan_positions"]) == ("source", str(source), nan)
+    text = run("stats", source, quantized, "--zstd-level", "1").stdout
+    lines = []
+    for line in text.split("\n\n")[-1].splitlines():  # wrapped lines go on indented
+        if line.startswith("  "):
+            lines[-1] += " " + line.strip()
+        else:
+            lines.append(line)
+    assert lines[0].startswith(f"count: SOURCE {source}: {scene.count:,} splats; CONVERTED ")
+    assert lines[1] == "undrawable (CONVERTED): none"
+    assert [line.split(":")[0] for line in lines[2:]] == ["bounds (CONVERTED)", "time (CONVERTED)",
+                                                          "viewer (SOURCE)"]
+    assert f"NaN positions {nan:,}" in " ".join(text.split())
+    assert "motion and rotation speed of CONVERTED's drawable splats (per unit time; omega per unit quaternion):" in text
+
+
+def test_the_speed_table_is_over_the_drawable_splats(tmp_path):
+    """A scene 95% undrawable (zero rotations, omega 0): the medians are those of the splats the viewer draws."""
+    scene, _ = real_scene(800, seed=9, zero_share=0.95)
+    unpadded_splatv(scene, tmp_path / "mostly.splatv")
+    cols = io.read(tmp_path / "mostly.splatv").columns
+    keep = ~undrawable(cols)
+    assert keep.mean() < 0.1
+    data = stats_json(tmp_path / "mostly.splatv")
+    omega = np.sqrt(sum(cols[f"omega_{i}"].astype(np.float64) ** 2 for i in range(4)))[keep]
+    velocity = np.sqrt(sum(cols[f"motion_{i}"].astype(np.float64) ** 2 for i in range(3)))[keep]
+    assert data["motion"]["omega"]["p50"] == pytest.approx(np.median(omega[np.isfinite(omega)]), rel=1e-12)
+    assert data["motion"]["omega"]["p50"] > 0
+    assert data["motion"]["velocity"]["p50"] == pytest.approx(np.median(velocity[np.isfinite(velocity)]), rel=1e-12)
+    assert data["described"]["omega"] == "as stored"

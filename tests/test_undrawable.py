@@ -162,10 +162,43 @@ def test_stats_counts_undrawable_and_never_counts_them_drawn(scene_files, name):
     drawn = drawn_over_time(cols, times)
     assert data["time"]["visible"] == drawn
     assert max(drawn) <= 600 - sum(counts(cols).values())
-    text = run("stats", folder / name, "--zstd-level", "1").stdout
-    assert f"time: 20 steps over [0, 1]: {min(drawn):,} to {max(drawn):,} splats drawn" in text
+    text = " ".join(run("stats", folder / name, "--zstd-level", "1").stdout.split())
+    # The PLY is described as converting would make it; the .splatv alone, as stored.
+    role = "CONVERTED" if name.endswith(".ply") else "SOURCE"
+    assert data["described"]["role"] == role.lower() and data["described"]["count"] == 600
+    assert f"time ({role}): 20 steps over [0, 1]: {min(drawn):,} to {max(drawn):,} splats drawn" in text
     total = sum(counts(cols).values())
-    assert f"undrawable: {total:,} of 600 splats ({100 * total / 600:.3g}%) the viewer can never draw" in text
+    assert (f"undrawable ({role}): {total:,} of 600 splats ({100 * total / 600:.3g}%) the viewer can never "
+            "draw") in text
+
+
+def test_a_splatv_splat_whose_stored_peak_is_just_under_the_cut_is_hidden_in_time(tmp_path):
+    """The test is of the values a .splatv holds: the half centre and the half linear temporal scale the
+    viewer reads. Here they give a best temporal opacity of 0.019849 over [0, 1]: never drawn. A half of the
+    log scale (which no file stores) once made it 0.0201, drawable, and kept by every filter."""
+    scene = moving_scene(50, seed=4)
+    scene.columns["opacity"][0] = 0.0  # the far splat, visible now: nothing else undrawable
+    centre_bits, scale_bits = 0xA55C, 0x216A
+    c = scene.columns
+    c["trbf_center"][7] = np.array([centre_bits], "<u2").view("<f2")[0]
+    c["trbf_scale"][7] = np.log(np.array([scale_bits], "<u2").view("<f2")[0].astype(np.float64))
+    path = tmp_path / "edge.splatv"
+    io.write(scene, path, sort="none")
+    # The record holds exactly these halves (word 15: centre low, linear scale high).
+    data = path.read_bytes()
+    start = 8 + struct.unpack("<I", data[4:8])[0]
+    word = struct.unpack("<I", data[start + 64 * 7 + 60:start + 64 * 7 + 64])[0]
+    assert (word & 0xFFFF, word >> 16) == (centre_bits, scale_bits)
+    held = io.read(path).columns
+    centre, scale = f64(held, "trbf_center")[7], np.exp(f64(held, "trbf_scale")[7])
+    peak = np.exp(-(centre / scale) ** 2)  # the centre is below 0: best at t = 0
+    assert 0.01984 < peak < 0.01985
+    assert kinds(held)[7] == 3
+    info = json.loads(run("info", path, "--json").stdout)
+    assert info["undrawable"] == dict(counts(held), hidden_in_time=1)
+    kept = tmp_path / "kept.splatv"
+    assert run("convert", path, kept, "--drop-undrawable").exit_code == 0
+    assert io.read(kept).count == 49
 
 
 # --------------------------------------------------------------------------
