@@ -547,7 +547,7 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         "quantized": quantized,
         "count": source.count,
         "described": {"role": described["role"], "path": described["path"], "count": n,
-                      "omega": "per unit quaternion" if conv_fmt.storage(converted)["rotation"] == "none"
+                      "omega": "per unit quaternion" if conv_fmt.storage(converted)["rotation"] == "quantized"
                       else "as stored"},
         "undrawable": tally.undrawable_counts(),
         "bounds": tally.bounds(),
