@@ -12,7 +12,6 @@ import json
 import os
 import subprocess
 import sys
-import tempfile
 import tracemalloc
 
 import pytest
@@ -36,15 +35,25 @@ def files(tmp_path_factory):
     return out
 
 
+#: Runs argv[1:] and prints its exit code and ru_maxrss (KiB) last. A child's ru_maxrss starts from the
+#: RSS of the process that started it (Linux carries it across fork and exec): a small launcher keeps
+#: the test process's own memory out of the figure.
+_LAUNCHER = """\
+import os, subprocess, sys
+p = subprocess.Popen(sys.argv[1:])
+_, status, usage = os.wait4(p.pid, 0)
+sys.stdout.flush()
+print(os.waitstatus_to_exitcode(status), usage.ru_maxrss)
+"""
+
+
 def _peak_rss(args) -> tuple[int, subprocess.CompletedProcess]:
-    """Run the CLI in a child; its peak RSS in bytes (``ru_maxrss`` from ``os.wait4``) and its output."""
-    with tempfile.TemporaryFile() as out, tempfile.TemporaryFile() as err:
-        p = subprocess.Popen([sys.executable, "-m", "splatconv", *map(str, args)], stdout=out, stderr=err)
-        _, status, usage = os.wait4(p.pid, 0)
-        p.returncode = os.waitstatus_to_exitcode(status)
-        out.seek(0)
-        err.seek(0)
-        return usage.ru_maxrss * 1024, subprocess.CompletedProcess(p.args, p.returncode, out.read(), err.read())
+    """Run the CLI in a fresh child; its peak RSS in bytes and its exit code, output and errors."""
+    r = subprocess.run([sys.executable, "-c", _LAUNCHER, sys.executable, "-m", "splatconv", *map(str, args)],
+                       capture_output=True, check=True)
+    out, _, last = r.stdout.rstrip(b"\n").rpartition(b"\n")
+    code, maxrss = map(int, last.split())
+    return maxrss * 1024, subprocess.CompletedProcess(r.args, code, out, r.stderr)
 
 
 def test_info_holds_a_block_at_a_time_not_the_scene(files):
