@@ -1,13 +1,20 @@
-"""Peak memory of commands on small ``.zst`` files that expand a lot (decompression bombs).
+"""Peak memory of commands on small files that expand a lot (decompression bombs).
 
-A few hundred kilobytes of zstd can hold gigabytes of zeros, a valid scene.
+A few hundred kilobytes of zstd can hold gigabytes of zeros, a valid scene;
+a ``.splatvq`` of blocks of zero codes declares 65,536 splats in 1.5 KB.
 Each command runs in a fresh process (``_harness.run_fresh``: peak RSS from
-``os.wait4``) on a ``.splat.zst`` and a ``.splatv.zst`` of ``--bytes``
-decompressed bytes, under the ceiling ``--max-decompressed`` (``--ceiling``):
-the figure to compare is the peak RSS against that ceiling.
+``os.wait4``) under the ceiling ``--max-decompressed`` (``--ceiling``):
+
+* a ``.splat.zst`` and a ``.splatv.zst`` of ``--bytes`` decompressed bytes;
+* a ``.splatvq`` (and its ``.zst``) declaring ``--splats`` splats (18.5 million:
+  what the 2 GiB ceiling let through at 116 bytes a splat): ``info``'s peak RSS and
+  time (it reads a block at a time), and ``convert``'s (refused at once);
+* a ``.splatvq`` declaring the most splats the ceiling lets a whole-scene
+  command hold (ceiling / 128 bytes), converted to ``.ply``: its peak RSS as a
+  ratio of the ceiling (at most 1.25).
 
     python bench/bench_memory.py                      # 1.8 GB bombs, default ceiling
-    python bench/bench_memory.py --bytes 480M --ceiling 512M
+    python bench/bench_memory.py --bytes 480M --ceiling 512M --splats 4600000
 """
 
 from __future__ import annotations
@@ -23,7 +30,10 @@ import zstandard
 from _harness import CLI, machine_line, row, run_fresh, work_folder
 
 sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), ".."))
-from splatconv.zstd import parse_byte_size  # noqa: E402
+from splatconv.io import SPLAT_MEMORY_BYTES  # noqa: E402
+from splatconv.formats.splatvq_codec import BLOCK  # noqa: E402
+from splatconv.zstd import DEFAULT_MAX_DECOMPRESSED, parse_byte_size  # noqa: E402
+from tests.splatvq_files import declaring  # noqa: E402
 
 TEXEL_ROW = 4096 * 16  # bytes of one .splatv texture row (1,024 splats)
 #: One drawable splat, repeated: a bomb of real splats, not of padding.
@@ -53,6 +63,7 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bytes", default="1800000000", help="decompressed bytes of each bomb (default 1.8 GB)")
     ap.add_argument("--ceiling", default=None, help="--max-decompressed for the commands (default: the default)")
+    ap.add_argument("--splats", type=int, default=18_500_000, help=".splatvq splats declared (default 18.5 M)")
     ap.add_argument("--keep", default=None, help="work folder to keep")
     args = ap.parse_args()
     size = parse_byte_size(args.bytes)
@@ -69,10 +80,42 @@ def main() -> None:
         for kind, path in files.items():
             print(f"{kind}: {os.path.getsize(path):,} bytes compressed")
             for command in (["info", path], ["convert", path, os.path.join(folder, "out.ply"), "--force"]):
-                r = run_fresh([CLI, *ceiling, *command])
-                outcome = "ok" if r["code"] == 0 else r["stderr"].strip().splitlines()[-1].split(".zst: ", 1)[-1]
-                print(row(f"  {command[0]} {kind}", f"{r['rss_mb'] / 1000:.2f} GB peak RSS",
-                          f"{r['wall']:.1f} s, exit {r['code']}: {outcome}"))
+                measure(ceiling, command, kind)
+        limit = parse_byte_size(args.ceiling) if args.ceiling else DEFAULT_MAX_DECOMPRESSED
+        vq = splatvq_file(os.path.join(folder, "declares.splatvq"), args.splats)
+        print(f"splatvq: {os.path.getsize(vq):,} bytes ({os.path.getsize(vq + '.zst'):,} as .zst) declaring "
+              f"{args.splats:,} splats ({args.splats * SPLAT_MEMORY_BYTES / limit:.2f} x the ceiling at "
+              f"{SPLAT_MEMORY_BYTES} bytes a splat)")
+        for path, kind in ((vq, "splatvq"), (vq + ".zst", "splatvq.zst")):
+            measure(ceiling, ["info", path], kind)
+            measure(ceiling, ["convert", path, os.path.join(folder, "out.ply"), "--force"], kind, limit)
+        most = limit // SPLAT_MEMORY_BYTES
+        full = splatvq_file(os.path.join(folder, "full.splatvq"), most)
+        print(f"splatvq: {os.path.getsize(full):,} bytes declaring {most:,} splats, the most the ceiling lets a "
+              "command hold")
+        measure(ceiling, ["convert", full, os.path.join(folder, "out.ply"), "--force"], "splatvq", limit)
+        measure(ceiling, ["convert", full, os.path.join(folder, "out.splatv"), "--force"], "splatvq -> splatv",
+                limit)
+
+
+def measure(ceiling: list, command: list, kind: str, limit: int | None = None) -> None:
+    """Run ``splatconv [ceiling] command`` fresh and print its peak RSS (as a share of ``limit`` if given)."""
+    r = run_fresh([CLI, *ceiling, *command])
+    outcome = "ok" if r["code"] == 0 else r["stderr"].strip().splitlines()[-1].split(": ", 2)[-1][:60]
+    ratio = f" ({r['rss_mb'] * 1e6 / limit:.2f} x ceiling)" if limit else ""
+    print(row(f"  {command[0]} {kind}", f"{r['rss_mb'] / 1000:.2f} GB peak RSS",
+              f"{r['wall']:.1f} s{ratio}, exit {r['code']}: {outcome}"))
+
+
+def splatvq_file(path: str, splats: int) -> str:
+    """A ``.splatvq`` of blocks of zero codes declaring ``splats`` (and its ``.zst`` beside it)."""
+    blocks = -(-splats // BLOCK)
+    data = declaring(blocks, splats - (blocks - 1) * BLOCK)
+    with open(path, "wb") as f:
+        f.write(data)
+    with open(path + ".zst", "wb") as f:
+        f.write(zstandard.ZstdCompressor(level=19).compress(data))
+    return path
 
 
 if __name__ == "__main__":

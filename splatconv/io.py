@@ -17,7 +17,7 @@ from . import viewer
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
 from .files.output import atomic_group, atomic_writer, check_output
 from .formats import REGISTRY, compat_modes, format_for, layouts, playable_format, qualities
-from .model import COLUMNS, Scene
+from .model import COLUMNS, LITE_ROW, Scene
 from .progress import SILENT
 from .wording import kinds_text, plural
 from .zstd import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, is_compressed, max_decompressed,
@@ -33,8 +33,17 @@ COMPAT_MODES = compat_modes()
 LAYOUTS = layouts()
 #: Quality settings some writer offers (``.splatvq``, and ``.html``, which then embeds one), the default first.
 QUALITIES = qualities()
-#: Most bytes a splat takes in memory once read: a float32 for each column of the model.
-SPLAT_MEMORY_BYTES = 4 * len(COLUMNS)
+#: Bytes a splat takes in memory once read: a float32 for each field of the lite PLY row the readers
+#: decode into (:func:`splatconv.model.lite_rows`: the model's columns and the three zero normals,
+#: so that a PLY writer writes the table whole). Reading a ``.splatv`` or ``.splatvq`` holds that
+#: table and a piece of records besides; a PLY or ``.splat`` is mapped (rows of the file) and
+#: computes at most the columns it does not store (``bench/bench_memory.py``).
+SPLAT_MEMORY_BYTES = 4 * len(LITE_ROW)
+
+
+#: Bytes a splat takes once read with its texture (:func:`read_texture`): the scene's table and the
+#: viewer's record of it.
+TEXTURE_MEMORY_BYTES = SPLAT_MEMORY_BYTES + viewer.texture_bytes(1) // viewer.SPLATS_PER_ROW
 
 
 #: Share of a scene's splats, undrawable (:func:`splatconv.viewer.undrawable`), from which
@@ -49,6 +58,8 @@ UNDRAWABLE_NOTE_SHARE = 0.10
 #: scenes of at least _PROBE_FROM splats (smaller ones are counted whole at once).
 _PROBE_STEP = 16
 _PROBE_FROM = 1 << 16
+#: Rows counted at a time for the note.
+_COUNT_ROWS = 1 << 16
 
 #: Who is told of scenes read with many undrawable splats (:func:`noting_undrawable`).
 _undrawable_listener = contextvars.ContextVar("splatconv_undrawable_listener", default=None)
@@ -103,10 +114,27 @@ def _check_undrawable(scene: Scene, path) -> None:
         probe = {name: np.asarray(cols[name])[::_PROBE_STEP] for name in cols}
         if sum(viewer.undrawable_counts(probe).values()) < 0.5 * UNDRAWABLE_NOTE_SHARE * len(probe["x"]):
             return
-    counts = viewer.undrawable_counts(cols)
+    note_undrawable(_undrawable_counts(cols, scene.count), scene.count, path)
+
+
+def _undrawable_counts(cols: dict, count: int) -> dict:
+    """:func:`splatconv.viewer.undrawable_counts` of a whole scene, :data:`_COUNT_ROWS` rows at a time: its
+    float64 temporaries are a piece's, not the scene's (a scene read is held to the ceiling, its count must
+    not double it)."""
+    total = None
+    for start in range(0, count, _COUNT_ROWS):
+        part = viewer.undrawable_counts({name: np.asarray(cols[name])[start:start + _COUNT_ROWS] for name in cols})
+        total = part if total is None else {kind: total[kind] + n for kind, n in part.items()}
+    return total
+
+
+def note_undrawable(counts: dict, count: int, path) -> None:
+    """Tell the listener (if any) of a scene at ``path`` of ``count`` splats whose undrawable ones (``counts``,
+    by kind: :func:`splatconv.viewer.undrawable_counts`) reach :data:`UNDRAWABLE_NOTE_SHARE`."""
+    receive = _undrawable_listener.get()
     n = sum(counts.values())
-    if n >= UNDRAWABLE_NOTE_SHARE * scene.count:
-        receive(f"{os.fspath(path)}: {n:,} of {plural(scene.count, 'splat')} ({100 * n / scene.count:.3g}%) "
+    if receive is not None and count and n >= UNDRAWABLE_NOTE_SHARE * count:
+        receive(f"{os.fspath(path)}: {n:,} of {plural(count, 'splat')} ({100 * n / count:.3g}%) "
                 f"can never be drawn ({kinds_text(counts)}); `splatconv convert --drop-undrawable` removes "
                 f"them")
 
@@ -152,16 +180,38 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
         yield scene, plain
 
 
-def check_memory(fmt, plain, path) -> None:
+@contextlib.contextmanager
+def scanning(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
+    """Read the scene at ``path`` a piece at a time: yields its :class:`~splatconv.formats.base.Scan`, whose
+    pieces are to be read while the block runs.
+
+    What ``info`` reads: the memory it takes is a piece's (a ``.splatvq`` block, some
+    thousands of rows of the others), never the scene's, so no scene is held to the
+    ceiling of :func:`check_memory`; a ``.zst`` file is still decompressed to a
+    temporary file (disk), under the decompression ceiling. Nothing here tells the
+    listener of :func:`noting_undrawable`: the caller counts the pieces
+    (:func:`note_undrawable`).
+    """
+    _choice(color, COLOR_MODES, "colour mode")
+    fmt = format_for(path, purpose="read")
+    with plain_input(path, declared_size=fmt.declared_size, progress=progress) as plain:
+        scan = fmt.scan(plain, color=color)
+        if is_compressed(path):
+            scan.meta["compressed_bytes"] = os.path.getsize(path)
+        yield scan
+
+
+def check_memory(fmt, plain, path, each: int = SPLAT_MEMORY_BYTES) -> None:
     """Refuse a decompressed file (or one that expands, ``fmt.expands``) whose scene would take more memory
     than the decompression ceiling.
 
-    A few hundred kilobytes of zstd expand to gigabytes, and a scene takes up
-    to :data:`SPLAT_MEMORY_BYTES` a splat in memory (columns a format does not
-    store are held once), 2 to 4 times what a file stores it in: a scene read from a ``.zst`` file may take at most
-    :func:`splatconv.zstd.max_decompressed` bytes (``--max-decompressed``),
-    so that ``info`` or ``convert`` takes about 1.3 times that at its peak
-    (``bench/bench_memory.py``).
+    A few hundred kilobytes of zstd (or of ``.splatvq`` blocks) expand to gigabytes, and a
+    scene read whole takes ``each`` bytes a splat (:data:`SPLAT_MEMORY_BYTES`, the table the
+    readers decode into; :data:`TEXTURE_MEMORY_BYTES` with its texture): a scene read from
+    such a file may take at most :func:`splatconv.zstd.max_decompressed` bytes
+    (``--max-decompressed``), so that a command holding it (``convert``) stays within 1.25
+    times that at its peak (``bench/bench_memory.py``). ``info`` holds no scene
+    (:func:`scanning`) and is not held to it.
 
     Parameters
     ----------
@@ -171,6 +221,8 @@ def check_memory(fmt, plain, path) -> None:
         The decompressed file.
     path : path
         The ``.zst`` file it came from (named in the error).
+    each : int
+        Bytes a splat of the scene takes once read.
 
     Raises
     ------
@@ -178,10 +230,10 @@ def check_memory(fmt, plain, path) -> None:
     """
     ceiling = max_decompressed()
     most = fmt.most_splats(plain)
-    if most * SPLAT_MEMORY_BYTES <= ceiling:
+    if most * each <= ceiling:
         return
     holds = f"holds {most:,} splats" if fmt.splat_count(plain) == most else f"may hold up to {most:,} splats"
-    raise FormatError(f"{holds}: up to {most * SPLAT_MEMORY_BYTES:,} bytes in memory ({SPLAT_MEMORY_BYTES} a "
+    raise FormatError(f"{holds}: up to {most * each:,} bytes in memory ({each} a "
                       f"splat), more than the "
                       f"{describe_bytes(ceiling)} a decompressed scene may take (raise it with --max-decompressed "
                       f"or {MAX_DECOMPRESSED_ENV})", path)
@@ -214,7 +266,7 @@ def read_texture(path: str | os.PathLike, *, progress=SILENT):
         return None
     with plain_input(path, declared_size=fmt.declared_size, progress=progress) as plain:
         if is_compressed(path) or fmt.expands:
-            check_memory(fmt, plain, path)
+            check_memory(fmt, plain, path, TEXTURE_MEMORY_BYTES)
         padded, scene = fmt.texture.read(plain)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)

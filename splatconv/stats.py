@@ -14,7 +14,7 @@ from .cameras import framing_camera
 from .compare import Comparison, pair
 from .errors import UnsupportedError
 from .formats import format_for, quantized_formats, texture_format
-from .io import reading
+from .io import note_undrawable, reading, scanning
 from .model import COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
@@ -40,7 +40,8 @@ def describe(scene: Scene, path: str, fmt) -> dict:
     """Facts about a scene file, as JSON-able data (keys documented in ``specs/json.md``).
 
     The same keys for every format, in the same order; what only the file's
-    format has (its ``info_fields``) is under ``details``.
+    format has (its ``info_fields``) is under ``details``. Computed :data:`BLOCK`
+    rows at a time, as :func:`describe_file` does from a file read a piece at a time.
 
     Parameters
     ----------
@@ -58,38 +59,94 @@ def describe(scene: Scene, path: str, fmt) -> dict:
         undrawable, details, notes.
     """
     cols = scene.columns
-    meta = scene.meta
-    bounds = None
-    pos = viewer.positions(cols)
-    pos = pos[np.isfinite(pos).all(axis=1)]
-    if len(pos):
-        bounds = {"min": pos.min(axis=0).tolist(), "max": pos.max(axis=0).tolist()}
-    centre = viewer.wide(cols["trbf_center"])
-    lo, hi = viewer.visible_interval(cols)
-    # A splat with an infinite or NaN centre, or a NaN scale, has no interval
-    # on the time axis (counted under ``nonfinite``).
-    timed = np.isfinite(centre) & ~np.isnan(lo) & ~np.isnan(hi)
-    return {
-        "schema": INFO_SCHEMA,
-        "path": path,
-        "format": fmt.name,
-        "variant": scene.variant,
-        "count": scene.count,
-        "file_bytes": meta.get("file_bytes"),
-        "compressed_bytes": meta.get("compressed_bytes"),
-        "cameras": [{"id": c.get("id"), "img_name": c.get("img_name"), "width": c.get("width"),
-                     "height": c.get("height")} for c in (scene.cameras or [])],
-        "texture": _texture(scene),
-        "time_range": _finite_range(centre),
-        "visible_time_range": _visible_range(lo[timed], hi[timed]),
-        "visible_always": int(np.count_nonzero(timed & np.isinf(hi))),
-        "bounds": bounds,
-        "nonfinite": {name: _nonfinite(cols[name], name) for name in COLUMNS},
-        "flat": int(np.count_nonzero(_flat(cols))),
-        "undrawable": viewer.undrawable_counts(cols),
-        "details": fmt.info_fields(scene),
-        "notes": list(scene.notes),
-    }
+    facts = _Facts()
+    for start in range(0, scene.count, BLOCK):
+        facts.add({name: np.asarray(cols[name])[start:start + BLOCK] for name in COLUMNS})
+    return facts.result(path, fmt, scene.variant, scene.cameras, scene.meta, scene.notes)
+
+
+def describe_file(path: str, *, color: str = "auto", progress=SILENT) -> dict:
+    """:func:`describe` of the scene file at ``path``, read a piece at a time (:func:`splatconv.io.scanning`):
+    the memory it takes is a piece's (a block, some thousands of rows), never the scene's."""
+    facts = _Facts()
+    with scanning(path, color=color, progress=progress) as scan:
+        for piece in scan.pieces:
+            facts.add(piece)
+        note_undrawable(facts.undrawable, facts.count, path)
+        return facts.result(path, format_for(path), scan.variant, scan.cameras, scan.meta, scan.notes)
+
+
+class _Facts:
+    """What :func:`describe` says of a scene, gathered a piece of rows at a time (:meth:`add`)."""
+
+    def __init__(self):
+        self.count = 0
+        self.bounds = None  # (min, max), (3,) float64 each
+        self.centre = None  # [least, greatest] finite temporal centre
+        self.visible = None  # [earliest, latest] of the timed splats
+        self.always = 0
+        self.nonfinite = dict.fromkeys(COLUMNS, 0)
+        self.flat = 0
+        self.undrawable = viewer.undrawable_counts({name: np.zeros(0, np.float32) for name in COLUMNS})
+
+    def add(self, cols: dict) -> None:
+        """Count the rows of ``cols`` (``(M,) float32`` columns, every name of the model) in."""
+        self.count += len(cols["x"])
+        pos = viewer.positions(cols)
+        pos = pos[np.isfinite(pos).all(axis=1)]
+        if len(pos):
+            least, most = pos.min(axis=0), pos.max(axis=0)
+            self.bounds = (least, most) if self.bounds is None else (np.minimum(self.bounds[0], least),
+                                                                    np.maximum(self.bounds[1], most))
+        self.centre = _widen(self.centre, _finite_range(cols["trbf_center"]))
+        centre = viewer.wide(cols["trbf_center"])
+        lo, hi = viewer.visible_interval(cols)
+        # A splat with an infinite or NaN centre, or a NaN scale, has no interval
+        # on the time axis (counted under ``nonfinite``).
+        timed = np.isfinite(centre) & ~np.isnan(lo) & ~np.isnan(hi)
+        if timed.any():
+            span = [float(lo[timed].min()), float(hi[timed].max())]
+            self.visible = _widen(self.visible, span)
+        self.always += int(np.count_nonzero(timed & np.isinf(hi)))
+        for name in COLUMNS:
+            self.nonfinite[name] += _nonfinite(cols[name], name)
+        self.flat += int(np.count_nonzero(_flat(cols)))
+        counts = viewer.undrawable_counts(cols)
+        self.undrawable = {kind: self.undrawable[kind] + n for kind, n in counts.items()}
+
+    def result(self, path: str, fmt, variant: str, cameras, meta: dict, notes: list) -> dict:
+        """The facts (keys of :func:`describe`)."""
+        visible = None if self.visible is None else [v if math.isfinite(v) else None for v in self.visible]
+        return {
+            "schema": INFO_SCHEMA,
+            "path": path,
+            "format": fmt.name,
+            "variant": variant,
+            "count": self.count,
+            "file_bytes": meta.get("file_bytes"),
+            "compressed_bytes": meta.get("compressed_bytes"),
+            "cameras": [{"id": c.get("id"), "img_name": c.get("img_name"), "width": c.get("width"),
+                         "height": c.get("height")} for c in (cameras or [])],
+            "texture": _texture(meta, self.count),
+            "time_range": self.centre,
+            "visible_time_range": visible,
+            "visible_always": self.always,
+            "bounds": None if self.bounds is None else {"min": self.bounds[0].tolist(), "max": self.bounds[1].tolist()},
+            "nonfinite": self.nonfinite,
+            "flat": self.flat,
+            "undrawable": self.undrawable,
+            "details": fmt.info_fields(meta),
+            "notes": list(notes),
+        }
+
+
+def _widen(span, more):
+    """The least and greatest of two ``[least, greatest]`` ranges (either None: none)."""
+    if more is None:
+        return span
+    if span is None:
+        return list(more)
+    return [min(span[0], more[0]), max(span[1], more[1])]
 
 
 def _nonfinite(values: np.ndarray, name: str) -> int:
@@ -108,20 +165,10 @@ def _flat(cols: dict) -> np.ndarray:
     return out
 
 
-def _visible_range(lo: np.ndarray, hi: np.ndarray):
-    """[earliest, latest] time any splat is drawn, over splats with a finite centre; both ends are
-    None (JSON null) when some splat is drawn at every time (an infinite temporal scale: see
-    ``visible_always``); None when no splat has a finite centre."""
-    if lo.size == 0:
-        return None
-    first, last = float(lo.min()), float(hi.max())
-    return [first if math.isfinite(first) else None, last if math.isfinite(last) else None]
-
-
-def _texture(scene: Scene) -> dict:
-    """The texture the viewer holds for the scene: as a .splatv declares it, or as converting would make it."""
-    meta = scene.meta
-    height = meta.get("texheight", viewer.texture_height(scene.count))
+def _texture(meta: dict, count: int) -> dict:
+    """The texture the viewer holds for a scene of ``count`` splats: as a .splatv declares it (its ``meta``),
+    or as converting would make it."""
+    height = meta.get("texheight", viewer.texture_height(count))
     return {"width": viewer.TEXWIDTH, "height": height,
             "declared_bytes": meta.get("declared_bytes", viewer.texture_bytes(height)),
             "actual_bytes": meta.get("actual_bytes")}

@@ -627,8 +627,11 @@ def _kept_bit_ties(packed: np.ndarray, low: np.uint64) -> np.ndarray:
 
 def _resort_ties(order: np.ndarray, ties: np.ndarray, key_of) -> None:
     """Order runs of kept-bit ties by the full key, then row, where full keys differ."""
-    full = _descending_bits(key_of(order[ties])), _descending_bits(key_of(order[ties + 1]))
-    wrong = full[0] != full[1]
+    # Compared a chunk at a time: a scene of equal keys ties everywhere, and its full keys, twice over
+    # and in float64 temporaries, would cost more than the scene.
+    wrong = np.concatenate([
+        _descending_bits(key_of(order[part])) != _descending_bits(key_of(order[part + 1]))
+        for part in (ties[start:start + _CHUNK] for start in range(0, len(ties), _CHUNK))])
     if not wrong.any():
         return  # whole-key ties only: already in row order
     # Runs of consecutive tie positions; each spans positions first .. last + 1.

@@ -132,7 +132,7 @@ def inner_name(path) -> str:
 
 
 #: Default ceiling on the bytes a ``.zst`` input may decompress to, and on the
-#: memory the scene read from it may take (2 GiB: 18.5 million splats at 116
+#: memory the scene read from it may take (2 GiB: 16.7 million splats at 128
 #: bytes a splat, see :func:`splatconv.io.check_memory`). A few hundred
 #: kilobytes of zstd can expand to gigabytes; this bounds the temporary file and
 #: what reading it costs. Raised with ``--max-decompressed`` or the environment

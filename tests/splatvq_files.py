@@ -91,3 +91,23 @@ def bad_window(tables, fields):
 def bad_position_step(tables, fields):
     """The first two splats' x steps at their largest: the second's code passes 2**32 - 1."""
     fields["x_step"][:2] = 2 ** 32 - 1
+
+
+def declaring(blocks: int, last: int = codec.BLOCK) -> bytes:
+    """A ``.splatvq`` file of ``blocks`` blocks of zero codes (the last of ``last`` splats): valid, a few
+    kilobytes a block (deflate gives some thousand to one), declaring ``blocks`` times 65,536 splats.
+
+    What a hostile file looks like: tiny on disk, millions of splats once read. Made by the codec's own
+    pieces: the setting of the default quality, the payload sizes :func:`codec.payload_bounds` gives.
+    """
+    sizes = [codec.BLOCK] * (blocks - 1) + [last]
+    stored = {n: deflate(bytes(codec.payload_bounds(n, 0)[0])) for n in set(sizes)}
+    meta = json.dumps({"count": sum(sizes), "setting": "default",
+                       "cameras": [{"id": 0, "img_name": "c", "width": 64, "height": 64,
+                                    "position": [0, 0, -5], "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
+                                    "fx": 64, "fy": 64}]}).encode()
+    values = [getattr(codec.SETTINGS["default"], f) for f in splatvq.SETTING_ORDER]
+    head = splatvq.PREAMBLE.pack(splatvq.MAGIC, splatvq.VERSION, codec.CODER_DEFLATE_RAW, *values,
+                                 codec.CHUNK_LOG2, len(meta), blocks)
+    table = b"".join(splatvq.BLOCK_ENTRY.pack(n, 0, codec.payload_bounds(n, 0)[0], len(stored[n])) for n in sizes)
+    return head + meta + table + b"".join(stored[n] for n in sizes)

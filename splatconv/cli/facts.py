@@ -4,9 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .. import io
-from ..formats import format_for
-from ..stats import describe, stats_findings
+from ..stats import describe_file, stats_findings
 from ..text import info_text, stats_markdown, stats_text, to_json
 from ._base import (Failure, color_option, library_errors, main, notes, options, progress, quiet_option,
                     zstd_option)
@@ -30,7 +28,7 @@ def info(paths, as_json, color):
       splatconv info scene.splatv
       splatconv info --json segments/*.splatv
     """
-    facts = [describe(io.read(path, color=color), path, format_for(path)) for path in paths]
+    facts = [describe_file(path, color=color) for path in paths]
     if as_json:
         click.echo(to_json(facts[0] if len(facts) == 1 else facts))
     else:

@@ -27,3 +27,27 @@ def populate(array: np.ndarray) -> None:
         array._mmap.madvise(_MADV_POPULATE_READ)
     except (OSError, ValueError, AttributeError):
         pass
+
+
+def release(array: np.ndarray) -> None:
+    """Drop the pages of the file mapping that ``array`` (a view of it) spans from this process's memory.
+
+    They stay in the page cache and are read again if touched: a reader that
+    goes through a mapped file a piece at a time (``info``) holds a piece of
+    it, not the file. Does nothing for an array not backed by ``np.memmap``,
+    or where the call is not supported.
+    """
+    root = array
+    while root is not None and getattr(root, "_mmap", None) is None:
+        root = root.base if isinstance(root, np.ndarray) else None
+    if root is None or not len(array):
+        return
+    mapping = root._mmap
+    try:
+        start = array.__array_interface__["data"][0] - np.frombuffer(mapping, np.uint8).ctypes.data
+        start -= start % mmap.PAGESIZE
+        end = array.__array_interface__["data"][0] - np.frombuffer(mapping, np.uint8).ctypes.data \
+            + len(array) * array.strides[0]
+        mapping.madvise(mmap.MADV_DONTNEED, start, min(end, len(mapping)) - start)
+    except (OSError, ValueError, AttributeError):
+        pass

@@ -9,7 +9,7 @@ The fields are stated here once; the architecture test reads them from here.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -51,6 +51,27 @@ class WriteReport:
         return notes + [f"{key}: {plural(count, 'NaN value')} written as 0"
                         for key, count in self.nan_bytes.items() if count]
 
+
+
+@dataclass
+class Scan:
+    """A scene read a piece at a time (what ``info`` reads): a :class:`~splatconv.model.Scene` whose
+    columns come in pieces, so that reading it holds one piece, never the scene.
+
+    Attributes
+    ----------
+    pieces : iterator of dict
+        Consecutive rows of the scene, first to last: each a dict of ``(M,) float32`` columns, one per
+        name in :data:`splatconv.model.COLUMNS`. Exhaust it inside the block that opened the file.
+    cameras, variant, meta, notes
+        As a :class:`~splatconv.model.Scene`'s; filled in as ``pieces`` is read, whole once it is exhausted.
+    """
+
+    pieces: Iterator = field(default_factory=lambda: iter(()))
+    cameras: list | None = None
+    variant: str = ""
+    meta: dict = field(default_factory=dict)
+    notes: list = field(default_factory=list)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -99,8 +120,11 @@ class Format:
         Whether it holds motion and a temporal basis (False: static, a baked moment).
     read : callable or None
         ``read(path, **options) -> Scene``; None for a format that cannot be read.
+    scan : callable or None
+        ``scan(path, **options) -> Scan``: what ``read`` gives, a piece at a time (:class:`Scan`),
+        holding a piece (a block or some thousands of rows), never the whole scene.
     splat_count, most_splats : callable or None
-        Given exactly when ``read`` is: ``splat_count(path) -> int or None`` (the
+        Given exactly when ``read`` is, as ``scan`` is: ``splat_count(path) -> int or None`` (the
         splats ``read`` would give, from the header or the file size without reading
         them; None when only reading tells) and ``most_splats(path) -> int`` (at most
         that many, always known: it bounds the memory a read takes before it starts).
@@ -108,8 +132,8 @@ class Format:
         ``write(scene, stream, *, compat=None, sort=None, progress=..., name=None, **options)
         -> WriteReport``; None for a format that cannot be written.
     info_fields : callable
-        ``info_fields(scene) -> dict``: what ``info`` shows of a scene read from it
-        besides the common facts.
+        ``info_fields(meta) -> dict``: what ``info`` shows of a scene read from it
+        (its ``meta``) besides the common facts.
     storage : callable
         ``storage(scene) -> dict``: how it stores each attribute group of ``scene``
         (a :data:`splatconv.compare.STORAGE_KINDS` name for each of
@@ -156,6 +180,7 @@ class Format:
     write: Callable | None
     info_fields: Callable
     storage: Callable
+    scan: Callable | None = None
     splat_count: Callable | None = None
     most_splats: Callable | None = None
     compat_modes: tuple = ()
@@ -170,9 +195,9 @@ class Format:
     drawable_only: bool = False
 
     def __post_init__(self):
-        readers = (self.read, self.splat_count, self.most_splats)
+        readers = (self.read, self.scan, self.splat_count, self.most_splats)
         if any(f is None for f in readers) != all(f is None for f in readers):
-            raise TypeError(f"format {self.name}: read, splat_count and most_splats come together")
+            raise TypeError(f"format {self.name}: read, scan, splat_count and most_splats come together")
         if self.read is None and self.write is None:
             raise TypeError(f"format {self.name}: neither read nor write")
         if (self.texture is not None or self.check_playable is not None or self.expands) and self.read is None:

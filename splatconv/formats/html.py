@@ -67,7 +67,7 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     return report
 
 
-def info_fields(scene: Scene) -> dict:
+def info_fields(meta: dict) -> dict:
     """Nothing: a page is written, never read."""
     return {}
 

@@ -20,13 +20,13 @@ import numpy as np
 from .. import model
 from ..cameras import validate_cameras
 from ..errors import FormatError, UnsupportedError, UsageError
-from ..files.paging import populate
+from ..files.paging import populate, release
 from ..jsonutil import loads_strict
 from ..model import COLUMNS, GROUPS, Scene
 from ..progress import SILENT
 from ..viewer import importance, importance_order, wide
 from . import ply_container as container
-from .base import Format, WriteReport, refuse_time_varying
+from .base import Format, Scan, WriteReport, refuse_time_varying
 
 #: Property order of the lite layout as SpacetimeGaussians writes it.
 LITE_LAYOUT = model.LITE_ROW
@@ -92,18 +92,57 @@ def detect_variant(names) -> str:
     return model.VARIANT_LITE if temporal else model.VARIANT_3DGS
 
 
-def _column(data: np.ndarray, name: str, notes: list) -> np.ndarray:
+def _column(data: np.ndarray, name: str, overflow: dict) -> np.ndarray:
+    """Column ``name`` of the vertex rows ``data`` as float32, counting into ``overflow[name]`` the finite
+    doubles that became infinite."""
     col = data[name]
     if col.dtype == np.dtype("<f4") or (col.dtype == np.float32 and col.dtype.isnative):
         return col  # a view into the mapped file: no copy
     with np.errstate(over="ignore", invalid="ignore"):  # reported below
         out = col.astype(np.float32)
     if col.dtype.kind == "f" and col.dtype.itemsize > 4:
-        overflowed = int(np.count_nonzero(np.isinf(out) & np.isfinite(col)))
-        if overflowed:
-            notes.append(f"{name}: {overflowed:,} finite double value{'s' if overflowed != 1 else ''} past the "
-                         "float32 range became infinite")
+        overflow[name] = overflow.get(name, 0) + int(np.count_nonzero(np.isinf(out) & np.isfinite(col)))
     return out
+
+
+def _overflow_notes(overflow: dict) -> list:
+    """The notes of what :func:`_column` counted, in column order."""
+    return [f"{name}: {count:,} finite double value{'s' if count != 1 else ''} past the float32 range became "
+            "infinite" for name, count in overflow.items() if count]
+
+
+def _opened(path: str):
+    """The PLY at ``path`` read as far as its vertex rows (not paged in): rows, variant, colour mode, meta, notes
+    (those a read knows before its columns)."""
+    parsed = container.read_rows(path)
+    vertex = _vertex_element(parsed.header, path)
+    variant = _variant_of(vertex, path)
+    used = _used_properties(variant)
+    ignored = [p.name for p in vertex.properties if p.name not in used]
+    doubles = [p.name for p in vertex.properties if p.name in used and p.val_dtype.endswith("8")]
+    meta = {
+        "format": parsed.header.format,
+        "color": None,
+        "properties": [p.name for p in vertex.properties],
+        "ignored_properties": ignored,
+        "extra_elements": [e.name for e in parsed.header.elements if e.name != "vertex"],
+        "double_properties": doubles,
+        "file_bytes": os.path.getsize(path),
+    }
+    cameras = _cameras_from_comments(parsed.header.comments, path)
+    return parsed.vertex, variant, meta, cameras, parsed.notes + _narrowing_notes(doubles)
+
+
+def _piece(rows: np.ndarray, variant: str, color: str, overflow: dict) -> dict:
+    """The model columns of vertex ``rows``."""
+    columns = _columns(rows, variant, overflow)
+    if color == "sh":
+        _rgb_from_sh(columns)
+    return columns
+
+
+def _color_mode(color: str, variant: str) -> str:
+    return color if color != "auto" else ("rgb" if variant == model.VARIANT_LITE else "sh")
 
 
 def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
@@ -118,30 +157,39 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
         the variant.
     """
     path = os.fspath(path)
-    parsed = container.read_rows(path)
-    vertex = _vertex_element(parsed.header, path)
-    variant = _variant_of(vertex, path)
-    populate(parsed.vertex)
-    used = _used_properties(variant)
-    ignored = [p.name for p in vertex.properties if p.name not in used]
-    doubles = [p.name for p in vertex.properties if p.name in used and p.val_dtype.endswith("8")]
-    notes = parsed.notes + _narrowing_notes(doubles)
-    columns = _columns(parsed.vertex, variant, notes)
-    notes += _dropped_sh_notes(ignored, variant)
-    color_mode = color if color != "auto" else ("rgb" if variant == model.VARIANT_LITE else "sh")
-    if color_mode == "sh":
-        _rgb_from_sh(columns)
-    meta = {
-        "format": parsed.header.format,
-        "color": color_mode,
-        "properties": [p.name for p in vertex.properties],
-        "ignored_properties": ignored,
-        "extra_elements": [e.name for e in parsed.header.elements if e.name != "vertex"],
-        "double_properties": doubles,
-        "file_bytes": os.path.getsize(path),
-    }
-    cameras = _cameras_from_comments(parsed.header.comments, path)
+    rows, variant, meta, cameras, notes = _opened(path)
+    populate(rows)
+    meta["color"] = _color_mode(color, variant)
+    overflow = {}
+    columns = _piece(rows, variant, meta["color"], overflow)
+    notes += _overflow_notes(overflow) + _dropped_sh_notes(meta["ignored_properties"], variant)
     return Scene(columns=columns, cameras=cameras, variant=variant, meta=meta, notes=notes)
+
+
+#: Rows a piece of :func:`scan`.
+SCAN_ROWS = 1 << 16
+
+
+def scan(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scan:
+    """Read a splat PLY a piece at a time (:class:`~splatconv.formats.base.Scan`): what :func:`read` gives,
+    :data:`SCAN_ROWS` rows a piece, each piece's pages of the mapped file let go after it."""
+    path = os.fspath(path)
+    out = Scan()
+
+    def pieces():
+        rows, variant, meta, cameras, notes = _opened(path)
+        meta["color"] = _color_mode(color, variant)
+        out.variant, out.cameras = variant, cameras
+        out.meta.update(meta)
+        overflow = {}
+        for start in range(0, len(rows), SCAN_ROWS):
+            part = rows[start:start + SCAN_ROWS]
+            yield _piece(part, variant, meta["color"], overflow)
+            release(part)
+        out.notes.extend(notes + _overflow_notes(overflow) + _dropped_sh_notes(meta["ignored_properties"], variant))
+
+    out.pieces = pieces()
+    return out
 
 
 def _narrowing_notes(doubles: list) -> list:
@@ -197,11 +245,11 @@ def _used_properties(variant: str) -> set:
     return set(LITE_REQUIRED if variant == model.VARIANT_LITE else GS_REQUIRED) | set(NORMALS)
 
 
-def _columns(data: np.ndarray, variant: str, notes: list) -> dict:
+def _columns(data: np.ndarray, variant: str, overflow: dict) -> dict:
     """The model columns of the vertex rows ``data``: a lite file holds them all, a 3DGS file no time."""
     if variant == model.VARIANT_LITE:
-        return {name: _column(data, name, notes) for name in COLUMNS}
-    columns = {name: _column(data, name, notes) for name in GS_REQUIRED}
+        return {name: _column(data, name, overflow) for name in COLUMNS}
+    columns = {name: _column(data, name, overflow) for name in GS_REQUIRED}
     columns.update(model.static_columns(len(data)))
     return columns
 
@@ -388,9 +436,8 @@ def storage(scene: Scene) -> dict:
     return kinds
 
 
-def info_fields(scene: Scene) -> dict:
-    """What ``info`` shows of a scene read from a PLY: encoding, colour reading, what was ignored."""
-    meta = scene.meta
+def info_fields(meta: dict) -> dict:
+    """What ``info`` shows of a scene read from a PLY (its ``meta``): encoding, colour reading, what was ignored."""
     return {
         "ply_format": meta.get("format"),
         "color": meta.get("color"),
@@ -405,7 +452,7 @@ FORMAT = Format(
     default_sort="none",  # a PLY is a training format: its row order is the user's
     holds_empty=True,  # a PLY may hold zero rows
     dynamic=True,
-    read=read, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
+    read=read, scan=scan, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
     write=write, layouts=tuple(LAYOUTS),
     info_fields=info_fields, storage=storage,
     # Attributes, not the viewer's texture; one scene a file (several inputs for one

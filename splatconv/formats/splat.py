@@ -31,13 +31,13 @@ import numpy as np
 from .. import model
 from ..errors import FormatError
 from ..files.inputs import open_input
-from ..files.paging import populate
+from ..files.paging import populate, release
 from ..model import Scene
 from ..packing import F32_EXP_MASK, F32_MANT_MASK, F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales, wide
 from ..wording import plural
-from .base import Format, WriteReport, refuse_time_varying
+from .base import Format, Scan, WriteReport, refuse_time_varying
 from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
 from .splatv_layout import MAGIC as SPLATV_MAGIC
 
@@ -76,31 +76,42 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     """
     path = os.fspath(path)
     with open_input(path) as f:
-        size = os.fstat(f.fileno()).st_size
-        if size == 0:
-            raise FormatError("file is empty", path)
-        _refuse_other_formats(f.read(8), path)
-        f.seek(0)
-        if size % RECORD_BYTES:
-            raise FormatError(f"size {size:,} bytes is not a whole number of {RECORD_BYTES}-byte records: "
-                              f"{size % RECORD_BYTES} bytes after record {size // RECORD_BYTES:,}; file truncated?",
-                              path)
+        records = _open(f, path)
         # Mapped, not read: the scene's table is four times the file, the file need not be held too.
-        records = np.memmap(f, dtype=RECORD, mode="r", shape=(size // RECORD_BYTES,))
         populate(records)
+    size = len(records) * RECORD_BYTES
+    tally = {"signalling": 0, "negative": 0}
+    cols = _columns(records, tally)
+    meta = {"file_bytes": size, "records": len(records)}
+    return Scene(columns=cols, cameras=None, variant=model.VARIANT_3DGS, meta=meta, notes=_notes_of(tally))
+
+
+def _open(f, path: str) -> np.memmap:
+    """The records of the open ``.splat`` ``f``, mapped (its size checked)."""
+    size = os.fstat(f.fileno()).st_size
+    if size == 0:
+        raise FormatError("file is empty", path)
+    _refuse_other_formats(f.read(8), path)
+    f.seek(0)
+    if size % RECORD_BYTES:
+        raise FormatError(f"size {size:,} bytes is not a whole number of {RECORD_BYTES}-byte records: "
+                          f"{size % RECORD_BYTES} bytes after record {size // RECORD_BYTES:,}; file truncated?",
+                          path)
+    return np.memmap(f, dtype=RECORD, mode="r", shape=(size // RECORD_BYTES,))
+
+
+def _columns(records: np.ndarray, tally: dict) -> dict:
+    """The model columns of ``.splat`` records, counting into ``tally`` what :func:`_notes_of` says."""
     n = len(records)
     cols = {}
-    notes = []
-    position = _quiet_nans(records["position"], notes)
+    position = _quiet_nans(records["position"], tally)
     for i, name in enumerate(model.POSITION):
         cols[name] = position[:, i]  # views of the mapped file when nothing was quieted: no copy
     linear = records["scale"]
-    negative = int(np.count_nonzero(linear < 0))
+    tally["negative"] += int(np.count_nonzero(linear < 0))
     with np.errstate(divide="ignore", invalid="ignore"):
         for i, name in enumerate(model.SCALE):
             cols[name] = np.log(linear[:, i])
-    if negative:
-        notes.append(f"scale: {negative:,} negative values have no logarithm; read as NaN")
     for i, name in enumerate(model.COLOR):
         cols[name] = COLOR_OF_BYTE[records["rgba"][:, i]]
     cols["opacity"] = LOGIT_OF_BYTE[records["rgba"][:, 3]]
@@ -109,9 +120,42 @@ def read(path: str | os.PathLike, **_options) -> Scene:
         cols[name] = rot[:, i]
     # A static scene: the same constants for every splat, held once.
     cols.update(model.static_columns(n))
-    meta = {"file_bytes": size, "records": n}
-    return Scene(columns={name: cols[name] for name in model.COLUMNS}, cameras=None, variant=model.VARIANT_3DGS,
-                 meta=meta, notes=notes)
+    return {name: cols[name] for name in model.COLUMNS}
+
+
+def _notes_of(tally: dict) -> list:
+    """The notes of what :func:`_columns` counted."""
+    notes = []
+    if tally["signalling"]:
+        notes.append(f"position: {tally['signalling']:,} signalling NaN values read as quiet NaN")
+    if tally["negative"]:
+        notes.append(f"scale: {tally['negative']:,} negative values have no logarithm; read as NaN")
+    return notes
+
+
+#: Records a piece of :func:`scan`.
+SCAN_RECORDS = 1 << 16
+
+
+def scan(path: str | os.PathLike, **_options) -> Scan:
+    """Read a ``.splat`` file a piece at a time (:class:`~splatconv.formats.base.Scan`): what :func:`read`
+    gives, :data:`SCAN_RECORDS` records a piece, each piece's pages of the mapped file let go after it."""
+    path = os.fspath(path)
+    out = Scan(variant=model.VARIANT_3DGS)
+
+    def pieces():
+        with open_input(path) as f:
+            records = _open(f, path)
+        out.meta.update(file_bytes=len(records) * RECORD_BYTES, records=len(records))
+        tally = {"signalling": 0, "negative": 0}
+        for start in range(0, len(records), SCAN_RECORDS):
+            part = records[start:start + SCAN_RECORDS]
+            yield _columns(part, tally)
+            release(part)
+        out.notes.extend(_notes_of(tally))
+
+    out.pieces = pieces()
+    return out
 
 
 def splat_count(path: str | os.PathLike) -> int | None:
@@ -130,12 +174,12 @@ def most_splats(path: str | os.PathLike) -> int:
     return os.path.getsize(path) // RECORD_BYTES
 
 
-def _quiet_nans(values: np.ndarray, notes: list) -> np.ndarray:
+def _quiet_nans(values: np.ndarray, tally: dict) -> np.ndarray:
     """``values`` (float32), with signalling NaNs made quiet: a copy only when there are any.
 
     A signalling NaN raises numpy's "invalid value" warning when it is widened
     to float64, as everything that reads the viewer's values does; it is NaN
-    either way, so only its quiet bit is set (noted).
+    either way, so only its quiet bit is set (counted in ``tally``).
     """
     bits = values.view(np.uint32)
     signalling = ((bits & np.uint32(F32_EXP_MASK)) == np.uint32(F32_EXP_MASK)) & (
@@ -145,7 +189,7 @@ def _quiet_nans(values: np.ndarray, notes: list) -> np.ndarray:
         return values
     values = np.array(values)
     values.view(np.uint32)[signalling] |= np.uint32(F32_QUIET_BIT)
-    notes.append(f"position: {count:,} signalling NaN values read as quiet NaN")
+    tally["signalling"] += count
     return values
 
 
@@ -293,9 +337,9 @@ def storage(scene: Scene) -> dict:
     return STORAGE
 
 
-def info_fields(scene: Scene) -> dict:
-    """What ``info`` shows of a ``.splat``: its record count."""
-    return {"records": scene.meta.get("records")}
+def info_fields(meta: dict) -> dict:
+    """What ``info`` shows of a ``.splat`` (its ``meta``): its record count."""
+    return {"records": meta.get("records")}
 
 
 FORMAT = Format(
@@ -304,7 +348,7 @@ FORMAT = Format(
     default_sort="importance",
     holds_empty=False,  # an empty file is refused on reading, so an empty scene is not written
     dynamic=False,
-    read=read, splat_count=splat_count, most_splats=most_splats,
+    read=read, scan=scan, splat_count=splat_count, most_splats=most_splats,
     write=write,
     info_fields=info_fields, storage=storage,
 )

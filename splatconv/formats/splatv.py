@@ -22,7 +22,7 @@ from ..model import Scene, lite_rows
 from ..progress import SILENT
 from ..wording import plural
 from . import splatv_engine as engine
-from .base import Format, Texture, WriteReport
+from .base import Format, Scan, Texture, WriteReport
 from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_HALF, LOGIT_OF_BYTE,
                             COLOR_WORD, EXP_ATTRIBUTES, HALF_WORDS, MAGIC, MAX_JSON_BYTES,
                             MAX_TEXHEIGHT, POSITION_WORDS, PREAMBLE, RECORD_BYTES, SPLATS_PER_ROW, TEXEL_BYTES,
@@ -34,7 +34,8 @@ STORAGE = {"position": "exact", "rotation": "half", "scale": "half", "color": "b
            "motion": "half", "omega": "half", "trbf": "half"}
 
 __all__ = ["FORMAT", "STORAGE", "read", "write", "encode", "info_fields", "read_records", "decode_records",
-           "read_texture", "header_bytes", "texture_height", "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW",
+           "read_texture", "scan", "decode_rows", "decode_notes", "new_tally", "header_bytes", "texture_height",
+           "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW",
            "WORDS_PER_SPLAT", "RECORD_BYTES", "HALF_WORDS", "POSITION_WORDS", "COLOR_WORD", "EXP_ATTRIBUTES",
            "MAGIC", "PREAMBLE", "LOG_OF_HALF", "COLOR_OF_BYTE", "LOGIT_OF_BYTE", "ALPHA_LOGIT_LIMIT"]
 
@@ -292,6 +293,77 @@ def most_splats(path: str | os.PathLike) -> int:
     return -(-max(0, min(chunk["size"], file_size - start)) // RECORD_BYTES)
 
 
+#: Records read from the file at a time (4 MiB): what reading a texture holds besides the scene.
+_READ_RECORDS = 1 << 16
+
+
+class _Texture:
+    """A ``.splatv``'s texture records, read from the open file a range at a time (bytes past the data as zeros)."""
+
+    def __init__(self, f, path: str, start: int, actual: int):
+        self.f, self.path, self.start, self.actual = f, path, start, actual
+        self.records = -(-actual // RECORD_BYTES)
+
+    def rows(self, first: int, stop: int) -> np.ndarray:
+        """Records ``first`` to ``stop``: ``(stop - first, 16) uint32``."""
+        # np.empty, not np.zeros: the read fills every page once; only a partial last record needs zeros.
+        buf = np.empty((stop - first) * WORDS_PER_SPLAT, dtype="<u4")
+        raw = memoryview(buf).cast("B")
+        begin = first * RECORD_BYTES
+        size = max(0, min(stop * RECORD_BYTES, self.actual) - begin)
+        self.f.seek(self.start + begin)
+        got = self.f.readinto(raw[:size])
+        if got != size:  # pragma: no cover - the file changed under us
+            raise FormatError(f"read {got} of {size} texture bytes", self.path)
+        raw[size:] = bytes(len(raw) - size)
+        return buf.reshape(-1, WORDS_PER_SPLAT)
+
+
+def _open_texture(f, path: str):
+    """Check the header of the open ``.splatv`` ``f`` and find its splats, without reading them all.
+
+    Returns
+    -------
+    texture : _Texture
+    count : int
+        The splats (see :func:`_splat_count`).
+    chunk : dict
+        The splat chunk's header object.
+    meta : dict
+        Sizes and chunk list for ``info``.
+    notes : list of str
+    """
+    notes = []
+    file_size = os.fstat(f.fileno()).st_size
+    chunks, chunk, start, offset, skipped = _splat_chunk(f, path, file_size)
+    declared = chunk["size"]
+    actual = max(0, min(declared, file_size - start))
+    # Texture data that stops after its last record is how splaTV's converter
+    # writes every file: the rest reads as zeros and nothing is lost, so no
+    # note (``info`` shows the bytes present). A record cut short is damage.
+    if actual < declared and actual % RECORD_BYTES:
+        notes.append(f"record {actual // RECORD_BYTES} is cut after {actual % RECORD_BYTES} of its "
+                     f"{RECORD_BYTES} bytes: file truncated? its missing words read as zeros")
+    if offset < file_size:
+        notes.append(f"{file_size - offset} bytes after the last chunk ignored")
+    texture = _Texture(f, path, start, actual)
+    count = _splat_count(texture, chunk, notes)
+    if skipped:
+        types = sorted({c['type'] for c in skipped})
+        notes.append(f"skipped {plural(len(skipped), 'chunk')} of other types: "
+                     + ", ".join(t if len(t) <= 40 else t[:37] + "..." for t in types[:10])
+                     + (f" and {len(types) - 10} more" if len(types) > 10 else ""))
+    meta = {
+        "texwidth": chunk["texwidth"],
+        "texheight": chunk["texheight"],
+        "declared_bytes": declared,
+        "actual_bytes": actual,
+        "chunks": [{"type": c["type"], "size": c["size"]} for c in chunks],
+        "file_bytes": file_size,
+    }
+    return texture, count, chunk, meta, notes
+
+
 def read_records(path: str | os.PathLike):
     """Read the raw texture records of a ``.splatv`` file.
 
@@ -307,50 +379,13 @@ def read_records(path: str | os.PathLike):
     notes : list of str
     """
     path = os.fspath(path)
-    notes = []
     with open_input(path) as f:
-        file_size = os.fstat(f.fileno()).st_size
-        chunks, chunk, start, offset, skipped = _splat_chunk(f, path, file_size)
-        declared = chunk["size"]
-        actual = max(0, min(declared, file_size - start))
-        # Texture data that stops after its last record is how splaTV's converter
-        # writes every file: the rest reads as zeros and nothing is lost, so no
-        # note (``info`` shows the bytes present). A record cut short is damage.
-        if actual < declared and actual % RECORD_BYTES:
-            notes.append(f"record {actual // RECORD_BYTES} is cut after {actual % RECORD_BYTES} of its "
-                         f"{RECORD_BYTES} bytes: file truncated? its missing words read as zeros")
-        if offset < file_size:
-            notes.append(f"{file_size - offset} bytes after the last chunk ignored")
-        n_records = -(-actual // RECORD_BYTES)
-        # np.empty, not np.zeros: the read fills every page once; only a partial
-        # last record needs zeros.
-        buf = np.empty(n_records * WORDS_PER_SPLAT, dtype="<u4")
-        raw = memoryview(buf).cast("B")
-        f.seek(start)
-        got = f.readinto(raw[:actual])
-        if got != actual:  # pragma: no cover - the file changed under us
-            raise FormatError(f"read {got} of {actual} texture bytes", path)
-        raw[actual:] = bytes(len(raw) - actual)
-    records = buf.reshape(-1, WORDS_PER_SPLAT)
-    count = _splat_count(records, chunk, notes)
-    if skipped:
-        types = sorted({c['type'] for c in skipped})
-        notes.append(f"skipped {plural(len(skipped), 'chunk')} of other types: "
-                     + ", ".join(t if len(t) <= 40 else t[:37] + "..." for t in types[:10])
-                     + (f" and {len(types) - 10} more" if len(types) > 10 else ""))
-    meta = {
-        "texwidth": chunk["texwidth"],
-        "texheight": chunk["texheight"],
-        "declared_bytes": declared,
-        "actual_bytes": actual,
-        "chunks": [{"type": c["type"], "size": c["size"]} for c in chunks],
-        "file_bytes": file_size,
-    }
-    return records[:count], chunk, meta, notes
+        texture, count, chunk, meta, notes = _open_texture(f, path)
+        return texture.rows(0, count), chunk, meta, notes
 
 
-def _splat_count(records: np.ndarray, chunk: dict, notes: list) -> int:
-    """Splats in ``records`` (``(N, 16) uint32``, all present): the header's count where it can be trusted.
+def _splat_count(texture: _Texture, chunk: dict, notes: list) -> int:
+    """Splats in ``texture`` (its records all present): the header's count where it can be trusted.
 
     The count splatconv writes (:data:`COUNT_KEY`) is used when it is an integer
     within the texture and every record after it is zero padding; a splat whose
@@ -358,46 +393,44 @@ def _splat_count(records: np.ndarray, chunk: dict, notes: list) -> int:
     count that disagrees with the data: noted) the splats are the records up to
     the last one that is not all zero.
     """
+    records = texture.records
     if COUNT_KEY not in chunk:
-        return _records_used(records)
+        return _records_used(texture, 0, records)
     count = chunk[COUNT_KEY]
     capacity = chunk["texheight"] * SPLATS_PER_ROW
     if not _is_count(count) or count > capacity:
         shown = repr(count) if not isinstance(count, int) or abs(count) < 1 << 64 else "a huge number"
         notes.append(f"header '{COUNT_KEY}' {shown[:40]} is not a splat count within the texture "
                      f"({capacity} records); splats counted up to the last record that is not all zero")
-        return _records_used(records)
-    used = _records_used(records[count:])
-    if used:
+        return _records_used(texture, 0, records)
+    used = _records_used(texture, count, records)
+    if used > count:
         notes.append(f"header '{COUNT_KEY}' says {count} splats but the records after it hold data; splats "
-                     f"counted up to the last record that is not all zero ({count + used})")
-        return count + used
-    if count > len(records):
+                     f"counted up to the last record that is not all zero ({used})")
+        return used
+    if count > records:
         notes.append(f"header '{COUNT_KEY}' says {count} splats but the texture data holds only "
-                     f"{len(records)} records")
-        return len(records)
+                     f"{records} records")
+        return records
     return count
 
 
-def _records_used(records: np.ndarray) -> int:
-    """Records up to the last one that is not all zero, ``records`` being ``(N, 16) uint32``.
+def _records_used(texture: _Texture, first: int, stop: int) -> int:
+    """Where the records ``first`` to ``stop`` of ``texture`` end once trailing all-zero ones are left out
+    (``first`` when all are zero).
 
-    Searches back from the end in growing steps: the zero padding is at most a
-    texture row in files splatconv writes, so this rarely reads more than that.
+    Searches back from ``stop`` in growing steps (of at most :data:`_READ_RECORDS`): the zero padding is
+    at most a texture row in files splatconv writes, so this rarely reads more than that.
     """
-    if len(records) == 0:
-        return 0
-    words = records.reshape(len(records), -1)
-    stop = len(words)
     step = SPLATS_PER_ROW
-    while stop > 0:
-        start = max(0, stop - step)
-        used = np.flatnonzero(words[start:stop].any(axis=1))
+    while stop > first:
+        start = max(first, stop - step)
+        used = np.flatnonzero(texture.rows(start, stop).any(axis=1))
         if len(used):
             return start + int(used[-1]) + 1
         stop = start
-        step *= 2
-    return 0
+        step = min(2 * step, _READ_RECORDS)
+    return first
 
 
 #: Records decoded at a time: a block's rows of the output table stay in cache.
@@ -407,32 +440,30 @@ _NEGATIVE_HALF = ((np.arange(1 << 16) & packing.HALF_SIGN_BIT) != 0) & ~np.isnan
 _NEGATIVE_HALF.flags.writeable = False
 
 
-def decode_records(records: np.ndarray) -> tuple[dict, list]:
-    """Texture records -> model columns, the exact inverse of the default writer.
+def new_tally() -> dict:
+    """What :func:`decode_rows` counts, nothing yet: data in unused halves (by word), negative exp() halves
+    (by name)."""
+    return {"stray": dict.fromkeys(HALF_WORDS, 0), "negative": dict.fromkeys(EXP_ATTRIBUTES, 0)}
+
+
+def decode_rows(records: np.ndarray, cols: dict, at: int, tally: dict) -> None:
+    """Decode texture records into rows ``at ..`` of model columns, counting into ``tally`` (:func:`new_tally`).
 
     Parameters
     ----------
-    records : (N, 16) uint32 ndarray
-
-    Returns
-    -------
-    columns : dict of str to (N,) float32 ndarray
-        Views of one table in the lite PLY row layout (see
-        :func:`splatconv.model.lite_rows`), which the PLY writer writes whole.
-    notes : list of str
-        Values the lite PLY layout cannot hold (negative values in exp() slots,
-        data in the unused halves).
+    records : (M, 16) uint32 ndarray
+    cols : dict of str to (N,) float32 ndarray
+        Writeable columns (:func:`splatconv.model.lite_rows`), rows ``at`` to ``at + M`` filled here.
+    at : int
+    tally : dict
     """
-    n = len(records)
-    _rows, cols = lite_rows(n)
-    stray = dict.fromkeys(HALF_WORDS, 0)
-    negative = dict.fromkeys(EXP_ATTRIBUTES, 0)
-    values = np.empty(min(n, _DECODE_BLOCK), dtype=np.float32)  # one temporary, reused for every column
+    stray, negative = tally["stray"], tally["negative"]
+    values = np.empty(min(len(records), _DECODE_BLOCK), dtype=np.float32)  # one temporary, reused for every column
     # A block of rows at a time: the table's rows stay in cache while each of
     # their 29 fields is written.
-    for start in range(0, n, _DECODE_BLOCK):
+    for start in range(0, len(records), _DECODE_BLOCK):
         block = records[start:start + _DECODE_BLOCK]
-        rows = slice(start, start + len(block))
+        rows = slice(at + start, at + start + len(block))
         out = values[:len(block)]
         for w, name in POSITION_WORDS.items():
             cols[name][rows] = block[:, w].view(np.float32)
@@ -451,15 +482,41 @@ def decode_records(records: np.ndarray) -> tuple[dict, list]:
         for i, byte in enumerate((r, g, b)):
             cols[f"f_dc_{i}"][rows] = np.take(COLOR_OF_BYTE, byte, out=out, mode="clip")
         cols["opacity"][rows] = np.take(LOGIT_OF_BYTE, a, out=out, mode="clip")
+
+
+def decode_notes(tally: dict) -> list:
+    """The notes of what :func:`decode_rows` counted: values the lite PLY layout cannot hold."""
     notes = []
     for w, (lo_name, hi_name) in HALF_WORDS.items():
         for name in (lo_name, hi_name):
-            if name is None and stray[w]:
-                notes.append(f"word {w}: {stray[w]} records carry data in the unused upper half; dropped")
-            elif name in EXP_ATTRIBUTES and negative[name]:
-                notes.append(f"{name}: {negative[name]} negative values have no logarithm; written as "
+            if name is None and tally["stray"][w]:
+                notes.append(f"word {w}: {tally['stray'][w]} records carry data in the unused upper half; dropped")
+            elif name in EXP_ATTRIBUTES and tally["negative"][name]:
+                notes.append(f"{name}: {tally['negative'][name]} negative values have no logarithm; written as "
                              "NaN (-0 as -inf)")
-    return cols, notes
+    return notes
+
+
+def decode_records(records: np.ndarray) -> tuple[dict, list]:
+    """Texture records -> model columns, the exact inverse of the default writer.
+
+    Parameters
+    ----------
+    records : (N, 16) uint32 ndarray
+
+    Returns
+    -------
+    columns : dict of str to (N,) float32 ndarray
+        Views of one table in the lite PLY row layout (see
+        :func:`splatconv.model.lite_rows`), which the PLY writer writes whole.
+    notes : list of str
+        Values the lite PLY layout cannot hold (negative values in exp() slots,
+        data in the unused halves).
+    """
+    _rows, cols = lite_rows(len(records))
+    tally = new_tally()
+    decode_rows(records, cols, 0, tally)
+    return cols, decode_notes(tally)
 
 
 def read(path: str | os.PathLike, **_options) -> Scene:
@@ -469,13 +526,42 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     ends inside a record; ``info`` shows the bytes present); the
     splat count is the header's ``count`` (see :func:`_splat_count`), or, in
     files without one, excludes trailing all-zero records. NaN, infinities, subnormal
-    halves and zero scales are read as they are.
+    halves and zero scales are read as they are. The records are read and decoded
+    :data:`_READ_RECORDS` at a time: the scene's table is all the memory a read takes.
     """
-    records, chunk, meta, notes = read_records(path)
-    columns, decode_notes = decode_records(records)
-    meta["records"] = int(records.shape[0])
+    path = os.fspath(path)
+    with open_input(path) as f:
+        texture, count, chunk, meta, notes = _open_texture(f, path)
+        _rows, columns = lite_rows(count)
+        tally = new_tally()
+        for start in range(0, count, _READ_RECORDS):
+            decode_rows(texture.rows(start, min(count, start + _READ_RECORDS)), columns, start, tally)
+    meta["records"] = count
     return Scene(columns=columns, cameras=list(chunk.get("cameras", [])), variant="splatv",
-                 meta=meta, notes=notes + decode_notes)
+                 meta=meta, notes=notes + decode_notes(tally))
+
+
+def scan(path: str | os.PathLike, **_options) -> Scan:
+    """Read a ``.splatv`` file a piece at a time (:class:`~splatconv.formats.base.Scan`): what :func:`read`
+    gives, :data:`_READ_RECORDS` splats a piece."""
+    path = os.fspath(path)
+    out = Scan(variant="splatv")
+
+    def pieces():
+        with open_input(path) as f:
+            texture, count, chunk, meta, notes = _open_texture(f, path)
+            out.cameras = list(chunk.get("cameras", []))
+            out.meta.update(meta, records=count)
+            tally = new_tally()
+            for start in range(0, count, _READ_RECORDS):
+                stop = min(count, start + _READ_RECORDS)
+                _rows, columns = lite_rows(stop - start)
+                decode_rows(texture.rows(start, stop), columns, 0, tally)
+                yield columns
+        out.notes.extend(notes + decode_notes(tally))
+
+    out.pieces = pieces()
+    return out
 
 
 def storage(scene: Scene) -> dict:
@@ -483,9 +569,9 @@ def storage(scene: Scene) -> dict:
     return STORAGE
 
 
-def info_fields(scene: Scene) -> dict:
-    """What ``info`` shows of a scene read from a ``.splatv`` besides the common facts: its chunks."""
-    return {"chunks": scene.meta.get("chunks", [])}
+def info_fields(meta: dict) -> dict:
+    """What ``info`` shows of a scene read from a ``.splatv`` (its ``meta``) besides the common facts: its chunks."""
+    return {"chunks": meta.get("chunks", [])}
 
 
 def read_texture(path: str | os.PathLike):
@@ -498,17 +584,23 @@ def read_texture(path: str | os.PathLike):
     scene : Scene
         The records decoded to model columns (one read of the file serves both).
     """
-    records, chunk, meta, notes = read_records(path)
-    count = len(records)
-    rows = texture_height(count)
-    if meta["texheight"] * SPLATS_PER_ROW > rows * SPLATS_PER_ROW == count:
-        rows += 1  # keep one zero record at the origin, which the viewer's sort also sees
-    padded = np.zeros((max(rows, 1) * SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4")
-    padded[:count] = records
-    columns, decode_notes = decode_records(records)
+    path = os.fspath(path)
+    with open_input(path) as f:
+        texture, count, chunk, meta, notes = _open_texture(f, path)
+        rows = texture_height(count)
+        if meta["texheight"] * SPLATS_PER_ROW > rows * SPLATS_PER_ROW == count:
+            rows += 1  # keep one zero record at the origin, which the viewer's sort also sees
+        padded = np.zeros((max(rows, 1) * SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4")
+        _rows, columns = lite_rows(count)
+        tally = new_tally()
+        # Read into the padded texture a piece at a time, each decoded from there: no third copy.
+        for start in range(0, count, _READ_RECORDS):
+            stop = min(count, start + _READ_RECORDS)
+            padded[start:stop] = texture.rows(start, stop)
+            decode_rows(padded[start:stop], columns, start, tally)
     meta["records"] = count
     scene = Scene(columns=columns, cameras=list(chunk.get("cameras", [])), variant="splatv", meta=meta,
-                  notes=notes + decode_notes)
+                  notes=notes + decode_notes(tally))
     return padded, scene
 
 
@@ -518,7 +610,7 @@ FORMAT = Format(
     default_sort="importance",  # largest, most opaque first: the viewer draws them first while streaming
     holds_empty=False,  # the viewer cannot show an empty texture
     dynamic=True,  # motion and a temporal basis
-    read=read, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
+    read=read, scan=scan, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
     write=write,
     compat_modes=("splatv-js",),  # texture bytes identical to splaTV's in-browser converter
     info_fields=info_fields, storage=storage,

@@ -27,14 +27,14 @@ from ..cameras import camera_for_box, framing_box, validate_cameras
 from ..errors import FormatError, UnsupportedError, UsageError
 from ..files.inputs import open_input
 from ..jsonutil import loads_strict
-from ..model import Scene
+from ..model import Scene, lite_rows
 from ..progress import SILENT
 from ..viewer import UNDRAWABLE_KINDS, importance_order, undrawable_kinds
 from ..wording import kinds_text, plural
 from . import splatv
 from . import splatv_engine as engine
 from . import splatvq_codec as codec
-from .base import Format, WriteReport
+from .base import Format, Scan, WriteReport
 from .splatv_layout import SPLATS_PER_ROW, WORDS_PER_SPLAT
 
 #: Quality settings (best first; see :data:`splatvq_codec.SETTINGS`): the ``quality`` write option.
@@ -69,7 +69,7 @@ class Block(NamedTuple):
 
 
 __all__ = ["FORMAT", "read", "write", "encode", "decode", "check", "info_fields", "splat_count", "most_splats",
-           "storage", "read_records", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
+           "storage", "read_records", "scan", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
 
 
 # --------------------------------------------------------------------------
@@ -271,13 +271,9 @@ def _header(f, path: str, file_size: int):
 READ_WORKERS = 2
 
 
-def _decoded_blocks(f, path: str, setting, blocks):
-    """Each block's records, ``(n, 16) uint32``, in file order: the reader's one decoding and validation.
-
-    Two blocks are decoded at a time, their stored bytes read from ``f`` in file
-    order as the helpers ask for the next, so a damaged block is reported before
-    any block after it and at most a few blocks are held at once.
-    """
+def _decoded(f, path: str, setting, blocks):
+    """Each block's records, ``(n, 16) uint32``, in file order: two blocks decoded at a time, their stored bytes
+    read in file order, and a damaged block reported before any block after it."""
 
     def job(i, data):
         b, where = blocks[i], (f"block {i}",)
@@ -287,9 +283,19 @@ def _decoded_blocks(f, path: str, setting, blocks):
         f.seek(blocks[i].offset)
         return f.read(blocks[i].stored)
 
+    # The stored bytes are read here, in file order, as the helpers ask for the next block.
     with ThreadPoolExecutor(max_workers=READ_WORKERS) if len(blocks) > 1 else contextlib.nullcontext() as pool:
         yield from engine.ahead(pool, lambda item: job(*item), ((i, stored(i)) for i in range(len(blocks))),
                                 READ_WORKERS)
+
+
+def _opened(f, path: str):
+    """The setting, header JSON and blocks of the open file ``f``, and what ``info`` shows of it."""
+    file_size = os.fstat(f.fileno()).st_size
+    setting, meta, blocks = _header(f, path, file_size)
+    info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
+            "records": sum(b.coded + b.raw for b in blocks)}
+    return setting, meta, blocks, info
 
 
 def read_records(path: str | os.PathLike):
@@ -309,15 +315,12 @@ def read_records(path: str | os.PathLike):
     """
     path = os.fspath(path)
     with open_input(path) as f:
-        file_size = os.fstat(f.fileno()).st_size
-        setting, meta, blocks = _header(f, path, file_size)
-        records = np.empty((sum(b.coded + b.raw for b in blocks), WORDS_PER_SPLAT), dtype="<u4")
+        setting, meta, blocks, info = _opened(f, path)
+        records = np.empty((info["records"], WORDS_PER_SPLAT), dtype="<u4")
         at = 0
-        for out in _decoded_blocks(f, path, setting, blocks):
+        for out in _decoded(f, path, setting, blocks):
             records[at:at + len(out)] = out
             at += len(out)
-    info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
-            "records": int(len(records))}
     return records, list(meta.get("cameras", [])), info
 
 
@@ -327,10 +330,41 @@ def decode(path: str | os.PathLike) -> np.ndarray:
 
 
 def read(path: str | os.PathLike, **_options) -> Scene:
-    """Read a ``.splatvq`` file into a :class:`Scene` (its records decoded as a ``.splatv`` reader does)."""
-    records, cameras, info = read_records(path)
-    columns, notes = splatv.decode_records(records)
-    return Scene(columns=columns, cameras=cameras, variant=FORMAT.name, meta=info, notes=notes)
+    """Read a ``.splatvq`` file into a :class:`Scene`: each block's records decoded as a ``.splatv`` reader
+    does, straight into the scene's table (the records of a block or two are all a read holds besides it)."""
+    path = os.fspath(path)
+    with open_input(path) as f:
+        setting, meta, blocks, info = _opened(f, path)
+        _rows, columns = lite_rows(info["records"])
+        tally = splatv.new_tally()
+        at = 0
+        for out in _decoded(f, path, setting, blocks):
+            splatv.decode_rows(out, columns, at, tally)
+            at += len(out)
+    return Scene(columns=columns, cameras=list(meta.get("cameras", [])), variant=FORMAT.name, meta=info,
+                 notes=splatv.decode_notes(tally))
+
+
+def scan(path: str | os.PathLike, **_options) -> Scan:
+    """Read a ``.splatvq`` file a block at a time (:class:`~splatconv.formats.base.Scan`): what :func:`read`
+    gives, a block a piece."""
+    path = os.fspath(path)
+    out = Scan(variant=FORMAT.name)
+
+    def pieces():
+        with open_input(path) as f:
+            setting, meta, blocks, info = _opened(f, path)
+            out.cameras = list(meta.get("cameras", []))
+            out.meta.update(info)
+            tally = splatv.new_tally()
+            for records in _decoded(f, path, setting, blocks):
+                _rows, columns = lite_rows(len(records))
+                splatv.decode_rows(records, columns, 0, tally)
+                yield columns
+        out.notes.extend(splatv.decode_notes(tally))
+
+    out.pieces = pieces()
+    return out
 
 
 def splat_count(path: str | os.PathLike) -> int | None:
@@ -369,7 +403,7 @@ def check(path: str | os.PathLike) -> None:
     path = os.fspath(path)
     with open_input(path) as f:
         setting, _meta, blocks = _header(f, path, os.fstat(f.fileno()).st_size)
-        for _ in _decoded_blocks(f, path, setting, blocks):
+        for _ in _decoded(f, path, setting, blocks):
             pass
 
 
@@ -378,9 +412,9 @@ def storage(scene: Scene) -> dict:
     return STORAGE
 
 
-def info_fields(scene: Scene) -> dict:
-    """What ``info`` shows of a ``.splatvq``: its setting and block count."""
-    return {"setting": scene.meta.get("setting"), "blocks": scene.meta.get("blocks")}
+def info_fields(meta: dict) -> dict:
+    """What ``info`` shows of a ``.splatvq`` (its ``meta``): its setting and block count."""
+    return {"setting": meta.get("setting"), "blocks": meta.get("blocks")}
 
 
 FORMAT = Format(
@@ -390,7 +424,7 @@ FORMAT = Format(
     holds_empty=False,  # a file holds drawable splats only, at least one
     drawable_only=True,  # undrawable splats are left out (and counted in a note)
     dynamic=True,  # motion and a temporal basis, quantized
-    read=read, splat_count=splat_count, most_splats=most_splats,
+    read=read, scan=scan, splat_count=splat_count, most_splats=most_splats,
     write=write,
     info_fields=info_fields, storage=storage,
     # Decoded to the viewer's texture, but not the texture itself: the page decodes
