@@ -11,13 +11,16 @@ fast movers among mostly slow splats):
 * the same blocks coded with raw deflate (what the format stores: the browser's
   ``DecompressionStream('deflate-raw')``) and with zstd (what a vendored fzstd
   would decode), and how long Python takes to decompress each;
+* the same per setting on the real trained scenes in ``../shared/real`` (``--real``;
+  frames from each scene's first camera, drawn with the viewer's GL path, the
+  ``.splatv`` as read against its decoded ``.splatvq``), said plainly when absent;
 * ``convert`` of a PLY to ``.splatv`` and to ``.splatvq``, and of each back to a
   PLY, in fresh processes: wall seconds and peak RSS (the issue's bounds: encoding
   at most 4x, decoding at most 2x, memory at most 2x the ``.splatv`` figures).
 
 Run::
 
-    python bench/bench_splatvq.py [--splats 200000] [--timing-splats 1000000] [--keep DIR]
+    python bench/bench_splatvq.py [--splats 200000] [--timing-splats 1000000] [--real DIR] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -152,6 +155,37 @@ def quality_table(n: int, seeds) -> None:
     print("(.splatv: 64 B a splat)")
 
 
+#: Real trained scenes, beside the repository (never in it).
+REAL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "..", "shared", "real")
+REAL_SCENES = ("coffeeshort2.splatv", "yellow_clip3.splatv")
+
+
+def real_table(folder: str) -> None:
+    """Bytes a drawable splat and worst and mean PSNR per setting on the real scenes found in ``folder``."""
+    import splatconv
+
+    found = [name for name in REAL_SCENES if os.path.isfile(os.path.join(folder, name))]
+    print(f"\nreal scenes in {os.path.normpath(folder)}: camera 0, 640x480; t = {', '.join(map(str, TIMES))}")
+    if not found:
+        print(f"  absent: none of {', '.join(REAL_SCENES)} is there; no real-scene figures")
+        return
+    print(f"{'scene':<14} {'setting':<9} {'drawable':>9} {'B/splat':>8} {'worst dB':>9} {'mean dB':>8}")
+    for name in found:
+        scene = splatconv.read(os.path.join(folder, name))
+        camera = scene.cameras[0]
+        drawable = int(np.count_nonzero(~undrawable(scene.columns)))
+        source = render_scene(scene, camera, TIMES, size=(640, 480), reference=False)
+        for setting in codec.SETTINGS:
+            data, _report = splatvq.encode(scene, quality=setting)
+            path = os.path.join(WORK, f"real_{setting}.splatvq")
+            with open(path, "wb") as f:
+                f.write(data)
+            frames = render_scene(splatvq.read(path), camera, TIMES, size=(640, 480), reference=False)
+            values = [compare(x, y).psnr for x, y in zip(source, frames)]
+            print(f"{name.rsplit('.', 1)[0]:<14} {setting:<9} {drawable:>9,} {len(data) / drawable:8.2f} "
+                  f"{min(values):9.2f} {float(np.mean(values)):8.2f}")
+
+
 def cost_table(n: int) -> None:
     src = os.path.join(WORK, "timing.ply")
     scene = make_scene(n, seed=1)
@@ -180,10 +214,12 @@ def main(argv=None) -> int:
     p.add_argument("--splats", type=int, default=200_000)
     p.add_argument("--seeds", default="0,1,2", help="scenes to measure, by seed (comma-separated)")
     p.add_argument("--timing-splats", type=int, default=1_000_000)
+    p.add_argument("--real", default=REAL, help="folder of the real trained scenes (default ../shared/real)")
     p.add_argument("--keep")
     args = p.parse_args(argv)
     with _harness.work_folder(args.keep) as WORK:
         quality_table(args.splats, [int(x) for x in args.seeds.split(",")])
+        real_table(args.real)
         if args.timing_splats:
             cost_table(args.timing_splats)
     return 0

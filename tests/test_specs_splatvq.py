@@ -57,7 +57,7 @@ def test_preamble_table_is_the_struct():
     assert "16 `B`" in SPEC and splatvq.BLOCK_ENTRY.size == 16
     assert "`coded`, `raw`, `payload`, `stored`, four uint32" in SPEC and splatvq.BLOCK_ENTRY.format == "<IIII"
     assert "the bytes `SPVQ` (`MAGIC`)" in SPEC and splatvq.MAGIC == b"SPVQ"
-    assert "| 4 | 1 | version | 3 (`VERSION`) |" in SPEC and splatvq.VERSION == 3
+    assert "| 4 | 1 | version | 4 (`VERSION`) |" in SPEC and splatvq.VERSION == 4
     assert "1: raw deflate (`CODER_DEFLATE_RAW`)" in SPEC and codec.CODER_DEFLATE_RAW == 1
     assert "8: 256 splats a chunk (`CHUNK_LOG2`)" in SPEC and codec.CHUNK == 256
 
@@ -125,7 +125,8 @@ def test_settings_table_is_the_code():
     ("c ≥ 2 (`SCALE_FIRST`)", codec.SCALE_FIRST == 2),
     ("4096 interquartile extents", codec.OUTLIER_EXTENTS == 4096),
     ("1032 decoded bytes a stored byte", codec.MAX_RATIO == 1032),
-    ("clamp((h >> 10) − 15, −15, 16)", True),
+    ("s = clamp((h >> 10) − 15, −15, 16)", True),
+    ("h = max(l, m − 1024 · `flat_octaves`)", True),
     ("c = min(`alpha_levels`, 7 − floor(log2(max(a, 1))))", True),
 ])
 def test_constants_are_as_written(text, value):
@@ -136,8 +137,11 @@ def test_constants_are_as_written(text, value):
 def test_size_exponent_is_as_written():
     h = np.array([[0, 0x3C00, 0x7C00], [0x4400, 0x4000, 0x3C00], [0x7C00, 0x7C00, 0x7C00], [1, 0x3C00, 0x3C00],
                   [0, 1, 0x3C00]], dtype=np.uint16)
-    # The middle of the three bit patterns.
-    assert codec.size_exponent(h).tolist() == [0, 1, 16, 0, -15]
+    # The middle of the three bit patterns where flat_octaves is 0 (version 3's rule).
+    assert codec.size_exponent(h, 0).tolist() == [0, 1, 16, 0, -15]
+    # The least, at most flat_octaves octaves below the middle.
+    assert codec.size_exponent(h, 2).tolist() == [-2, 0, 16, -2, -15]
+    assert codec.size_exponent(np.array([[0x3000, 0x3C00, 0x3C00]], np.uint16), 15).tolist() == [-3]
 
 
 def test_alpha_coarsening_is_as_written():
@@ -162,8 +166,8 @@ def test_the_test_vector_decodes_as_written():
     assert out.reshape(-1).tolist() == words
     # The numbers the prose gives are in the payload and the words.
     assert struct.unpack_from("<3d", payload) == (1.0, 2.0, -0.5)
-    assert out[:, 0].view(np.float32).tolist() == [32.25, 38.5]
-    assert codec.x_steps(np.array([1000, 300]), np.array([-5, -3])).tolist() == [1000, 50]
+    assert out[:, 0].view(np.float32).tolist() == [16.625, 22.875]
+    assert codec.x_steps(np.array([1000, 175]), np.array([-6, -3])).tolist() == [1000, 50]
     tables, fields, raw = codec.unpack_payload(payload, 2, 0, "<spec>", ())
     assert fields["x_step"][:, 0].tolist() == [1000, 50] and fields["window_index"][:, 0].tolist() == [116, 122]
     assert fields["motion"][:, :2].tolist() == [[10, 9], [0, 0]] and len(raw) == 0

@@ -178,9 +178,10 @@ def _no_blocks(data: bytes) -> bytes:
 
 
 BAD = [
-    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (25-byte preamble)"),
+    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (26-byte preamble)"),
     ("magic", lambda d: b"XXXX" + d[4:], "not a .splatvq file: magic b'XXXX', expected b'SPVQ'"),
-    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (3)"),
+    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (4)"),
+    ("version 3", lambda d: d[:4] + b"\x03" + d[5:], "version 3 is not one this reader knows (4)"),
     ("coder", lambda d: d[:5] + b"\x02" + d[6:], "coder 2 is not one this reader knows (1: raw deflate)"),
     ("setting", lambda d: d[:7] + b"\x00" + d[8:], "setting 'rotation_bits' is 0, outside [2, 16]"),
     ("truncated", lambda d: d[:-5], "block 0: declares {stored} bytes but the file ends {short} bytes after its "
@@ -205,7 +206,7 @@ BAD = [
     ("window", lambda d: damage.with_codes(d, damage.bad_window), "block 0: a window exponent is past 30"),
     ("position step", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 0: a position code is past 2**32 - 1"),
-    ("rotation code", lambda d: damage.with_codes(d, _bad_rotation), "block 0: a rotation code is past 255"),
+    ("rotation code", lambda d: damage.with_codes(d, _bad_rotation), "block 0: a rotation code is past 1023"),
     ("scale code", lambda d: damage.with_codes(d, _bad_scale), "block 0: a scale code decodes past the half range"),
     ("width", lambda d: damage.with_width(d, "x_step[0]", 5), "block 0: a column width of 5 bytes (at most 4)"),
     ("payload ends early", lambda d: damage.with_width(d, "rotation[0]", codec.MAX_WIDTH),

@@ -229,7 +229,7 @@ BAD = [
     ("a block that inflates to far more than declared",
      lambda d: damage.with_payload(d, damage.payload(d) + bytes(8 << 20), declared=len(damage.payload(d))),
      "block 1 of 1 is damaged: it decodes to more than the"),
-    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 3"),
+    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 4"),
     ("a setting out of range", lambda d: d[:7] + b"\x00" + d[8:], "setting rotation_bits is 0"),
     ("a position step past the code range", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 1 of 1 is damaged (a position code past 2^32 - 1)"),
@@ -281,6 +281,12 @@ def _every_path(tables, fields):
     fields["window_index"][some, 0] = rng.integers(0, (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 4, int(some.sum()))
     last = np.unique(np.r_[np.arange(codec.CHUNK - 1, n, codec.CHUNK), n - 1])
     fields["x_step"][last, 0] += rng.integers(0, 2 ** 30, len(last))
+    # Chunk bases of 0, the codes raised to match (every scale decodes as before): with a coarse
+    # scale step a chunk's codes span fewer than 255 lattice points from its base.
+    for key, name in (("scale_base", "scale"), ("trbf_scale_base", "trbf_scale")):
+        lattice = fields[name] >= codec.SCALE_FIRST
+        fields[name] += np.where(lattice, tables[key][chunk].astype(np.int64), 0)
+        tables[key] = np.zeros_like(tables[key])
     setting = codec.SETTINGS[codec.DEFAULT_SETTING]
     # The highest code of each axis that stays in the half range, from its chunk's base.
     top = packing.HALF_INF_BITS // setting.scale_step - tables["scale_base"][chunk].astype(np.int64) + codec.SCALE_FIRST

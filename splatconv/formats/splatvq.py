@@ -45,9 +45,9 @@ STORAGE = {"position": "quantized", "rotation": "quantized", "scale": "quantized
            "opacity": "byte", "motion": "quantized", "omega": "quantized", "trbf": "quantized"}
 
 MAGIC = b"SPVQ"
-VERSION = 3
-#: magic, version, coder, the setting's ten numbers, chunk size (log2), JSON length, block count.
-PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBII")
+VERSION = 4
+#: magic, version, coder, the setting's eleven numbers, chunk size (log2), JSON length, block count.
+PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBBII")
 #: One block table entry: splats quantized, splats verbatim, payload (inflated) bytes, stored (compressed) bytes.
 BLOCK_ENTRY = struct.Struct("<IIII")
 #: Largest JSON header read.
@@ -56,7 +56,7 @@ MAX_JSON_BYTES = 64 << 20
 MAX_SPLATS = 65536 * SPLATS_PER_ROW
 #: The setting's fields in preamble order.
 SETTING_ORDER = ("position_shift", "rotation_bits", "scale_step", "trbf_scale_step", "time_shift", "omega_shift",
-                 "motion_shift", "acceleration_shift", "jerk_shift", "alpha_levels")
+                 "motion_shift", "acceleration_shift", "jerk_shift", "alpha_levels", "flat_octaves")
 
 class Block(NamedTuple):
     """A block table entry, checked, and where the block's stored bytes start in the file."""

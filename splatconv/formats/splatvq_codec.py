@@ -59,9 +59,10 @@ class Setting:
     Attributes
     ----------
     position_shift : int
-        A splat's position step is 2**k, k = floor(log2(its middle linear
-        scale)) + position_shift (+ its alpha coarsening; see :func:`size_exponent`):
-        a displacement shows in proportion to the splat it moves.
+        A splat's position step is 2**k, k = floor(log2(its least linear scale,
+        at most ``flat_octaves`` octaves below its middle one)) + position_shift
+        (+ its alpha coarsening; see :func:`size_exponent`): a displacement
+        shows in proportion to the splat's thickness along it.
     rotation_bits : int
         Bits of each of the three smallest unit-quaternion components.
     scale_step : int
@@ -86,6 +87,8 @@ class Setting:
         motion, omega) ``c = min(alpha_levels, 7 - floor(log2(a)))`` times
         coarser by powers of two (``c >= 0``): what it draws is in proportion
         to its alpha, so the same displacement of a faint splat changes a frame less.
+    flat_octaves : int
+        How far below the middle scale the least one may take the position step down.
     """
 
     position_shift: int
@@ -98,14 +101,17 @@ class Setting:
     acceleration_shift: int
     jerk_shift: int
     alpha_levels: int
+    flat_octaves: int
 
 
 #: Quality settings by name, best first. The bench (``bench/bench_splatvq.py``) measures them.
 SETTINGS = {
-    "default": Setting(position_shift=-6, rotation_bits=8, scale_step=16, trbf_scale_step=32, time_shift=11,
-                       omega_shift=6, motion_shift=2, acceleration_shift=1, jerk_shift=1, alpha_levels=2),
-    "small": Setting(position_shift=-5, rotation_bits=6, scale_step=72, trbf_scale_step=80, time_shift=10,
-                     omega_shift=4, motion_shift=3, acceleration_shift=0, jerk_shift=0, alpha_levels=4),
+    "default": Setting(position_shift=-5, rotation_bits=10, scale_step=48, trbf_scale_step=96, time_shift=11,
+                       omega_shift=8, motion_shift=2, acceleration_shift=1, jerk_shift=1, alpha_levels=4,
+                       flat_octaves=2),
+    "small": Setting(position_shift=-4, rotation_bits=8, scale_step=72, trbf_scale_step=128, time_shift=9,
+                     omega_shift=6, motion_shift=3, acceleration_shift=0, jerk_shift=0, alpha_levels=4,
+                     flat_octaves=2),
 }
 DEFAULT_SETTING = "default"
 #: Precision steps beside a setting (:func:`refined`), coarsest first: 0 is the setting as named.
@@ -144,7 +150,7 @@ def refined(setting: Setting, step: int) -> Setting:
 SETTING_LIMITS = {"position_shift": (-30, 30), "rotation_bits": (2, 16), "scale_step": (1, 255),
                   "trbf_scale_step": (1, 255), "time_shift": (0, 30), "omega_shift": (0, 30),
                   "motion_shift": (-30, 30), "acceleration_shift": (0, 8), "jerk_shift": (0, 8),
-                  "alpha_levels": (0, 7)}
+                  "alpha_levels": (0, 7), "flat_octaves": (0, 15)}
 
 #: The chunk tables of a block payload, in order: name, dtype, values per chunk.
 CHUNK_FIELDS = (
@@ -393,17 +399,18 @@ def _scale_decoded(h: np.ndarray, step: int) -> np.ndarray:
     return np.where(special, h, scale_lattice(h, step) * step).astype(np.uint16)
 
 
-def size_exponent(scale_halves: np.ndarray) -> np.ndarray:
-    """floor(log2) of each splat's middle linear scale, from decoded scale half bits ``(N, 3) uint16``: ``(N,) int64``.
+def size_exponent(scale_halves: np.ndarray, flat_octaves: int) -> np.ndarray:
+    """floor(log2) of each splat's thin-axis scale, from decoded scale half bits ``(N, 3) uint16``: ``(N,) int64``.
 
-    The middle of the three, not the least: a flat splat (one scale near or at
-    0, common in trained scenes) is drawn as a disc, and a step in proportion to
-    its thickness would spend bits on a precision no frame shows but edge-on.
+    The least of the three bit patterns, but at most ``flat_octaves`` octaves
+    (1024 half-bit units each) below the middle one: a displacement across a
+    flat or needle-shaped splat's thin axis shows in proportion to its
+    thickness, while a splat of zero thickness must not take a step of 0.
     Integers only (a half's exponent field): a decoder derives it from the
-    scales it decoded. Subnormal and zero scales count as -15, infinite ones as 16.
-    """
-    middle = np.sort(scale_halves, axis=1)[:, 1].astype(np.int64)
-    return np.clip((middle >> 10) - 15, -15, 16)
+    scales it decoded. Subnormal and zero scales count as -15, infinite ones as 16."""
+    least, middle = np.sort(scale_halves, axis=1)[:, :2].astype(np.int64).T
+    h = np.maximum(least, middle - (flat_octaves << 10))
+    return np.clip((h >> 10) - 15, -15, 16)
 
 
 def _decoded_quaternion(code: np.ndarray, index: np.ndarray, rmax: int) -> np.ndarray:
@@ -541,7 +548,8 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     # (see size_exponent); positions coded from their chunk's base, a multiple of every step in the chunk.
     scale_h = _halves_of(records[kept, 5:7], ((0, 0), (0, 1), (1, 0)))
     coarse = alpha_coarsening(records[kept, COLOR_WORD] >> np.uint32(24), setting.alpha_levels)
-    k = size_exponent(_scale_decoded(scale_h, setting.scale_step)) + setting.position_shift + coarse
+    k = (size_exponent(_scale_decoded(scale_h, setting.scale_step), setting.flat_octaves) + setting.position_shift
+         + coarse)
     pos = records[kept, :3].view(np.float32).astype(np.float64)
     if n:
         lo = np.minimum.reduceat(pos, starts, axis=0)
@@ -802,7 +810,7 @@ def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: s
     scale = _scale_halves(fields["scale"], table["scale_base"][chunk_of], setting.scale_step, path, where)
     colour = np.ascontiguousarray(fields["color"].astype(np.uint8)).view("<u4")[:, 0]
     coarse = alpha_coarsening(colour >> np.uint32(24), setting.alpha_levels)
-    k = size_exponent(scale) + setting.position_shift + coarse
+    k = size_exponent(scale, setting.flat_octaves) + setting.position_shift + coarse
     # x_codes refuses an x code past POSITION_CODE_MAX; y and z are at most 4 bytes wide.
     code = np.concatenate([x_codes(fields["x_step"][:, 0], k, path, where)[:, None], fields["yz"]], axis=1)
     with np.errstate(over="ignore", invalid="ignore"):

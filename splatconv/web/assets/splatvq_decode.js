@@ -18,12 +18,12 @@
 "use strict";
 
 const MAGIC = "SPVQ";
-const VERSION = 3;
+const VERSION = 4;
 const CODER_DEFLATE_RAW = 1;
 const CHUNK_LOG2 = 8;
 const CHUNK = 1 << CHUNK_LOG2;
 const BLOCK = 1 << 16;
-const PREAMBLE = 25;           // magic, version, coder, 10 setting bytes, chunk_log2, json_length, block_count
+const PREAMBLE = 26;           // magic, version, coder, 11 setting bytes, chunk_log2, json_length, block_count
 const ENTRY = 16;              // coded, raw, payload (inflated bytes), stored: four uint32
 const MAX_JSON = 64 << 20;
 const MAX_RATIO = 1032;        // deflate gives at most this many bytes a stored byte
@@ -58,12 +58,12 @@ const WINDOW_INDEX_MAX = (WINDOW_MAX + WINDOW_BIAS) * 4 + 3;
 const SCALE_ZERO = 0, SCALE_INF = 1, SCALE_FIRST = 2;
 const HALF_INF = 0x7c00;
 const POSITION_CODE_MAX = 4294967295;
-// Preamble bytes 6..15: name, signed, lowest, highest (SETTING_LIMITS in splatvq_codec.py).
+// Preamble bytes 6..16: name, signed, lowest, highest (SETTING_LIMITS in splatvq_codec.py).
 const SETTING = [
   ["position_shift", true, -30, 30], ["rotation_bits", false, 2, 16], ["scale_step", false, 1, 255],
   ["trbf_scale_step", false, 1, 255], ["time_shift", false, 0, 30], ["omega_shift", false, 0, 30],
   ["motion_shift", true, -30, 30], ["acceleration_shift", false, 0, 8], ["jerk_shift", false, 0, 8],
-  ["alpha_levels", false, 0, 7],
+  ["alpha_levels", false, 0, 7], ["flat_octaves", false, 0, 15],
 ];
 const CHUNK_LOG2_AT = 6 + SETTING.length, JSON_AT = CHUNK_LOG2_AT + 1, BLOCKS_AT = JSON_AT + 4;
 
@@ -544,14 +544,15 @@ function scaleField(b, column, slot, base, stride, offset, step) {
 }
 
 // Each splat's coarsening c from its alpha byte (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))),
-// and step exponent k (from its middle scale, plus c).
+// and step exponent k (from its least scale, at most flat_octaves below its middle one, plus c).
 function stepExponents(b) {
-  const {p, n, s, halves, k, c} = b, alphaPlane = b.columns.color[3].at;
+  const {p, n, s, halves, k, c} = b, alphaPlane = b.columns.color[3].at, flat = s.flat_octaves << 10;
   for (let i = 0; i < n; i++) {
     const s0 = halves[32 * i + 10], s1 = halves[32 * i + 11], s2 = halves[32 * i + 12];
     const middle = Math.max(Math.min(s0, s1), Math.min(Math.max(s0, s1), s2));
+    const h = Math.max(Math.min(s0, s1, s2), middle - flat);
     c[i] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, p[alphaPlane + i]))));
-    k[i] = Math.min(16, Math.max(-15, (middle >> 10) - 15)) + s.position_shift + c[i];
+    k[i] = Math.min(16, Math.max(-15, (h >> 10) - 15)) + s.position_shift + c[i];
   }
 }
 
