@@ -22,7 +22,7 @@ payload in order; the spec's tables are checked against them.
 from __future__ import annotations
 
 import zlib
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -124,8 +124,8 @@ def refined(setting: Setting, step: int) -> Setting:
     Each step halves every geometric step (position, motion), the temporal
     centre's and omega's lattice steps and each scale lattice step, and gives
     the rotation a bit more: about 6 dB a step where the error is spread over
-    them all. The acceleration and jerk shifts and the alpha levels, which say
-    how steps relate to one another, are kept. Values are held to
+    them all. The numbers that say how steps relate to one another (the
+    acceleration and jerk shifts, the alpha levels, the flat octaves) are kept. Values are held to
     :data:`SETTING_LIMITS`, so the far steps may change fewer of them.
     """
     def held(name, value):
@@ -135,15 +135,14 @@ def refined(setting: Setting, step: int) -> Setting:
     def lattice(step_units):  # a factor of 2 in size is 1024 half-bit units
         return max(1, round(step_units / 2.0 ** step))
 
-    return Setting(position_shift=held("position_shift", setting.position_shift - step),
-                   rotation_bits=held("rotation_bits", setting.rotation_bits + step),
-                   scale_step=held("scale_step", lattice(setting.scale_step)),
-                   trbf_scale_step=held("trbf_scale_step", lattice(setting.trbf_scale_step)),
-                   time_shift=held("time_shift", setting.time_shift + step),
-                   omega_shift=held("omega_shift", setting.omega_shift + step),
-                   motion_shift=held("motion_shift", setting.motion_shift - step),
-                   acceleration_shift=setting.acceleration_shift, jerk_shift=setting.jerk_shift,
-                   alpha_levels=setting.alpha_levels)
+    return replace(
+        setting, position_shift=held("position_shift", setting.position_shift - step),
+        rotation_bits=held("rotation_bits", setting.rotation_bits + step),
+        scale_step=held("scale_step", lattice(setting.scale_step)),
+        trbf_scale_step=held("trbf_scale_step", lattice(setting.trbf_scale_step)),
+        time_shift=held("time_shift", setting.time_shift + step),
+        omega_shift=held("omega_shift", setting.omega_shift + step),
+        motion_shift=held("motion_shift", setting.motion_shift - step))
 
 
 #: Limits a header's setting is checked against.
