@@ -173,3 +173,21 @@ def test_the_test_vector_decodes_as_written():
     assert fields["motion"][:, :2].tolist() == [[10, 9], [0, 0]] and len(raw) == 0
     # The vector is what the encoder's own packing gives for these codes.
     assert b"".join(codec.payload_parts(tables, fields, raw)) == payload
+
+
+def test_precision_steps_are_as_written():
+    text = " ".join(SPEC.split())
+    first, last = codec.PRECISIONS[0], codec.PRECISIONS[-1]
+    assert f"a `precision` step from −{-first} to {last} (`PRECISIONS`, `refined`)" in text
+    assert codec.PRECISIONS == tuple(range(first, last + 1))
+    base = codec.SETTINGS["default"]
+    finer = codec.refined(base, 1)
+    assert (finer.position_shift, finer.motion_shift) == (base.position_shift - 1, base.motion_shift - 1)
+    assert (finer.rotation_bits, finer.time_shift, finer.omega_shift) == (
+        base.rotation_bits + 1, base.time_shift + 1, base.omega_shift + 1)
+    assert (finer.scale_step, finer.trbf_scale_step) == (round(base.scale_step / 2), round(base.trbf_scale_step / 2))
+    kept = ("acceleration_shift", "jerk_shift", "alpha_levels", "flat_octaves")
+    assert all(getattr(finer, f) == getattr(base, f) for f in kept)
+    for step in codec.PRECISIONS:  # held to the header's limits
+        s = codec.refined(base, step)
+        assert all(low <= getattr(s, f) <= high for f, (low, high) in codec.SETTING_LIMITS.items())

@@ -12,7 +12,7 @@ from ..errors import SplatconvError, UsageError
 from ..files.signals import check_signals
 from ..io import COLOR_MODES, QUALITIES, noting_undrawable
 from ..wording import plural
-from ..zstd import DEFAULT_LEVEL
+from ..zstd import DEFAULT_LEVEL, parse_byte_size
 from ._group import Failure, main  # noqa: F401  (command modules import both from here)
 from ._progress import progress_for
 
@@ -95,6 +95,39 @@ def quality_option():
                              f"(docs/formats.md) [default: {QUALITIES[0]}]. .html OUTPUT: embed the scene as "
                              f".splatvq at this setting, a compact page (without it: as the .splatv texture, or a "
                              f".splatvq INPUT with its own setting).")
+
+
+class ByteSize(click.ParamType):
+    """A size such as 5M, 512k or 1000000 (binary units; an optional B or iB)."""
+
+    name = "size"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int):
+            return value
+        try:
+            return parse_byte_size(value)
+        except ValueError as e:
+            self.fail(str(e), param, ctx)
+
+
+def proof_options():
+    """``--min-psnr``, ``--max-bytes`` and ``--best-effort``: a compressed output that proves its quality."""
+    return (
+        click.option("--min-psnr", type=POSITIVE, metavar="DB",
+                     help="A .splatvq OUTPUT proves its quality: written at the precision step (the --quality "
+                          "setting, finer or coarser) whose worst frame reaches DB against the scene it encodes, "
+                          "drawn as the viewer draws them from the header cameras, views near them and splaTV's "
+                          "opening view at five times; exit 1 if no step does. 45 suits the default setting, "
+                          "40 small."),
+        click.option("--max-bytes", type=ByteSize(), metavar="SIZE",
+                     help="A .splatvq OUTPUT of at most SIZE bytes (e.g. 5M, binary units): the finest precision "
+                          "step that fits (with --min-psnr, that also reaches DB); its quality is measured as "
+                          "for --min-psnr and said."),
+        click.option("--best-effort", is_flag=True,
+                     help="With --min-psnr: when no step reaches DB, write the best one measured and say how "
+                          "far short it is."),
+    )
 
 
 def quiet_option():

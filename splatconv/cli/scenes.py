@@ -8,11 +8,12 @@ from .. import io
 from ..formats import plays_segments
 from ..jobs.convert import convert as convert_scene
 from ..jobs.frames import convert_frames, is_sequence
+from ..jobs.prove import convert_proven
 from ..ops.sequence import SAME_SPLATS_MODES
 from ..text import sequence_text
 from ..publish import publish
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
-                    progress, quality_option, quiet_option, wrote, zstd_option)
+                    progress, proof_options, quality_option, quiet_option, wrote, zstd_option)
 from ._edit import edit_options, scene_editor
 
 
@@ -75,6 +76,7 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
                  help="PLY output: lite (Spacetime Gaussians, keeps motion and time) or 3dgs (plain 3DGS, "
                       "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
     quality_option(),
+    *proof_options(),
     color_option(),
     zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
     *sequence_options(),
@@ -83,8 +85,8 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 )
 @edit_options()
 @library_errors
-def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, quality, color,
-            zstd_level, frame_times, same_splats, max_error, force, quiet, **edits):
+def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, quality, min_psnr,
+            max_bytes, best_effort, color, zstd_level, frame_times, same_splats, max_error, force, quiet, **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
@@ -98,10 +100,14 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
       splatconv convert scene.splatv scene.ply
       splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
       splatconv convert scene.splatv scene.html
+      splatconv convert scene.ply scene.splatvq --min-psnr 45
     """
+    proving = min_psnr is not None or max_bytes is not None
+    if best_effort and min_psnr is None:
+        raise Failure("--best-effort goes with --min-psnr", 2)
     # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
-        if compat or sort or cameras or layout or zstd_level or scene_editor(edits):
+        if compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits):
             raise Failure("--external and several inputs take no other options but --durations, --quality and "
                           "--force", 2)
         report = publish(input_paths, output_path, external=external, force=force, durations=durations,
@@ -111,6 +117,8 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
             click.echo(f"wrote {path}: {size:,} bytes")
         return
     if is_sequence(input_paths):
+        if proving:
+            raise Failure("--min-psnr and --max-bytes apply to one INPUT (convert a frame sequence first)", 2)
         _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
                         quality=quality, color=color, zstd_level=zstd_level, frame_times=frame_times,
                         same_splats=same_splats, max_error=max_error, force=force, quiet=quiet, edits=edits)
@@ -118,8 +126,10 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     if frame_times is not None or same_splats != "auto" or max_error is not None:
         raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
     input_path = input_paths[0]
-    _scene, report = convert_scene(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                                   force=force, zstd_level=zstd_level, layout=layout, quality=quality,
-                                   progress=progress(quiet), edit=scene_editor(edits), tell=notes)
+    job, proof = (convert_proven, {"min_psnr": min_psnr, "max_bytes": max_bytes, "best_effort": best_effort}) \
+        if proving else (convert_scene, {})
+    _scene, report = job(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
+                         force=force, zstd_level=zstd_level, layout=layout, quality=quality,
+                         progress=progress(quiet), edit=scene_editor(edits), tell=notes, **proof)
     wrote(output_path, report)
 

@@ -14,7 +14,7 @@ from ._steps import check_job, read_input, silent
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
             zstd_level: int | None = None, layout: str | None = None, quality: str | None = None, progress=SILENT,
-            edit=None, tell=silent):
+            edit=None, tell=silent, writer=None):
     """Read ``source`` and write it to ``output``; formats by suffix.
 
     Parameters
@@ -26,6 +26,11 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         and before writing, e.g. :func:`splatconv.ops.apply_edits` with a plan.
     compat, sort, force, zstd_level, layout, quality
         As for :func:`splatconv.io.write`.
+    writer : callable, optional
+        ``writer(scene, output, *, quality, sort, zstd_level, force, progress) -> (WriteReport, notes)``
+        instead of :func:`splatconv.io.write`, e.g. one that proves the output's
+        quality (:func:`splatconv.jobs.prove.convert_proven`); its notes are told
+        after the write report's.
     progress : splatconv.progress.Progress
         Told the reading (a "reading" stage, and the bytes of a ``.zst`` input
         decompressed) and the writing (as :func:`splatconv.io.write`).
@@ -54,8 +59,14 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
             if e.path is not None or (camera_list is not None and not given):
                 raise
             raise UnsupportedError(e.message, cameras if given else source, e.where) from None
-    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
-                   layout=layout, quality=quality, progress=progress)
+    proved = []
+    if writer is None:
+        report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
+                       layout=layout, quality=quality, progress=progress)
+    else:
+        report, proved = writer(scene, output, quality=quality, sort=sort, zstd_level=zstd_level, force=force,
+                                progress=progress)
     tell(scene.notes)
     tell(report.notes)
+    tell(proved)
     return scene, report

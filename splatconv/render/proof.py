@@ -53,12 +53,15 @@ class Proof:
         The worst frame: its view's name and time.
     frames : int
         Frames compared.
+    times : tuple of float
+        The times drawn, at each view.
     """
 
     worst: float
     mean: float
     where: str
     frames: int
+    times: tuple
 
 
 def _orbited(camera: dict, centre: np.ndarray, degrees: float) -> dict:
@@ -108,8 +111,7 @@ def proof_views(scene: Scene) -> list:
     return views
 
 
-def prove(source: Scene, candidate: Scene, views: list, times=PROOF_TIMES, *,
-          progress: Progress = SILENT) -> Proof:
+def prove(source: Scene, candidate: Scene, views: list, times=None, *, progress: Progress = SILENT) -> Proof:
     """Draw ``source`` and ``candidate`` from each view at each time, as the viewer draws them, and compare.
 
     Parameters
@@ -117,8 +119,10 @@ def prove(source: Scene, candidate: Scene, views: list, times=PROOF_TIMES, *,
     source, candidate : Scene
     views : list of (str, View)
         From :func:`proof_views`; views of different sizes are drawn a size at a time.
-    times : sequence of float
+    times : sequence of float, optional
+        Default :data:`PROOF_TIMES`.
     """
+    times = tuple(PROOF_TIMES if times is None else times)
     psnrs, where = [], []
     by_size = {}
     for name, view in views:
@@ -134,4 +138,4 @@ def prove(source: Scene, candidate: Scene, views: list, times=PROOF_TIMES, *,
     worst = int(np.argmin(values))
     finite = values[np.isfinite(values)]  # identical frames (inf) are left out of the mean
     mean = float(finite.mean()) if len(finite) else float("inf")
-    return Proof(float(values[worst]), mean, where[worst], len(values))
+    return Proof(float(values[worst]), mean, where[worst], len(values), times)

@@ -1,0 +1,110 @@
+"""``convert OUT.splatvq --min-psnr / --max-bytes``: the quality a compressed file proves, and its size."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from splatconv import io
+from splatconv.cli import main
+from splatconv.model import COLUMNS, Scene
+from splatconv.render import proof
+
+from .cli_checks import error_line
+from .scenes import CAMERA, moving_scene
+
+
+@pytest.fixture(autouse=True)
+def small_frames(monkeypatch):
+    # The proof's frames at a test's size: the same views, fewer pixels and times.
+    monkeypatch.setattr(proof, "PROOF_WIDTH", 160)
+    monkeypatch.setattr(proof, "PROOF_TIMES", (0.2, 0.8))
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def _shaped(kind: str, n: int = 160, seed: int = 3) -> Scene:
+    """Few large overlapping splats, flat ones, needles, or fast spins, in front of the test camera."""
+    scene = moving_scene(n, seed)
+    c = {k: np.array(scene.columns[k]) for k in COLUMNS}
+    rng = np.random.default_rng(seed)
+    if kind == "large":
+        for k in ("scale_0", "scale_1", "scale_2"):
+            c[k][1:] = np.log(rng.uniform(0.6, 1.6, n - 1))
+        c["opacity"][1:] = rng.uniform(-1.0, 1.0, n - 1)
+    elif kind == "flat":
+        c["scale_2"][1:] = np.log(1e-4)
+        c["scale_0"][1:] = c["scale_1"][1:] = np.log(rng.uniform(0.3, 0.8, n - 1))
+    elif kind == "needle":
+        c["scale_1"][1:] = c["scale_2"][1:] = np.log(2e-3)
+        c["scale_0"][1:] = np.log(rng.uniform(0.5, 1.5, n - 1))
+    elif kind == "spin":
+        for j in range(4):
+            c[f"omega_{j}"][1:] = rng.normal(0, 6.0, n - 1)
+    return Scene(c, cameras=[dict(CAMERA)])
+
+
+@pytest.mark.parametrize("kind", ["large", "flat", "needle", "spin"])
+def test_the_floor_is_met_or_the_run_fails(tmp_path, kind):
+    """What convert prints is what the file it wrote draws; a floor no step reaches writes nothing."""
+    scene = _shaped(kind)
+    src = tmp_path / "s.ply"
+    io.write(scene, src)
+    out = tmp_path / "o.splatvq"
+    r = run("convert", src, out, "--min-psnr", 40)
+    if r.exit_code == 1:
+        assert error_line(r, 1).startswith(f"Error: {out}: reaches at best ") and not out.exists()
+        return
+    assert r.exit_code == 0, r.output
+    line = next(n for n in r.stderr.splitlines() if n.startswith("note: proved: worst frame "))
+    printed = float(line.split("worst frame ")[1].split(" dB")[0])
+    again = proof.prove(io.read(src), io.read(out), proof.proof_views(io.read(src)))
+    assert printed >= 40 and again.worst == pytest.approx(printed, abs=0.005)
+
+
+def test_a_floor_out_of_reach_is_an_error_unless_best_effort(tmp_path):
+    src = tmp_path / "s.ply"
+    io.write(_shaped("large"), src)
+    out = tmp_path / "o.splatvq"
+    r = run("convert", src, out, "--min-psnr", 150)
+    assert error_line(r, 1).startswith(f"Error: {out}: reaches at best ")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["s.ply"]
+    r = run("convert", src, out, "--min-psnr", 150, "--best-effort")
+    assert r.exit_code == 0, r.output
+    short = next(n for n in r.stderr.splitlines() if "short of the --min-psnr 150 dB floor" in n)
+    printed = float(next(n for n in r.stderr.splitlines() if n.startswith("note: proved: "))
+                    .split("worst frame ")[1].split(" dB")[0])
+    assert float(short.split("note: ")[1].split(" dB")[0]) == pytest.approx(150 - printed, abs=0.01)
+    assert out.exists()
+
+
+def test_max_bytes_gives_the_finest_step_that_fits(tmp_path):
+    src = tmp_path / "s.ply"
+    scene = _shaped("large")
+    io.write(scene, src)
+    sizes = {}
+    for step in (-3, 0, 3):
+        io.write(scene, tmp_path / f"{step}.splatvq", precision=step)
+        sizes[step] = (tmp_path / f"{step}.splatvq").stat().st_size
+    assert sizes[-3] < sizes[0] < sizes[3]
+    out = tmp_path / "o.splatvq"
+    r = run("convert", src, out, "--max-bytes", sizes[0])
+    assert r.exit_code == 0, r.output
+    assert out.stat().st_size == sizes[0]  # step 1 would not fit: the steps grow
+    assert any(n.startswith("note: proved: worst frame ") for n in r.stderr.splitlines())
+    r = run("convert", src, tmp_path / "tiny.splatvq", "--max-bytes", sizes[-3] - 1)
+    assert error_line(r, 1).startswith(f"Error: {tmp_path / 'tiny.splatvq'}: even the coarsest step")
+    assert not (tmp_path / "tiny.splatvq").exists()
+
+
+@pytest.mark.parametrize("args", [("o.splatv", "--min-psnr", "40"), ("o.ply", "--max-bytes", "5M"),
+                                  ("o.splatvq", "--best-effort"), ("o.splatvq", "--max-bytes", "lots")])
+def test_proof_options_are_refused_where_they_mean_nothing(tmp_path, args):
+    src = tmp_path / "s.ply"
+    io.write(moving_scene(20), src)
+    r = run("convert", src, tmp_path / args[0], *args[1:])
+    error_line(r, 2)
+    assert not (tmp_path / args[0]).exists()
