@@ -13,6 +13,8 @@
 // doubles (products with exact powers of two, one sum, one square root, one
 // division), rounded to float32 (Math.fround) and then to a half by round to nearest
 // even, saturating at +-65504: the words are Python's, bit for bit (tests check).
+// Each block's records come out in importance order (record_order in splatvq_codec.py:
+// the order the viewer draws depth ties in, as in a .splatv), not in payload order.
 // Each block is a raw deflate stream, inflated by the browser's own
 // DecompressionStream("deflate-raw"): native code, no decoder shipped in the page.
 "use strict";
@@ -492,7 +494,7 @@ function decodePayload(p, n, raw, s, which) {
   const {columns, rawAt} = layout(p, n, raw, which);
   const out = new Uint32Array((n + raw) * WORDS);
   new Uint8Array(out.buffer, n * WORDS * 4).set(p.subarray(rawAt, rawAt + raw * RAW_BYTES));
-  if (!n) return out;
+  if (!n) return inImportanceOrder(out, raw);
   const chunks = Math.ceil(n / CHUNK);
   const posBase = new Float64Array(p.buffer, p.byteOffset, 3 * chunks);
   for (let j = 0; j < 3 * chunks; j++) {
@@ -523,6 +525,63 @@ function decodePayload(p, n, raw, s, which) {
   }
   motionAndOmega(b);
   temporalCentres(b);
+  return inImportanceOrder(out, n + raw);
+}
+
+// ------------------------------------------------------------------ importance order
+
+// The value of each half, in doubles (exact).
+const HALF_VALUE = new Float64Array(65536);
+for (let h = 0; h < 65536; h++) {
+  const e = (h >> 10) & 0x1f, m = h & 0x3ff;
+  const v = e === 0x1f ? (m ? NaN : Infinity) : (e === 0 ? m : m + 1024) * POW2[POW2_BIAS + Math.max(e, 1) - 25];
+  HALF_VALUE[h] = h & 0x8000 ? -v : v;
+}
+
+// A block's records in importance order, as record_order in splatvq_codec.py: the key is
+// the product of the three scale halves' values and the alpha byte (exact in doubles: the
+// same bits as numpy's), records sorted stably by a 64-bit code of it that ascends as the
+// key descends (non-negative keys, -0 as +0; then negative ones, the largest first; then
+// NaN), with an LSD radix sort of four 16-bit digits (a digit all records share is skipped).
+const keyBits = new Float64Array(1), keyWords = new Uint32Array(keyBits.buffer);
+function inImportanceOrder(words, n) {
+  const halves = new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2);
+  const lo = new Uint32Array(n), hi = new Uint32Array(n);
+  for (let i = 0; i < n; i++) {
+    const key = HALF_VALUE[halves[32 * i + 10]] * HALF_VALUE[halves[32 * i + 11]] * HALF_VALUE[halves[32 * i + 12]] *
+                (words[WORDS * i + 7] >>> 24);
+    if (key !== key) { lo[i] = hi[i] = 0xffffffff; continue; }
+    keyBits[0] = key === 0 ? 0 : key;
+    if (keyWords[1] >= 0x80000000) { lo[i] = keyWords[0]; hi[i] = keyWords[1]; } else {
+      lo[i] = 0xffffffff - keyWords[0];
+      hi[i] = 0x7fffffff - keyWords[1];
+    }
+  }
+  let order = new Uint32Array(n), spare = new Uint32Array(n);
+  for (let i = 0; i < n; i++) order[i] = i;
+  const count = new Uint32Array(65536);
+  let moved = false;
+  for (const [code, shift] of [[lo, 0], [lo, 16], [hi, 0], [hi, 16]]) {
+    count.fill(0);
+    for (let i = 0; i < n; i++) count[(code[i] >>> shift) & 0xffff]++;
+    if (count[(code[0] >>> shift) & 0xffff] === n) continue;  // one digit: the order stands
+    for (let d = 0, sum = 0; d < 65536; d++) {
+      const c = count[d];
+      count[d] = sum;
+      sum += c;
+    }
+    for (let i = 0; i < n; i++) {
+      const r = order[i];
+      spare[count[(code[r] >>> shift) & 0xffff]++] = r;
+    }
+    [order, spare] = [spare, order];
+    moved = true;
+  }
+  if (!moved) return words;
+  const out = new Uint32Array(words.length);
+  for (let i = 0; i < n; i++) {
+    for (let j = 0, from = WORDS * order[i], to = WORDS * i; j < WORDS; j++) out[to + j] = words[from + j];
+  }
   return out;
 }
 
