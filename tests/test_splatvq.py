@@ -167,23 +167,12 @@ def test_the_order_code_sorts_keys_as_importance_order_does():
 
 def test_a_block_of_raw_records_decodes_in_importance_order():
     """Raw records may hold what no encoder writes (negative and NaN scales): they are ordered all the same."""
-    halves = {0: (0x3C00, 0x3C00, 0x3C00, 10),  # 1 * 1 * 1 * 10
-              1: (0x8000, 0x3C00, 0x3C00, 200),  # -0: as 0
-              2: (0x7E00, 0x3C00, 0x3C00, 255),  # NaN
-              3: (0xBC00, 0x4000, 0x3C00, 1),  # -2
-              4: (0x4000, 0x3C00, 0x4100, 2),  # 2 * 1 * 2.5 * 2 = 10: a tie with record 0
-              5: (0x0000, 0x3C00, 0x3C00, 9),  # 0: a tie with record 1
-              6: (0xBC00, 0x3C00, 0x3C00, 1),  # -1
-              7: (0x7C00, 0x0000, 0x3C00, 3),  # inf * 0: NaN
-              8: (0x7BFF, 0x7BFF, 0x7BFF, 255)}  # the largest key there is
-    raw = np.zeros((len(halves), 16), "<u4")
-    for i, (h0, h1, h2, alpha) in halves.items():
-        raw[i, 5], raw[i, 6], raw[i, 7] = h0 | h1 << 16, h2, alpha << 24
+    raw = damage.odd_key_records()
     payload = bytes(len(codec.WIDTH_COLUMNS)) + raw.tobytes()
     setting = codec.SETTINGS[codec.DEFAULT_SETTING]
     assert np.array_equal(codec.decode_payload(payload, 0, len(raw), setting, "x", ()), raw)
     out = codec.decode_block(payload, 0, len(raw), setting, "x", ())
-    assert np.array_equal(out, raw[[8, 0, 4, 1, 5, 6, 3, 2, 7]])
+    assert np.array_equal(out, raw[list(damage.ODD_KEYS_ORDER)])
 
 
 @pytest.fixture(scope="module")

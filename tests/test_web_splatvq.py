@@ -310,6 +310,19 @@ def test_every_coding_path_decodes_to_the_words_python_decodes(browser, small, t
     page.close()
 
 
+def test_raw_records_of_every_kind_of_key_come_in_the_order_python_gives(browser, small, tmp_path):
+    """Negative, -0, NaN and equal importance keys (a raw record may hold any scale half): the same order."""
+    path = tmp_path / "odd.splatvq"
+    path.write_bytes(damage.with_raw_only(small.read_bytes(), damage.odd_key_records()))
+    assert np.array_equal(splatvq.decode(path), damage.odd_key_records()[list(damage.ODD_KEYS_ORDER)])
+    page_path = tmp_path / "odd.html"
+    page_path.write_bytes(build_page([SceneRef(name="odd.splatvq", data=path.read_bytes())]))
+    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
+    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
+    assert_same_words(page, path)
+    page.close()
+
+
 def test_drop_a_splatvq_file(browser, small, tmp_path):
     page_path = tmp_path / "empty.html"
     page_path.write_bytes(build_page([]))

@@ -15,6 +15,11 @@ quantizing decoded values again gives them back where the lattice is coarser
 than the half a value is stored in (true of both settings; tests check it): a
 second conversion changes nothing.
 
+A decoder gives each block's records in importance order (:func:`record_order`),
+the order a ``.splatv`` writer gives them and the viewer blends depth ties in;
+the encoder cuts blocks by the same key, so a file's records are in that order
+as a whole.
+
 Layouts as data: :data:`CHUNK_FIELDS` and :data:`SPLAT_FIELDS` are the block
 payload in order; the spec's tables are checked against them.
 """
@@ -508,7 +513,7 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple
     stored : bytes
         The block as stored (raw deflate of the payload).
     coded, raw : int
-        Records quantized, records kept verbatim (decoded after the coded ones).
+        Records quantized, records kept verbatim (stored after the coded ones; their scales on the lattice).
     payload : int
         Bytes of the payload (what ``stored`` inflates to).
     """

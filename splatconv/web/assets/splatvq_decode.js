@@ -530,59 +530,83 @@ function decodePayload(p, n, raw, s, which) {
 
 // ------------------------------------------------------------------ importance order
 
-// The value of each half, in doubles (exact).
-const HALF_VALUE = new Float64Array(65536);
+// The value of each half (exact in a float32).
+const HALF_VALUE = new Float32Array(65536);
 for (let h = 0; h < 65536; h++) {
   const e = (h >> 10) & 0x1f, m = h & 0x3ff;
   const v = e === 0x1f ? (m ? NaN : Infinity) : (e === 0 ? m : m + 1024) * POW2[POW2_BIAS + Math.max(e, 1) - 25];
   HALF_VALUE[h] = h & 0x8000 ? -v : v;
 }
+const DIGIT_BITS = 13, DIGITS = 4, RADIX = 1 << DIGIT_BITS, DIGIT = RADIX - 1;
 
 // A block's records in importance order, as record_order in splatvq_codec.py: the key is
 // the product of the three scale halves' values and the alpha byte (exact in doubles: the
 // same bits as numpy's), records sorted stably by a 64-bit code of it that ascends as the
-// key descends (non-negative keys, -0 as +0; then negative ones, the largest first; then
-// NaN), with an LSD radix sort of four 16-bit digits (a digit all records share is skipped).
-const keyBits = new Float64Array(1), keyWords = new Uint32Array(keyBits.buffer);
+// key descends (0x7fffffffffffffff - bits for a key of 0 or more, -0 as +0; the bits of a
+// negative key; all ones for NaN). An exact key has at most 41 significant bits, so the
+// code's low 12 bits follow from its sign: the sort takes bits 12..63, in two 26-bit
+// halves, with an LSD radix sort of four 13-bit digits (a digit all records share is
+// skipped), all four counts made in one pass.
 function inImportanceOrder(words, n) {
   const halves = new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2);
-  const lo = new Uint32Array(n), hi = new Uint32Array(n);
+  const keys = new Float64Array(n), bits = new Uint32Array(keys.buffer);
   for (let i = 0; i < n; i++) {
     const key = HALF_VALUE[halves[32 * i + 10]] * HALF_VALUE[halves[32 * i + 11]] * HALF_VALUE[halves[32 * i + 12]] *
                 (words[WORDS * i + 7] >>> 24);
-    if (key !== key) { lo[i] = hi[i] = 0xffffffff; continue; }
-    keyBits[0] = key === 0 ? 0 : key;
-    if (keyWords[1] >= 0x80000000) { lo[i] = keyWords[0]; hi[i] = keyWords[1]; } else {
-      lo[i] = 0xffffffff - keyWords[0];
-      hi[i] = 0x7fffffff - keyWords[1];
-    }
+    keys[i] = key === 0 ? 0 : key;
   }
-  let order = new Uint32Array(n), spare = new Uint32Array(n);
+  const low = new Uint32Array(n), high = new Uint32Array(n), count = new Uint32Array(DIGITS * RADIX);
+  for (let i = 0; i < n; i++) {
+    let lo = bits[2 * i], hi = bits[2 * i + 1];
+    if (keys[i] !== keys[i]) {
+      lo = hi = 0xffffffff;
+    } else if (hi < 0x80000000) {
+      lo = 0xffffffff - lo;
+      hi = 0x7fffffff - hi;
+    }
+    const a = ((lo >>> 12) | (hi << 20)) & 0x3ffffff, b = hi >>> 6;
+    low[i] = a;
+    high[i] = b;
+    count[a & DIGIT]++;
+    count[RADIX + (a >>> DIGIT_BITS)]++;
+    count[2 * RADIX + (b & DIGIT)]++;
+    count[3 * RADIX + (b >>> DIGIT_BITS)]++;
+  }
+  let order = new Uint32Array(n), spare = new Uint32Array(n), moved = false;
   for (let i = 0; i < n; i++) order[i] = i;
-  const count = new Uint32Array(65536);
-  let moved = false;
-  for (const [code, shift] of [[lo, 0], [lo, 16], [hi, 0], [hi, 16]]) {
-    count.fill(0);
-    for (let i = 0; i < n; i++) count[(code[i] >>> shift) & 0xffff]++;
-    if (count[(code[0] >>> shift) & 0xffff] === n) continue;  // one digit: the order stands
-    for (let d = 0, sum = 0; d < 65536; d++) {
-      const c = count[d];
-      count[d] = sum;
+  for (let d = 0; d < DIGITS; d++) {
+    const at = d * RADIX, code = d < 2 ? low : high, shift = d & 1 ? DIGIT_BITS : 0;
+    if (count[at + ((code[0] >>> shift) & DIGIT)] === n) continue; // one digit: the order stands
+    for (let k = at, sum = 0; k < at + RADIX; k++) {
+      const c = count[k];
+      count[k] = sum;
       sum += c;
     }
     for (let i = 0; i < n; i++) {
       const r = order[i];
-      spare[count[(code[r] >>> shift) & 0xffff]++] = r;
+      spare[count[at + ((code[r] >>> shift) & DIGIT)]++] = r;
     }
     [order, spare] = [spare, order];
     moved = true;
   }
-  if (!moved) return words;
-  const out = new Uint32Array(words.length);
-  for (let i = 0; i < n; i++) {
-    for (let j = 0, from = WORDS * order[i], to = WORDS * i; j < WORDS; j++) out[to + j] = words[from + j];
+  return moved ? permuted(words, order, n) : words;
+}
+
+// The records in `order`: each record's 16 words written where it goes, records read in
+// turn (reading them in turn and writing them apart runs some twice as fast as the other way
+// round; the 16 words written out, not a loop, faster again).
+function permuted(w, order, n) {
+  const place = new Uint32Array(n);
+  for (let i = 0; i < n; i++) place[order[i]] = WORDS * i;
+  const o = new Uint32Array(w.length);
+  for (let i = 0, f = 0; i < n; i++, f += WORDS) {
+    const t = place[i];
+    o[t] = w[f]; o[t + 1] = w[f + 1]; o[t + 2] = w[f + 2]; o[t + 3] = w[f + 3];
+    o[t + 4] = w[f + 4]; o[t + 5] = w[f + 5]; o[t + 6] = w[f + 6]; o[t + 7] = w[f + 7];
+    o[t + 8] = w[f + 8]; o[t + 9] = w[f + 9]; o[t + 10] = w[f + 10]; o[t + 11] = w[f + 11];
+    o[t + 12] = w[f + 12]; o[t + 13] = w[f + 13]; o[t + 14] = w[f + 14]; o[t + 15] = w[f + 15];
   }
-  return out;
+  return o;
 }
 
 // Scales (words 5-6, half slots 10-12) and the temporal scale (slot 31): integers only.
