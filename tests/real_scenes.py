@@ -13,14 +13,18 @@ The bundled sample has none of this; real scenes from the wild have all of it:
 
 :func:`real_scene` builds such a scene in front of :data:`tests.scenes.CAMERA`
 and says which rows are which (:class:`Rows`); :func:`unpadded_splatv` writes it
-the way real files are written.
+the way real files are written. :func:`real_file` reaches the real trained scenes
+kept beside the repository (``../shared/real/``, never copied into it), and skips
+plainly where they are absent.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
+import pytest
 
 from splatconv.formats import splatv
 from splatconv.model import Scene
@@ -100,4 +104,16 @@ def unpadded_splatv(scene: Scene, path) -> None:
     path.write_bytes(splatv_bytes(records[:scene.count], scene.cameras, pad=False))
 
 
-__all__ = ["Rows", "real_scene", "unpadded_splatv"]
+#: Real trained scenes beside the repository (see the README there): read-only, never copied into it.
+REAL_FOLDER = Path(__file__).resolve().parent.parent.parent / "shared" / "real"
+
+
+def real_file(name: str) -> Path:
+    """The real trained scene ``name`` in :data:`REAL_FOLDER`, or skip the test where it is absent."""
+    path = REAL_FOLDER / name
+    if not path.is_file():
+        pytest.skip(f"real scene {name} is absent ({REAL_FOLDER} is not part of the repository)")
+    return path
+
+
+__all__ = ["REAL_FOLDER", "Rows", "real_file", "real_scene", "unpadded_splatv"]

@@ -62,6 +62,12 @@ MOVING = _recipe(position=(uniform(-2.5, 2.5), uniform(-1.8, 1.8), uniform(-2, 2
                  motion=(normal(0, 0.8), normal(0, 0.8), normal(0, 1.2)), color=uniform(0.05, 1),
                  scale=log_uniform(0.04, 0.25), rotation=normal(0, 1), omega=normal(0, 1.5))
 
+#: Large, partly transparent splats on one plane facing :data:`CAMERA` (:func:`overlapping_scene`).
+OVERLAPPING = _recipe(position=(uniform(-2.0, 2.0), uniform(-1.5, 1.5), uniform(-0.002, 0.002)),
+                      trbf_center=uniform(0, 1), trbf_scale=log_uniform(0.6, 3), opacity=uniform(-1.5, 1),
+                      motion=normal(0, 0.05), color=uniform(0.05, 1), scale=log_uniform(0.3, 1.0),
+                      rotation=normal(0, 1), omega=normal(0, 0.3))
+
 #: The conversion benchmarks' scene (``bench/bench_convert.py``): :data:`LITE`'s values, drawn a group at a time.
 CONVERT = tuple(
     [(name, normal(0, 2)) for name in ("x", "y", "z")]
@@ -147,5 +153,30 @@ def moving_scene(n: int = 300, seed: int = 0) -> Scene:
     return Scene({k: c[k] for k in COLUMNS}, cameras=[dict(CAMERA)])
 
 
-__all__ = ["CAMERA", "CONVERT", "LITE", "MOVING", "clip_recipe", "draw_columns", "gs_columns", "moving_scene",
-           "random_columns", "render_recipe"]
+def overlapping_scene(n: int = 500, seed: int = 0) -> Scene:
+    """``n`` large, partly transparent splats overlapping on one plane in front of :data:`CAMERA`: the
+    viewer's depth sort puts most of them in a few buckets, so the record order decides how they blend.
+
+    A third of them take their scales from three values and their opacity from two (many
+    equal importance keys, the same scales on other axes among them); a few have a zero
+    rotation that spins (a ``.splatvq`` keeps them as raw records). Splat 0 is far behind
+    the rest and too small to show: the farthest splat the depth sort drops is that one.
+    """
+    c = draw_columns(n, seed, OVERLAPPING)
+    rng = np.random.default_rng(seed + 1)
+    tied = np.arange(1, n, 3)
+    for i in range(3):
+        c[f"scale_{i}"][tied] = np.log(rng.choice([0.4, 0.6, 0.9], len(tied)))
+    c["opacity"][tied] = rng.choice([-0.5, 0.5], len(tied))
+    spinning = np.arange(2, n, n // 6)
+    for i in range(4):
+        c[f"rot_{i}"][spinning] = 0.0
+    c["omega_0"][spinning] = 1.5
+    c["z"][0], c["trbf_scale"][0] = 60.0, np.log(1e4)
+    for i in range(3):
+        c[f"scale_{i}"][0] = np.log(1e-4)
+    return Scene({k: c[k] for k in COLUMNS}, cameras=[dict(CAMERA)])
+
+
+__all__ = ["CAMERA", "CONVERT", "LITE", "MOVING", "OVERLAPPING", "clip_recipe", "draw_columns", "gs_columns",
+           "moving_scene", "overlapping_scene", "random_columns", "render_recipe"]

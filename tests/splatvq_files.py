@@ -10,6 +10,8 @@ from __future__ import annotations
 import json
 import zlib
 
+import numpy as np
+
 from splatconv.formats import splatvq
 from splatconv.formats import splatvq_codec as codec
 
@@ -111,3 +113,25 @@ def declaring(blocks: int, last: int = codec.BLOCK) -> bytes:
                                  codec.CHUNK_LOG2, len(meta), blocks)
     table = b"".join(splatvq.BLOCK_ENTRY.pack(n, 0, codec.payload_bounds(n, 0)[0], len(stored[n])) for n in sizes)
     return head + meta + table + b"".join(stored[n] for n in sizes)
+
+
+#: Raw records whose importance keys take every path of a decoder's order: (scale halves, alpha byte) each,
+#: and the order they decode in (ties, -0, negative and NaN keys, the largest key there is).
+ODD_KEYS = ((0x3C00, 0x3C00, 0x3C00, 10), (0x8000, 0x3C00, 0x3C00, 200), (0x7E00, 0x3C00, 0x3C00, 255),
+            (0xBC00, 0x4000, 0x3C00, 1), (0x4000, 0x3C00, 0x4100, 2), (0x0000, 0x3C00, 0x3C00, 9),
+            (0xBC00, 0x3C00, 0x3C00, 1), (0x7C00, 0x0000, 0x3C00, 3), (0x7BFF, 0x7BFF, 0x7BFF, 255))
+ODD_KEYS_ORDER = (8, 0, 4, 1, 5, 6, 3, 2, 7)
+
+
+def odd_key_records() -> np.ndarray:
+    """:data:`ODD_KEYS` as records, ``(9, 16) uint32`` (a unit rotation; nothing else set)."""
+    raw = np.zeros((len(ODD_KEYS), 16), "<u4")
+    for i, (h0, h1, h2, alpha) in enumerate(ODD_KEYS):
+        raw[i, 3], raw[i, 5], raw[i, 6], raw[i, 7] = 0x3C00, h0 | h1 << 16, h2, alpha << 24
+    return raw
+
+
+def with_raw_only(data: bytes, raw: np.ndarray) -> bytes:
+    """A one-block file whose block holds ``raw`` records only."""
+    changed = with_entry(data, 0, coded=0, raw=len(raw))
+    return with_count(with_payload(changed, bytes(len(codec.WIDTH_COLUMNS)) + raw.tobytes()), len(raw))

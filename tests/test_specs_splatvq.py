@@ -166,7 +166,11 @@ def test_the_test_vector_decodes_as_written():
     assert out.reshape(-1).tolist() == words
     # The numbers the prose gives are in the payload and the words.
     assert struct.unpack_from("<3d", payload) == (1.0, 2.0, -0.5)
-    assert out[:, 0].view(np.float32).tolist() == [16.625, 22.875]
+    # In importance order: splat 1 first (splat 0 has a scale of 0); the payload holds splat 0 first.
+    key = [1.6875 * 1.9375 * 1.875 * 40, 0.0]
+    assert codec.record_key(out).tolist() == key
+    assert "its key is 1.6875 · 1.9375 · 1.875 · 40" in section
+    assert out[:, 0].view(np.float32).tolist() == [22.875, 16.625]
     assert codec.x_steps(np.array([1000, 175]), np.array([-6, -3])).tolist() == [1000, 50]
     tables, fields, raw = codec.unpack_payload(payload, 2, 0, "<spec>", ())
     assert fields["x_step"][:, 0].tolist() == [1000, 50] and fields["window_index"][:, 0].tolist() == [116, 122]

@@ -15,10 +15,11 @@ from splatconv.errors import UsageError
 from splatconv.formats import splatv, splatvq
 from splatconv.model import Scene
 from splatconv.formats import splatvq_codec as codec
-from splatconv.viewer import undrawable
+from splatconv.viewer import importance, importance_order, undrawable
 from tests.ops_helpers import CAMERA, draw, psnr
 from tests import splatvq_files as damage
 from tests.real_scenes import real_scene
+from tests.scenes import overlapping_scene
 
 TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
 
@@ -105,9 +106,12 @@ def test_values_the_codes_cannot_hold_are_kept_verbatim(tmp_path, real):
     assert any("kept verbatim" in n for n in report.notes)
     words = splatvq.decode(path)
     source = splatv.encode(scene, sort="none")[0]
+    setting = codec.SETTINGS[codec.DEFAULT_SETTING]
     for picked in (rows.huge_position, rows.zero_rotation_spinning):
-        want = {r.tobytes() for r in source[picked]}
+        # Every word as it was, but the scales: on the lattice, as a coded splat's (the key blocks are cut by).
+        want = {r.tobytes() for r in codec.on_lattice(source[picked], setting)}
         assert want <= {r.tobytes() for r in words}
+        assert not {r.tobytes() for r in source[picked]} <= {r.tobytes() for r in words}
 
 
 def test_a_block_of_verbatim_splats_only(tmp_path, real):
@@ -118,7 +122,8 @@ def test_a_block_of_verbatim_splats_only(tmp_path, real):
     scene = Scene(columns, cameras=real[0].cameras)
     path, report = written(tmp_path, scene)
     assert any("5 splats kept verbatim" in n for n in report.notes), report.notes
-    want = sorted_records(splatv.encode(scene, sort="none")[0][:5])
+    want = sorted_records(codec.on_lattice(splatv.encode(scene, sort="none")[0][:5],
+                                           codec.SETTINGS[codec.DEFAULT_SETTING]))
     assert (sorted_records(splatvq.decode(path)) == want).all()
 
 
@@ -146,6 +151,94 @@ def test_flat_splats_and_infinite_temporal_scales_keep_their_infinities(tmp_path
     decoded = splatvq.read(path).columns
     assert np.isneginf(decoded["scale_1"]).sum() >= len(rows.flat)
     assert np.isposinf(decoded["trbf_scale"]).sum() == len(rows.infinite_trbf)
+
+
+# --------------------------------------------------------------------------
+# Record order: a decoder gives each block's records in importance order.
+
+
+def test_the_order_code_sorts_keys_as_importance_order_does():
+    """Descending keys, -0 as +0, then negative keys (the largest first), then NaN; ties in their order."""
+    key = np.array([1.0, -0.0, np.nan, -2.0, 0.0, np.inf, -0.5, 3.0, 1.0, -np.inf, 2.0 ** -72, 7e16])
+    assert np.argsort(codec.order_code(key), kind="stable").tolist() == [5, 11, 7, 0, 8, 10, 1, 4, 6, 3, 9, 2]
+    key = np.random.default_rng(1).choice(key, 5000)
+    assert np.array_equal(np.argsort(codec.order_code(key), kind="stable"), importance_order(key))
+
+
+def test_a_block_of_raw_records_decodes_in_importance_order():
+    """Raw records may hold what no encoder writes (negative and NaN scales): they are ordered all the same."""
+    raw = damage.odd_key_records()
+    payload = bytes(len(codec.WIDTH_COLUMNS)) + raw.tobytes()
+    setting = codec.SETTINGS[codec.DEFAULT_SETTING]
+    assert np.array_equal(codec.decode_payload(payload, 0, len(raw), setting, "x", ()), raw)
+    out = codec.decode_block(payload, 0, len(raw), setting, "x", ())
+    assert np.array_equal(out, raw[list(damage.ODD_KEYS_ORDER)])
+
+
+@pytest.fixture(scope="module")
+def overlapping():
+    """Many equal importance keys (among them raw records'), in blocks of 256 splats: a .splatvq's path."""
+    scene = overlapping_scene()
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(codec, "BLOCK", 256)
+        data, report = splatvq.encode(scene)
+    return data, report
+
+
+def test_records_decode_in_importance_order_block_after_block(tmp_path, overlapping, monkeypatch):
+    monkeypatch.setattr(codec, "BLOCK", 256)
+    path = tmp_path / "o.splatvq"
+    path.write_bytes(overlapping[0])
+    assert any("6 splats kept verbatim" in n for n in overlapping[1].notes)
+    words, _, info = splatvq.read_records(path)
+    assert info["blocks"] == 2
+    key = codec.record_key(words)
+    assert len(np.unique(key)) < len(key) - 100  # many ties
+    # The whole file, block after block, is in importance order (blocks are cut by the same key).
+    assert np.array_equal(importance_order(key), np.arange(len(key)))
+    # Inside a block, ties keep the payload's order: coded splats (by position), then raw records.
+    data = overlapping[0]
+    _, entries, at = damage.layout(data)
+    start, ties_with_raw = 0, 0
+    for coded, raw, _, stored in entries:
+        payload = zlib.decompress(data[at:at + stored], -15)
+        records = codec.decode_payload(payload, coded, raw, codec.SETTINGS["default"], "x", ())
+        assert np.array_equal(words[start:start + len(records)], records[importance_order(codec.record_key(records))])
+        ties_with_raw += np.isin(codec.record_key(records[:coded]), codec.record_key(records[coded:])).sum()
+        start, at = start + len(records), at + stored
+    assert ties_with_raw > 0
+
+
+#: Most the .splatv writer's importance key (exp of float32 log scales times the sigmoid of a float32 logit
+#: opacity, in doubles, as splaTV's converter computes it) can err, relative to the exact product, twice over
+#: for a pair of keys: a float32 ulp of each log (its tables round up: |log| < 32 for every half, so 2**-19)
+#: and of the logit (|logit| < 8: 2**-21).
+WRITER_KEY_ERROR = 2 * (3 * 2.0 ** -19 + 2.0 ** -21)
+
+
+def test_a_splatv_of_the_decoded_scene_holds_the_records_in_the_same_order(tmp_path, overlapping, monkeypatch):
+    """`convert X.splatvq Y.splatv --sort none` keeps the decoded order; the default (importance) sort of the
+    .splatv writer gives the same order but where its rounded key swaps near-equal keys."""
+    monkeypatch.setattr(codec, "BLOCK", 256)
+    path = tmp_path / "o.splatvq"
+    path.write_bytes(overlapping[0])
+    assert run("convert", path, tmp_path / "none.splatv", "--sort", "none").exit_code == 0
+    assert run("convert", path, tmp_path / "sorted.splatv").exit_code == 0
+    none = splatv.read_records(tmp_path / "none.splatv")[0]
+    ordered = splatv.read_records(tmp_path / "sorted.splatv")[0]
+    assert np.array_equal(none, splatvq.decode(path))
+    assert np.array_equal(sorted_records(none), sorted_records(ordered))
+    # The decoded order is importance order by the exact key; the writer's by its rounded key: at every
+    # place the two files hold a record of the same exact key, or of one the writer cannot tell from it.
+    key, writer = codec.record_key(none), codec.record_key(ordered)
+    assert np.array_equal(importance_order(key), np.arange(len(key)))
+    assert (np.abs(writer - key) <= key * WRITER_KEY_ERROR).all()
+    # Which of those the writer swaps is its rounding's choice: equal keys with their scales on other axes here.
+    moved = np.flatnonzero((none != ordered).any(axis=1))
+    print(f"the .splatv writer's rounded key moves {len(moved)} of {len(key)} records, "
+          f"{np.count_nonzero(writer != key)} of them to a place of another exact key")
+    # Its order is the importance order of the decoded scene, sorted by the writer's own key.
+    assert np.array_equal(ordered, none[importance_order(importance(splatv.read(tmp_path / "none.splatv").columns))])
 
 
 # --------------------------------------------------------------------------

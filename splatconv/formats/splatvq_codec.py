@@ -15,6 +15,11 @@ quantizing decoded values again gives them back where the lattice is coarser
 than the half a value is stored in (true of both settings; tests check it): a
 second conversion changes nothing.
 
+A decoder gives each block's records in importance order (:func:`record_order`),
+the order a ``.splatv`` writer gives them and the viewer blends depth ties in;
+the encoder cuts blocks by the same key, so a file's records are in that order
+as a whole.
+
 Layouts as data: :data:`CHUNK_FIELDS` and :data:`SPLAT_FIELDS` are the block
 payload in order; the spec's tables are checked against them.
 """
@@ -447,18 +452,67 @@ def scale_lattice(halves: np.ndarray, step: int) -> np.ndarray:
     return np.minimum(q, packing.HALF_MAX_BITS // step)
 
 
-def quantized_key(records: np.ndarray, setting: Setting) -> np.ndarray:
-    """The importance key of the quantized records: product of the decoded linear scales and the alpha byte.
+def record_key(records: np.ndarray) -> np.ndarray:
+    """The importance key of records as they are: ``(N, 16) uint32`` -> ``(N,) float64``.
 
-    The order between blocks then depends on quantized values only, so that the
-    blocks of a decoded file come back the same when it is encoded again.
+    The product of the values of the three scale halves and the alpha byte, in
+    that order. Exact in doubles (three 11-bit significands and 8 bits: at most
+    41 bits, far from overflow and underflow), so any decoder that multiplies
+    the same four values gets the same bits: NaN where a half is NaN or an
+    infinity meets a zero, negative or -0 where a (verbatim) half is negative.
     """
     alpha = (records[:, COLOR_WORD] >> np.uint32(24)).astype(np.float64)
-    # A signalling NaN half (a .splatv read keeps payloads) warns when widened: its splat is kept verbatim anyway.
+    # A signalling NaN half (a .splatv read keeps payloads) warns when widened.
     with np.errstate(invalid="ignore", over="ignore"):
-        lin = packing.HALF_TO_FLOAT[_scale_decoded(_halves_of(records, SCALE_AT), setting.scale_step)]
-        lin = lin.astype(np.float64)
+        lin = packing.HALF_TO_FLOAT[_halves_of(records, SCALE_AT)].astype(np.float64)
         return lin[:, 0] * lin[:, 1] * lin[:, 2] * alpha
+
+
+def order_code(key: np.ndarray) -> np.ndarray:
+    """A sort code of importance keys, ``(N,) float64`` -> ``(N,) uint64``: ascending codes, descending keys.
+
+    Non-negative keys first, the largest first (-0 counts as +0), then negative
+    ones, the largest first, then NaN: the order of
+    :func:`splatconv.viewer.importance_order`. An integer, so that a page sorts
+    it with a radix sort of its bits.
+    """
+    bits = np.where(key == 0, 0.0, key).view(np.uint64)
+    code = np.where(bits >> np.uint64(63) != 0, bits, np.uint64(0x7FFF_FFFF_FFFF_FFFF) - bits)
+    code[np.isnan(key)] = np.uint64(0xFFFF_FFFF_FFFF_FFFF)
+    return code
+
+
+def record_order(records: np.ndarray) -> np.ndarray:
+    """The order a decoder gives a block's records in: ``(N,) intp``, a stable sort by :func:`order_code`.
+
+    Importance order, as a ``.splatv`` writer orders the same records: the
+    encoder cuts blocks by the same key (:func:`quantized_key`), so block after
+    block, the records of a file are in importance order as a whole; equal keys
+    keep their payload order (coded splats, then raw records).
+    """
+    return np.argsort(order_code(record_key(records)), kind="stable")
+
+
+def on_lattice(records: np.ndarray, setting: Setting) -> np.ndarray:
+    """Records with their scale halves as a coded splat's decode (0, infinities, NaN and negative halves kept).
+
+    A copy, ``(N, 16) uint32``: what the encoder stores as a block's raw records.
+    """
+    out = np.array(records, dtype="<u4")
+    h = out.view(np.uint16)
+    for w, i in SCALE_AT:
+        h[:, 2 * w + i] = _scale_decoded(h[:, 2 * w + i], setting.scale_step)
+    return out
+
+
+def quantized_key(records: np.ndarray, setting: Setting) -> np.ndarray:
+    """The importance key of the records as they decode (:func:`record_key` of :func:`on_lattice`).
+
+    The order between blocks then depends on decoded values only, so that the
+    blocks of a decoded file come back the same when it is encoded again, and a
+    decoder that orders each block by :func:`record_key` orders the whole file.
+    """
+    return record_key(on_lattice(records, setting))
 
 
 def value_class(codes: np.ndarray) -> np.ndarray:
@@ -497,7 +551,7 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple
     stored : bytes
         The block as stored (raw deflate of the payload).
     coded, raw : int
-        Records quantized, records kept verbatim (decoded after the coded ones).
+        Records quantized, records kept verbatim (stored after the coded ones; their scales on the lattice).
     payload : int
         Bytes of the payload (what ``stored`` inflates to).
     """
@@ -518,7 +572,9 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple
     # padding, no marker), so each gets Huffman codes of its own.
     comp = zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
     out, size = [], 0
-    for part in payload_parts(tables, fields, records[esc]):
+    # Raw records take their scales on the lattice too: their key is then the one the blocks
+    # were cut by (quantized_key), so a decoder's order inside each block is the file's order.
+    for part in payload_parts(tables, fields, on_lattice(records[esc], setting)):
         if part:  # an empty class group: no block of its own
             size += len(part)
             out.append(comp.compress(part))
@@ -795,7 +851,20 @@ def unpack_payload(payload: bytes, coded: int, raw: int, path: str, where: tuple
 
 
 def decode_block(payload: bytes, coded: int, raw: int, setting: Setting, path: str, where: tuple) -> np.ndarray:
-    """A block payload (inflated) -> its records, ``(coded + raw, 16) uint32``: the texture words."""
+    """A block payload (inflated) -> its records, ``(coded + raw, 16) uint32``: the texture words.
+
+    In importance order (:func:`record_order`): the order a ``.splatv`` writer gives
+    the same records, which the viewer draws depth ties in.
+    """
+    out = decode_payload(payload, coded, raw, setting, path, where)
+    return out[record_order(out)]
+
+
+def decode_payload(payload: bytes, coded: int, raw: int, setting: Setting, path: str, where: tuple) -> np.ndarray:
+    """A block payload (inflated) -> its records in payload order (coded splats, then raw records).
+
+    :func:`decode_block` gives them in a decoder's order; this is what it orders.
+    """
     table, fields, raw_words = unpack_payload(payload, coded, raw, path, where)
     n = coded
     chunk_of = np.arange(n) // CHUNK
