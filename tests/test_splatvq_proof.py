@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+
 import numpy as np
 import pytest
 from click.testing import CliRunner
@@ -63,6 +65,10 @@ def test_the_floor_is_met_or_the_run_fails(tmp_path, kind):
     printed = float(line.split("worst frame ")[1].split(" dB")[0])
     again = proof.prove(io.read(src), io.read(out), proof.proof_views(io.read(src)))
     assert printed >= 40 and again.worst == pytest.approx(printed, abs=0.005)
+    # verify --proof draws the same frames: its worst is the one convert printed.
+    r = run("verify", src, out, "--proof", "--json", "--min-psnr", 40)
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.005)
 
 
 def test_a_floor_out_of_reach_is_an_error_unless_best_effort(tmp_path):
@@ -108,3 +114,10 @@ def test_proof_options_are_refused_where_they_mean_nothing(tmp_path, args):
     r = run("convert", src, tmp_path / args[0], *args[1:])
     error_line(r, 2)
     assert not (tmp_path / args[0]).exists()
+
+
+def test_verify_proof_takes_no_views_of_its_own(tmp_path):
+    src = tmp_path / "s.ply"
+    io.write(moving_scene(20), src)
+    r = run("verify", src, src, "--proof", "--times", "0.5")
+    assert error_line(r, 2).startswith("Error: --proof draws the views and times")

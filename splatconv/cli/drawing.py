@@ -104,10 +104,14 @@ def render(input_path, output_path, time_, camera, view, size, fit, fx, fy, fram
                  help="Write each frame's images, a diff heatmap and a side-by-side picture here "
                       "(cam<I>_t<T>_{source,converted,diff,side_by_side}.png)."),
     force_option("files in --report-dir"),
+    click.option("--proof", is_flag=True,
+                 help="Draw the views and times convert --min-psnr proves a .splatvq by (the header cameras, "
+                      "views near them, splaTV's opening view; both files as the viewer draws them): its worst "
+                      "frame is the one convert printed. Not with --times, --cameras or --size."),
     quiet_option(),
 )
 @library_errors
-def verify(source, converted, times, cameras, size, min_psnr, as_json, color, report_dir, force, quiet):
+def verify(source, converted, times, cameras, size, min_psnr, as_json, color, report_dir, force, proof, quiet):
     """Check that CONVERTED still shows what SOURCE does.
 
     Compares every attribute against what half-float and 8-bit quantization can
@@ -125,7 +129,7 @@ def verify(source, converted, times, cameras, size, min_psnr, as_json, color, re
       splatconv verify scene.ply scene.splatv --times 0,0.5,1 --cameras 0 --report-dir report/
     """
     outcome = run_verify(source, converted, times=times, cameras=cameras, size=size, min_psnr=min_psnr,
-                         color=color, report_dir=report_dir, force=force, progress=progress(quiet))
+                         color=color, report_dir=report_dir, force=force, proof=proof, progress=progress(quiet))
     _finish(outcome.as_dict(), as_json, (attributes_text, frames_text, verdict_text))
 
 

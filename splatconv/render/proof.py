@@ -9,9 +9,9 @@ encodes, and ``verify --proof-views`` draws the same frames, so the two agree:
 * the view splaTV opens every file at (:data:`SPLATV_VIEW`, its built-in
   camera's focal lengths), which may be far from any header camera;
 
-each at :data:`PROOF_TIMES`, :data:`PROOF_WIDTH` pixels wide (the camera's
-aspect; splaTV's view at 16:9). Both scenes are drawn as the viewer draws them
-(the ``.splatv`` texture a conversion holds).
+each at :data:`PROOF_TIMES`, all :data:`PROOF_WIDTH` pixels wide with the first
+camera's aspect (another camera's whole view fits inside). Both scenes are drawn
+as the viewer draws them (the ``.splatv`` texture a conversion holds).
 """
 
 from __future__ import annotations
@@ -97,17 +97,19 @@ def proof_views(scene: Scene) -> list:
     centre = (np.asarray(lo, np.float64) + np.asarray(hi, np.float64)) / 2
     if not cameras:
         cameras = [camera_for_box(np.asarray(lo, np.float64), np.asarray(hi, np.float64))]
+    first = cameras[0]
+    size = (PROOF_WIDTH, max(1, round(PROOF_WIDTH * int(first["height"]) / int(first["width"]))))
     views = []
     for i, camera in enumerate(cameras):
-        size = (PROOF_WIDTH, max(1, round(PROOF_WIDTH * int(camera["height"]) / int(camera["width"]))))
         for name, c in ((f"camera {i}", camera), (f"camera {i} orbited {NEAR_DEGREES:g} deg",
                                                     _orbited(camera, centre, NEAR_DEGREES)),
                         (f"camera {i} stepped in", _stepped(camera, centre, NEAR_STEP))):
             w, h, fx, fy = cam.fit(c, size)
             views.append((name, View(cam.view_matrix(c), fx, fy, w, h)))
-    scale = PROOF_WIDTH / SPLATV_WINDOW[0]
-    views.append(("splaTV's opening view", View(list(SPLATV_VIEW), SPLATV_FOCAL[0] * scale, SPLATV_FOCAL[1] * scale,
-                                                PROOF_WIDTH, round(SPLATV_WINDOW[1] * scale))))
+    # splaTV's window: its focal lengths are pixels of the window, whose width the frame keeps.
+    scale = size[0] / SPLATV_WINDOW[0]
+    views.append(("splaTV's opening view", View(list(SPLATV_VIEW), SPLATV_FOCAL[0] * scale,
+                                                SPLATV_FOCAL[1] * scale, *size)))
     return views
 
 
@@ -118,22 +120,16 @@ def prove(source: Scene, candidate: Scene, views: list, times=None, *, progress:
     ----------
     source, candidate : Scene
     views : list of (str, View)
-        From :func:`proof_views`; views of different sizes are drawn a size at a time.
+        From :func:`proof_views` (one size).
     times : sequence of float, optional
         Default :data:`PROOF_TIMES`.
     """
     times = tuple(PROOF_TIMES if times is None else times)
-    psnrs, where = [], []
-    by_size = {}
-    for name, view in views:
-        by_size.setdefault((view.width, view.height), []).append((name, view))
-    for group in by_size.values():
-        frames = compare_frames(lambda: Source("<source>", source).texture(),
-                                lambda: Source("<candidate>", candidate).texture(),
-                                [(i, view) for i, (_name, view) in enumerate(group)], times, progress=progress)
-        for frame in frames:
-            psnrs.append(frame.diff.psnr)
-            where.append(f"{group[frame.camera][0]} at t={frame.time:g}")
+    frames = compare_frames(lambda: Source("<source>", source).texture(),
+                            lambda: Source("<candidate>", candidate).texture(),
+                            [(i, view) for i, (_name, view) in enumerate(views)], times, progress=progress)
+    psnrs = [frame.diff.psnr for frame in frames]
+    where = [f"{views[frame.camera][0]} at t={frame.time:g}" for frame in frames]
     values = np.asarray(psnrs, np.float64)
     worst = int(np.argmin(values))
     finite = values[np.isfinite(values)]  # identical frames (inf) are left out of the mean

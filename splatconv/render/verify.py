@@ -27,6 +27,7 @@ from . import camera as cam
 from . import diff as imgdiff
 from .frames import Frame, cameras_of, compare_frames, frame_views, load
 from .layout import float_attributes
+from . import proof as proving
 
 #: Version of the JSON that :meth:`Outcome.as_dict` gives (``"schema": "splatconv.verify/1"``).
 SCHEMA_VERSION = 1
@@ -174,7 +175,7 @@ def _load_pair(paths: tuple, color: str, progress: Progress) -> list:
 
 def verify(source_path, converted_path, *, times=None, cameras: str | None = None, size=None,
            min_psnr: float = DEFAULT_MIN_PSNR, tolerance: int = imgdiff.TOLERANCE, color: str = "auto",
-           report_dir=None, force: bool = False, progress: Progress = SILENT) -> Outcome:
+           report_dir=None, force: bool = False, proof: bool = False, progress: Progress = SILENT) -> Outcome:
     """Check CONVERTED against SOURCE by attributes and by rendered frames.
 
     Parameters
@@ -191,6 +192,11 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         all or nothing: on any error no report file is left, nor the folder if
         this run made it. Checked before anything is drawn: an existing report
         file is an error unless ``force``.
+    proof : bool
+        Draw the frames ``convert --min-psnr`` proves a compressed file by
+        (:mod:`splatconv.render.proof`: its views, numbered in a note, and times),
+        both files as the viewer draws them, instead of ``times``, ``cameras`` and
+        ``size`` (refused with it): the worst frame is the one ``convert`` printed.
     progress : Progress
         Receives the stages "reading", "checking attributes" and "drawing".
 
@@ -201,6 +207,9 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         drifted past what quantization explains. No image is kept: memory does
         not grow with the number of frames.
     """
+    if proof and (times is not None or cameras is not None or size is not None):
+        raise UsageError("--proof draws the views and times convert --min-psnr proves by: no --times, "
+                         "--cameras or --size with it")
     min_psnr, times, picked, size = _request(min_psnr, times, DEFAULT_TIMES, cameras, size)
     paths = os.fspath(source_path), os.fspath(converted_path)
     source, converted = _load_pair(paths, color, progress)
@@ -212,13 +221,20 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         storage = format_for(paths[1]).storage(converted.scene)
         attributes = compare_scenes(source.scene, converted.scene, order, storage)
         advance()
-    available = cameras_of(source, converted)
-    indices = pick_cameras(picked, len(available))
     outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=len(order), notes=paired)
-    if cameras is None and len(available) > len(indices):
-        outcome.notes.append(f"drew the first {len(indices)} of {plural(len(available), 'camera')} "
-                             f"(--cameras all draws every one)")
-    views = frame_views(available, indices, size, VERIFY_MAX_WIDTH)
+    if proof:
+        named = proving.proof_views(source.scene)
+        views = [(i, view) for i, (_name, view) in enumerate(named)]
+        times = list(proving.PROOF_TIMES)
+        outcome.notes.append("drew the views convert --min-psnr proves by, as the viewer draws both files: "
+                             + "; ".join(f"camera {i}: {name}" for i, (name, _view) in enumerate(named)))
+    else:
+        available = cameras_of(source, converted)
+        indices = pick_cameras(picked, len(available))
+        if cameras is None and len(available) > len(indices):
+            outcome.notes.append(f"drew the first {len(indices)} of {plural(len(available), 'camera')} "
+                                 f"(--cameras all draws every one)")
+        views = frame_views(available, indices, size, VERIFY_MAX_WIDTH)
     if report_dir is not None:
         check_report_dir(report_dir, [(i, t) for i, _ in views for t in times], paths, force)
     records = converted.records
@@ -227,13 +243,14 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     # textures is needed while drawing, so the scenes' memory goes back first.
     def source_data():
         nonlocal source
-        rows = float_attributes(source.scene, order, records)
+        rows = source.texture() if proof else float_attributes(source.scene, order, records)
         source = None
         return rows
 
     def converted_data():
         nonlocal converted
-        data = converted.stored if converted.stored is not None else float_attributes(converted.scene, None, records)
+        data = (converted.texture() if proof else converted.stored if converted.stored is not None
+                else float_attributes(converted.scene, None, records))
         converted = None
         return data
 
