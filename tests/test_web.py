@@ -28,7 +28,7 @@ from splatconv.web.page import SceneRef, build_page
 from splatconv.publish import publish
 
 from .conftest import random_columns
-from .web_support import EVENT_DEADLINE_MS, capture, launched, open_page, serving, view_hash, wait_settled
+from .web_support import EVENT_DEADLINE_MS, capture, open_page, serving, view_hash, wait_settled
 
 ROOT = Path(__file__).resolve().parent.parent
 SAMPLE = ROOT / "sample_data" / "dancers.ply"
@@ -37,12 +37,6 @@ W, H = 640, 360
 MIN_PSNR = 40.0
 #: docs/player.png: the page as a user sees it (controls shown), paused at this time.
 SCREENSHOT_TIME = 0.4
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with launched() as b:
-        yield b
 
 
 @pytest.fixture(scope="module")

@@ -30,13 +30,7 @@ from splatconv.server import ViewServer
 from . import splatvq_files as damage
 from .real_scenes import real_scene
 from .test_web import W, H, assert_matches, rendered
-from .web_support import capture, launched, open_page, serving, wait_settled
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with launched() as b:
-        yield b
+from .web_support import capture, open_page, serving, wait_settled
 
 
 @pytest.fixture(scope="module")
