@@ -31,7 +31,6 @@ from .conftest import random_columns
 from .web_support import EVENT_DEADLINE_MS, capture, open_page, serving, view_hash, wait_settled
 
 ROOT = Path(__file__).resolve().parent.parent
-SAMPLE = ROOT / "sample_data" / "dancers.ply"
 CAMERAS = json.loads((ROOT / "sample_data" / "cameras.json").read_text())
 W, H = 640, 360
 MIN_PSNR = 40.0
@@ -39,11 +38,10 @@ MIN_PSNR = 40.0
 SCREENSHOT_TIME = 0.4
 
 
-@pytest.fixture(scope="module")
-def sample(tmp_path_factory):
-    path = tmp_path_factory.mktemp("web") / "dancers.splatv"
-    splatconv.convert(SAMPLE, path, cameras=str(ROOT / "sample_data" / "cameras.json"))
-    return path
+@pytest.fixture
+def sample(sample_splatv):
+    """The bundled sample as .splatv with its cameras: the session's (conftest.py), made once a run."""
+    return sample_splatv
 
 
 @pytest.fixture(scope="module")
