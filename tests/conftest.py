@@ -96,3 +96,24 @@ def sample_splatv(tmp_path_factory):
     out = tmp_path_factory.mktemp("sample") / "dancers.splatv"
     splatconv.convert(root / "sample_data/dancers.ply", out, cameras=root / "sample_data/cameras.json")
     return out
+
+
+@pytest.fixture(scope="session")
+def _chromium():
+    """One headless Chromium for the whole run (see :func:`tests.web_support.launched`): starting one costs
+    seconds, and every page test opens its own context anyway."""
+    from .web_support import launched
+
+    with launched() as b:
+        yield b
+
+
+@pytest.fixture
+def browser(_chromium):
+    """The session's Chromium for one test; whatever pages and contexts the test leaves open are closed after it,
+    so no test sees another's (or pays for its animation)."""
+    before = set(_chromium.contexts)
+    yield _chromium
+    for context in _chromium.contexts:
+        if context not in before:
+            context.close()

@@ -76,7 +76,7 @@ def test_placements_keep_every_frame_at_a_frame_time():
 
 
 def test_trimmed_halves_merge_back_to_the_original_at_frame_times(source):
-    per = 12
+    per = 8  # as the CLI tests below: a merge searches its window layouts once per segment shape and process
     segments = halves(source, per)
     merged, report = sg.merge_segments(segments, [per, per])
     assert report.count_out <= 2 * report.count_in
@@ -85,7 +85,7 @@ def test_trimmed_halves_merge_back_to_the_original_at_frame_times(source):
     ours = render_scene(merged, CAMERAS[0], times, size=SIZE)
     original = render_scene(source, CAMERAS[0], times, size=SIZE)
     psnr = np.array([compare(a, b).psnr for a, b in zip(original, ours)])
-    # The issue's aim: median >= 40 dB, no frame below 30 dB (measured here: 46.4 and 37.6,
+    # The issue's aim: median >= 40 dB, no frame below 30 dB (measured here: 43.5 and 37.5,
     # lowest at the hand-over between the halves, where both grounds fade).
     assert np.median(psnr) >= 40, psnr.round(1)
     assert psnr.min() >= 30, psnr.round(1)
@@ -224,7 +224,7 @@ def test_merge_segments_cli_json_and_usage_errors(tmp_path, source):
 
 def test_the_default_check_is_a_bounded_sample_with_every_hand_over_and_all_is_on_request(tmp_path, source):
     """By default a few frames spread evenly and both sides of each hand-over; --check-every 1 measures all."""
-    per, k = 6, 3
+    per, k = 8, 3  # 8 frames a segment, as the tests above (their first and last layouts are searched already)
     total = per * k
     paths = []
     for i in range(k):
@@ -236,7 +236,7 @@ def test_the_default_check_is_a_bounded_sample_with_every_hand_over_and_all_is_o
     data = json.loads(r.stdout)
     checked = data["check"]["frames"]
     hand_overs = {f for s in data["segments"][1:] for f in (s["first_frame"] - 1, s["first_frame"])}
-    assert hand_overs == {5, 6, 11, 12}
+    assert hand_overs == {7, 8, 15, 16}
     assert hand_overs <= set(checked) and {0, total - 1} <= set(checked)
     assert len(checked) <= DEFAULT_SAMPLE + 2 * (k - 1) < total
     assert checked == sorted(set(checked))

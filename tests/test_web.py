@@ -28,10 +28,9 @@ from splatconv.web.page import SceneRef, build_page
 from splatconv.publish import publish
 
 from .conftest import random_columns
-from .web_support import EVENT_DEADLINE_MS, capture, launched, open_page, serving, view_hash, wait_settled
+from .web_support import EVENT_DEADLINE_MS, capture, open_page, serving, view_hash, wait_settled
 
 ROOT = Path(__file__).resolve().parent.parent
-SAMPLE = ROOT / "sample_data" / "dancers.ply"
 CAMERAS = json.loads((ROOT / "sample_data" / "cameras.json").read_text())
 W, H = 640, 360
 MIN_PSNR = 40.0
@@ -39,17 +38,10 @@ MIN_PSNR = 40.0
 SCREENSHOT_TIME = 0.4
 
 
-@pytest.fixture(scope="module")
-def browser():
-    with launched() as b:
-        yield b
-
-
-@pytest.fixture(scope="module")
-def sample(tmp_path_factory):
-    path = tmp_path_factory.mktemp("web") / "dancers.splatv"
-    splatconv.convert(SAMPLE, path, cameras=str(ROOT / "sample_data" / "cameras.json"))
-    return path
+@pytest.fixture
+def sample(sample_splatv):
+    """The bundled sample as .splatv with its cameras: the session's (conftest.py), made once a run."""
+    return sample_splatv
 
 
 @pytest.fixture(scope="module")

@@ -32,13 +32,7 @@ from . import splatvq_files as damage
 from .real_scenes import real_file, real_scene
 from .scenes import overlapping_scene
 from .test_web import MIN_PSNR, W, H, assert_matches, rendered
-from .web_support import capture, launched, open_page, serving, wait_settled
-
-
-@pytest.fixture(scope="module")
-def browser():
-    with launched() as b:
-        yield b
+from .web_support import capture, open_page, serving, wait_settled
 
 
 @pytest.fixture(scope="module")

@@ -58,7 +58,7 @@ def require_browser():
 
 @contextmanager
 def launched():
-    """A headless Chromium for a test module."""
+    """A headless Chromium (tests share one: the `browser` fixture in conftest.py)."""
     sync_api, path = require_browser()
     with sync_api.sync_playwright() as p:
         browser = p.chromium.launch(executable_path=path, args=list(CHROMIUM_ARGS), headless=True)
