@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+
 import numpy as np
 import plyfile
 import pytest
@@ -117,3 +119,19 @@ def browser(_chromium):
     for context in _chromium.contexts:
         if context not in before:
             context.close()
+
+
+class ProgressRecorder:
+    """A :class:`splatconv.progress.Progress` that records each stage as [label, total, unit, done]."""
+
+    def __init__(self):
+        self.stages = []
+
+    def stage(self, label, total=None, unit="it"):
+        entry = [label, total, unit, 0]
+        self.stages.append(entry)
+
+        def advance(n=1):
+            entry[3] += n
+
+        return contextlib.nullcontext(advance)

@@ -621,6 +621,19 @@ def _wait_for(predicate, timeout=120.0):
     return False
 
 
+def _signal_when(p, appeared, signum) -> bytes:
+    """Send ``signum`` to ``p`` the moment ``appeared()`` holds; its stderr once it ends.
+
+    The process is frozen first, then signalled and let go on: the signal lands in the
+    phase seen however slow or loaded the machine (a sleep let a loaded machine finish first).
+    """
+    assert _wait_for(appeared), "nothing appeared"
+    p.send_signal(signal.SIGSTOP)
+    p.send_signal(signum)
+    p.send_signal(signal.SIGCONT)
+    return p.communicate(timeout=120)[1]
+
+
 @pytest.fixture(scope="module")
 def big_inputs(tmp_path_factory):
     """A 100,000-splat PLY and its zstd-compressed copy (decompressed to a temporary file when read)."""
@@ -652,14 +665,7 @@ def test_killed_convert_cleans_up(tmp_path, big_inputs, signum, phase):
                           "22"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
     try:
         started = (lambda: os.listdir(tmp) or os.listdir(work)) if phase == "read" else (lambda: os.listdir(work))
-        assert _wait_for(started), "nothing appeared"
-        # Freeze the process the moment its file appears, then signal it and let it go on: the signal
-        # lands in the phase seen however slow or loaded the machine (a sleep here let a loaded
-        # machine finish the write first).
-        p.send_signal(signal.SIGSTOP)
-        p.send_signal(signum)
-        p.send_signal(signal.SIGCONT)
-        _out, err = p.communicate(timeout=120)
+        err = _signal_when(p, started, signum)
     finally:
         if p.poll() is None:
             p.kill()
@@ -690,11 +696,7 @@ def test_a_signal_as_the_part_file_appears_always_ends_the_run(tmp_path, big_inp
         p = subprocess.Popen([sys.executable, "-m", "splatconv", "convert", str(packed), str(work / "o.splatv.zst"),
                               "--zstd-level", "22"], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
         try:
-            assert _wait_for(lambda: os.listdir(work)), "no part file appeared"
-            p.send_signal(signal.SIGSTOP)
-            p.send_signal(signum)
-            p.send_signal(signal.SIGCONT)
-            _out, err = p.communicate(timeout=120)
+            err = _signal_when(p, lambda: os.listdir(work), signum)
         finally:
             if p.poll() is None:
                 p.kill()

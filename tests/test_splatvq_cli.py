@@ -14,6 +14,7 @@ from splatconv.cli import main
 from splatconv.formats import splatvq
 from splatconv.viewer import undrawable
 from tests import splatvq_files as damage
+from tests.conftest import ProgressRecorder
 from tests.real_scenes import real_scene
 
 QUALITIES = splatvq.QUALITIES
@@ -157,22 +158,6 @@ def test_a_splatvq_output_counts_the_undrawable_splats_it_leaves_out_and_advises
     assert r.exit_code == 0 and "--drop-undrawable" in r.stderr
 
 
-class _Recorder:
-    """A progress that records each stage as [label, total, unit, done]."""
-
-    def __init__(self):
-        self.stages = []
-
-    def stage(self, label, total=None, unit="it"):
-        import contextlib
-
-        entry = [label, total, unit, 0]
-        self.stages.append(entry)
-
-        def advance(n=1):
-            entry[3] += n
-
-        return contextlib.nullcontext(advance)
 
 
 @pytest.mark.parametrize("name, quality", [("x.splatvq", None), ("x.splatvq", QUALITIES[-1]), ("x.html", QUALITIES[0]),
@@ -180,7 +165,7 @@ class _Recorder:
 def test_the_writing_bar_counts_the_splats_written(tmp_path, source, name, quality):
     """A .splatvq leaves undrawable splats out: its bar's total and count are the splats it writes."""
     scene = io.read(source)
-    rec = _Recorder()
+    rec = ProgressRecorder()
     report = io.write(scene, tmp_path / name, quality=quality, progress=rec)
     writing = [s for s in rec.stages if s[0] == "writing"]
     assert [s[1:] for s in writing] == [[report.count, "splat", report.count]]

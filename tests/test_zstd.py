@@ -14,6 +14,8 @@ from click.testing import CliRunner
 
 from splatconv.cli import main
 
+from .conftest import ProgressRecorder
+
 
 def unzstd(path) -> bytes:
     return zstandard.ZstdDecompressor().decompressobj().decompress(path.read_bytes())
@@ -178,22 +180,6 @@ def test_sizes_are_measured_piece_by_piece(compressor_writes):
     assert packed == pytest.approx(len(zstandard.ZstdCompressor(level=1).compress(data)), rel=0.05)
 
 
-class _Recorder:
-    """A :class:`splatconv.progress.Progress` that records each stage as [label, total, unit, done]."""
-
-    def __init__(self):
-        self.stages = []
-
-    def stage(self, label, total=None, unit="it"):
-        import contextlib
-
-        entry = [label, total, unit, 0]
-        self.stages.append(entry)
-
-        def advance(n=1):
-            entry[3] += n
-
-        return contextlib.nullcontext(advance)
 
 
 def test_compressing_and_decompressing_report_progress(tmp_path):
@@ -203,13 +189,13 @@ def test_compressing_and_decompressing_report_progress(tmp_path):
     import splatconv
 
     packed = tmp_path / "big.splatv.zst"
-    rec = _Recorder()
+    rec = ProgressRecorder()
     splatconv.write(_big_scene(), packed, zstd_level=3, progress=rec)
     assert [s[0] for s in rec.stages] == ["writing", "compressing"]
     assert all(done == total for _label, total, _unit, done in rec.stages), rec.stages
     assert rec.stages[1][2] == "byte" and 0 < rec.stages[1][1] <= len(unzstd(packed))
 
-    rec = _Recorder()
+    rec = ProgressRecorder()
     splatconv.convert(packed, tmp_path / "back.ply", progress=rec)
     assert [s[:3] for s in rec.stages] == [["reading", 1, "file"],
                                           ["decompressing big.splatv.zst", packed.stat().st_size, "byte"],
