@@ -127,8 +127,8 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
             if not best_effort:
                 b = proofs[chosen]
                 raise OutputError(f"reaches at best {b.worst:.2f} dB in its worst frame ({b.where}, at the "
-                                  f"{_step_name(name, chosen)!r} setting), below the --min-psnr {min_psnr:g} dB "
-                                  "floor (--best-effort writes it all the same)", output)
+                                  f"{name!r} setting, precision step {chosen:+d}), below the --min-psnr "
+                                  f"{min_psnr:g} dB floor (--best-effort writes it all the same)", output)
         proof = proof_at(chosen)
         report = put(chosen)
         # The output is the very file measured, copied into place.
@@ -141,7 +141,3 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
         notes.append(f"{short:.2f} dB short of the --min-psnr {min_psnr:g} dB floor (--best-effort)")
     return report, notes
 
-
-def _step_name(quality: str, step: int) -> str:
-    """How a file's header names a setting at a precision step: ``default``, ``default+2``."""
-    return f"{quality}{step:+d}" if step else quality
