@@ -12,7 +12,8 @@ draws it (axes clamped to 1,024 pixels, cut at 2 on the quad), the share inside
 is the part of its footprint's box inside the frame, and the transmittance is
 what the splats in front of it let through: estimated on a grid of cells, each
 splat spread over the cells its footprint's box covers, its opacity over a cell
-the footprint's mean there. The viewer blends front to back, so a splat hidden
+its weight at the cell's point nearest its centre (times the share of the cell
+it covers, when smaller). The viewer blends front to back, so a splat hidden
 behind opaque ones adds little however large it is.
 
 :func:`leave_out` removes splats (the least contributing first, from
@@ -82,7 +83,8 @@ def _rotated(vrk: np.ndarray, w: np.ndarray) -> np.ndarray:
 
 def _frame(position, vrk, alpha, view, projection, width: int, height: int):
     """Each splat's blend weight over one frame ignoring occlusion, and where it lies: the rows drawn
-    ``(m,)``, their weight and depth ``(m,)``, and their footprint's box in pixels (x0, x1, y0, y1)."""
+    ``(m,)``, their weight and depth ``(m,)``, and their footprint in pixels: its box (x0, x1, y0, y1),
+    centre and the inverse of its spread (see the end)."""
     vm = np.asarray(view, np.float64).reshape(4, 4).T  # column-major -> rows
     pm = np.asarray(projection, np.float64).reshape(4, 4).T
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
@@ -119,8 +121,11 @@ def _frame(position, vrk, alpha, view, projection, width: int, height: int):
                   * np.clip((y1 - y0) / np.maximum(2 * half_y, 1e-6), 0, 1))
         weight = alpha[rows] * fade * area * inside
         weight[~(mid - radius >= 0) | ~(x1 > x0) | ~(y1 > y0) | ~np.isfinite(weight)] = 0.0
-    shown = weight > 0
-    return rows[shown], weight[shown], z[shown], (x0[shown], x1[shown], y0[shown], y1[shown])
+        det = a * c - b * b
+        shown = weight > 0
+        # The footprint: box, centre and 2 cov2d^-1 (its weight at offset d is exp(-d^T (2 cov2d^-1) d)).
+        foot = tuple(v[shown] for v in (x0, x1, y0, y1, sx, sy, 2 * c / det, -2 * b / det, 2 * a / det))
+    return rows[shown], weight[shown], z[shown], foot
 
 
 def _transmittance(weight, depth, box, alpha, width: int, height: int) -> np.ndarray:
@@ -129,7 +134,7 @@ def _transmittance(weight, depth, box, alpha, width: int, height: int) -> np.nda
     if len(weight) == 0:
         return out
     front = np.argsort(depth, kind="stable")
-    x0, x1, y0, y1 = (side[front] for side in box)
+    x0, x1, y0, y1, sx, sy, qa, qb, qc = (v[front] for v in box)
     cell = _CELL
     while True:
         cx0, cy0 = (x0 // cell).astype(np.int64), (y0 // cell).astype(np.int64)
@@ -147,13 +152,18 @@ def _transmittance(weight, depth, box, alpha, width: int, height: int) -> np.nda
     k = np.arange(len(owner)) - np.repeat(np.cumsum(count) - count, count)
     nxo = nx[owner]
     cells = ((cy0[owner] + k // nxo) * columns + cx0[owner] + k % nxo).astype(np.uint16)
-    # A splat's opacity over a cell: its footprint's mean there.
+    # A splat's opacity over a cell: its weight at the cell's point nearest its centre, times the
+    # share of the cell it covers when smaller than one.
     a = alpha[front]
-    cover = np.minimum(a * np.minimum(1.0, weight[front] / np.maximum(a, 1e-12) / (count * cell * cell)),
-                       _MOST_OPACITY)
+    small = a * np.minimum(1.0, weight[front] / np.maximum(a, 1e-12) / (cell * cell))
+    px = np.clip(sx[owner], (cx0[owner] + k % nxo) * cell, (cx0[owner] + k % nxo + 1) * cell) - sx[owner]
+    py = np.clip(sy[owner], (cy0[owner] + k // nxo) * cell, (cy0[owner] + k // nxo + 1) * cell) - sy[owner]
+    with np.errstate(over="ignore", invalid="ignore"):
+        falloff = np.exp(-(qa[owner] * px * px + 2 * qb[owner] * px * py + qc[owner] * py * py))
+    cover = np.minimum(np.nan_to_num(small[owner] * falloff), _MOST_OPACITY)
     order = np.argsort(cells, kind="stable")  # by cell, front to back within one (a radix sort)
-    owner, cells = owner[order], cells[order]
-    loss = np.log1p(-cover[owner])
+    owner, cells, cover = owner[order], cells[order], cover[order]
+    loss = np.log1p(-cover)
     total = np.cumsum(loss)
     first = np.ones(len(order), bool)
     first[1:] = cells[1:] != cells[:-1]

@@ -165,8 +165,8 @@ def ranked(scene: Scene, views: list, times=None) -> np.ndarray:
     apart = np.zeros(len(order), bool)
     for _name, view in views:
         key = depth_keys(xyz, view.view_proj())
-        if len(key):
-            apart |= (key == key.max()) | (key == key.min())
+        if len(key):  # one of each extreme keeps the range
+            apart[[np.argmax(key), np.argmin(key)]] = True
     apart[order == order.min(initial=0)] = True
     importance = np.nan_to_num(viewer.importance({k: np.asarray(v)[order] for k, v in scene.columns.items()}),
                                nan=-np.inf)
