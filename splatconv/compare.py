@@ -355,7 +355,9 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
     (:func:`splatconv.viewer.undrawable`; ``.splatvq`` does): no frame changes.
     When the counts differ by exactly ``source``'s undrawable splats,
     ``converted`` is aligned against ``source``'s drawable splats and a note
-    says so; any other difference in count is refused by :func:`align`.
+    says so. A pruned file (``meta["pruned"]``, :func:`splatconv.ops.prune.leave_out`)
+    that holds that many fewer of them is paired with them by content. Any
+    other difference in count is refused by :func:`align`.
 
     Returns
     -------
@@ -368,6 +370,16 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
     if n != m:
         kinds = viewer.undrawable_kinds(source.columns)
         keep = np.flatnonzero(kinds == viewer.DRAWABLE)
+        pruned = converted.meta.get("pruned", 0)
+        if pruned and len(keep) == m + pruned:
+            # A pruned file (splatconv.ops.prune) holds some of the drawable splats: paired by content.
+            drawable = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
+                             meta=source.meta)
+            found = content_order(drawable, converted, complete=complete)
+            order = np.where(found < 0, -1, keep[found])
+            return order, [f"{converted_name} holds {m:,} of {source_name}'s {plural(len(keep), 'drawable splat')} "
+                           f"(its header says {pruned:,} were pruned, and the {n - len(keep):,} undrawable ones "
+                           "are left out); compared against those it holds"]
         if len(keep) == m:
             drawable = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
                              meta=source.meta)

@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from splatconv import io
+from splatconv import io, viewer
 from splatconv.cli import main
 from splatconv.model import COLUMNS, Scene
+from splatconv.ops import prune
+from splatconv.render import camera as cam
 from splatconv.render import proof
 
 from .cli_checks import error_line
@@ -107,7 +109,8 @@ def test_max_bytes_gives_the_finest_step_that_fits(tmp_path):
 
 
 @pytest.mark.parametrize("args", [("o.splatv", "--min-psnr", "40"), ("o.ply", "--max-bytes", "5M"),
-                                  ("o.splatvq", "--best-effort"), ("o.splatvq", "--max-bytes", "lots")])
+                                  ("o.splatvq", "--best-effort"), ("o.splatvq", "--max-bytes", "lots"),
+                                  ("o.splatvq", "--prune"), ("o.splatvq", "--max-bytes", "5M", "--prune")])
 def test_proof_options_are_refused_where_they_mean_nothing(tmp_path, args):
     src = tmp_path / "s.ply"
     io.write(moving_scene(20), src)
@@ -121,3 +124,83 @@ def test_verify_proof_takes_no_views_of_its_own(tmp_path):
     io.write(moving_scene(20), src)
     r = run("verify", src, src, "--proof", "--times", "0.5")
     assert error_line(r, 2).startswith("Error: --proof draws the views and times")
+
+
+def _with_unseen(n: int = 160, unseen: int = 40) -> Scene:
+    """:func:`moving_scene` and ``unseen`` more splats that no proof frame shows (behind the camera)."""
+    scene = moving_scene(n, 5)
+    extra = moving_scene(unseen + 1, 6)
+    c = {k: np.concatenate([np.asarray(scene.columns[k]), np.asarray(extra.columns[k])[1:]]) for k in COLUMNS}
+    c["z"][n:] = CAMERA["position"][2] - 5.0  # the camera looks along +z from z = -9
+    return Scene(c, cameras=[dict(CAMERA)])
+
+
+def test_prune_leaves_out_splats_and_the_floor_still_holds(tmp_path):
+    """The note's count is the source's drawable splats less those written; the file, as read, meets the floor,
+    and verify --proof pairs it with the source and draws the same frames."""
+    scene = _with_unseen()
+    src = tmp_path / "s.ply"
+    io.write(scene, src)
+    drawable = int((~viewer.undrawable(scene.columns)).sum())
+    out = tmp_path / "o.splatvq"
+    r = run("convert", src, out, "--min-psnr", 40, "--prune")
+    assert r.exit_code == 0, r.output
+    line = next(n for n in r.stderr.splitlines() if n.startswith("note: pruned "))
+    left_out = int(line.split("pruned ")[1].split(" splat")[0].replace(",", ""))
+    assert line.split(" of ")[1].startswith(f"{drawable:,} drawable")
+    written = io.read(out)
+    assert left_out >= 30 and written.count == drawable - left_out
+    assert r.stdout.startswith(f"wrote {out}: {written.count:,} splats")
+    printed = float(next(n for n in r.stderr.splitlines() if n.startswith("note: proved: "))
+                    .split("worst frame ")[1].split(" dB")[0])
+    again = proof.prove(io.read(src), written, proof.proof_views(io.read(src)))
+    assert printed >= 40 and again.worst == pytest.approx(printed, abs=0.005)
+    # The header says it is pruned, and info shows it.
+    r = run("info", out, "--json")
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["details"]["pruned"] == left_out
+    r = run("verify", src, out, "--proof", "--json", "--min-psnr", 40)
+    assert r.exit_code == 0, r.output
+    assert json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.005)
+    # Without --prune every drawable splat is kept, and the header says nothing of pruning.
+    whole = tmp_path / "whole.splatvq"
+    r = run("convert", src, whole, "--min-psnr", 40)
+    assert r.exit_code == 0, r.output
+    assert io.read(whole).count == drawable and "pruned" not in io.read(whole).meta
+    assert not any(n.startswith("note: pruned ") for n in r.stderr.splitlines())
+
+
+def _matrices(views):
+    return [(v.matrix, cam.projection_matrix(v.fx, v.fy, v.width, v.height), v.width, v.height) for _, v in views]
+
+
+def test_splats_no_frame_shows_rank_last():
+    """Behind the camera, out of the frame: nothing added, ranked first to go; hidden in time at every t: nothing
+    added and not ranked (undrawable); seen only between the times drawn: counted; behind an opaque splat: less
+    than the same splat in the open."""
+    c = {k: np.zeros(7, np.float32) for k in COLUMNS}
+    c["rot_0"][:] = 1.0
+    c["opacity"][:] = 8.0
+    c["trbf_scale"][:] = np.log(1e4)  # visible at every time
+    for k in ("scale_0", "scale_1", "scale_2"):
+        c[k][:] = np.log(0.05)
+    # 0: in front of the camera; 1: behind it; 2: far out of frame; 3: hidden at every time in [0, 1];
+    # 4: behind a large opaque splat (5) straight ahead; 6: only near t = 0.5.
+    c["x"][:] = [0.3, 0.3, 40.0, 0.3, 1.3, 1.3, -0.7]
+    c["y"][:] = -0.2
+    c["z"][:] = [0.0, -12.0, 0.0, 0.0, 2.0, 0.0, 0.0]
+    c["trbf_center"][3], c["trbf_scale"][3] = 3.0, np.log(0.01)
+    c["trbf_center"][6], c["trbf_scale"][6] = 0.5, np.log(0.01)
+    for k in ("scale_0", "scale_1"):
+        c[k][5] = np.log(0.6)
+    scene = Scene(c, cameras=[dict(CAMERA)])
+    views = _matrices(proof.proof_views(scene))
+    score = prune.contributions(scene.columns, views, (0.1, 0.9))
+    assert score[0] > 0 and score[5] > 0 and score[6] > 0  # 6: at its best between the times drawn
+    assert score[1] == score[2] == score[3] == 0
+    ranked = prune.ranked(scene.columns, score)
+    assert 3 not in ranked and set(ranked[:2]) == {1, 2}
+    hidden = prune.contributions(scene.columns, views, (0.5,))[4]
+    c["opacity"][5] = -40.0
+    alone = prune.contributions(Scene(c, cameras=[dict(CAMERA)]).columns, views, (0.5,))[4]
+    assert 0 < hidden < 0.2 * alone

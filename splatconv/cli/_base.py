@@ -112,7 +112,7 @@ class ByteSize(click.ParamType):
 
 
 def proof_options():
-    """``--min-psnr``, ``--max-bytes`` and ``--best-effort``: a compressed output that proves its quality."""
+    """``--min-psnr``, ``--max-bytes``, ``--best-effort`` and ``--prune``: a compressed output that proves its quality."""
     return (
         click.option("--min-psnr", type=POSITIVE, metavar="DB",
                      help="A .splatvq OUTPUT proves its quality: written at the precision step (the --quality "
@@ -127,6 +127,11 @@ def proof_options():
         click.option("--best-effort", is_flag=True,
                      help="With --min-psnr: when no step reaches DB, write the best one measured and say how "
                           "far short it is."),
+        click.option("--prune", is_flag=True,
+                     help="With --min-psnr: also leave out the drawable splats that add least to the proof's "
+                          "frames (ranked by their blend weight over its views and times), as many as keep the "
+                          "worst frame at DB or above; a note and the file's header say how many. Without it "
+                          "every drawable splat is kept."),
     )
 
 

@@ -86,7 +86,8 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 @edit_options()
 @library_errors
 def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, quality, min_psnr,
-            max_bytes, best_effort, color, zstd_level, frame_times, same_splats, max_error, force, quiet, **edits):
+            max_bytes, best_effort, prune, color, zstd_level, frame_times, same_splats, max_error, force, quiet,
+            **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
@@ -101,10 +102,13 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
       splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
       splatconv convert scene.splatv scene.html
       splatconv convert scene.ply scene.splatvq --min-psnr 45
+      splatconv convert scene.ply scene.splatvq --min-psnr 40 --prune
     """
     proving = min_psnr is not None or max_bytes is not None
     if best_effort and min_psnr is None:
         raise Failure("--best-effort goes with --min-psnr", 2)
+    if prune and min_psnr is None:
+        raise Failure("--prune goes with --min-psnr", 2)
     # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
         if compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits):
@@ -126,7 +130,8 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     if frame_times is not None or same_splats != "auto" or max_error is not None:
         raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
     input_path = input_paths[0]
-    job, proof = (convert_proven, {"min_psnr": min_psnr, "max_bytes": max_bytes, "best_effort": best_effort}) \
+    job, proof = (convert_proven, {"min_psnr": min_psnr, "max_bytes": max_bytes, "best_effort": best_effort,
+                                  "prune": prune}) \
         if proving else (convert_scene, {})
     _scene, report = job(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
                          force=force, zstd_level=zstd_level, layout=layout, quality=quality,

@@ -163,7 +163,10 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     if not cameras:
         cameras = [camera_for_box(*framing_box(*(np.asarray(scene.columns[a])[keep] for a in "xyz")))]
         report.notes.append("no cameras given; wrote one camera that frames the scene")
-    text = json.dumps({"count": n, "setting": name, "cameras": cameras}, separators=(",", ":"),
+    header = {"count": n, "setting": name, "cameras": cameras}
+    if scene.meta.get("pruned"):
+        header["pruned"] = int(scene.meta["pruned"])  # splats pruned from the scene (splatconv.ops.prune)
+    text = json.dumps(header, separators=(",", ":"),
                       ensure_ascii=False, allow_nan=False).encode("utf-8")
     values = [getattr(setting, f) for f in SETTING_ORDER]
     head = PREAMBLE.pack(MAGIC, VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2, len(text), len(blocks))
@@ -295,6 +298,9 @@ def _opened(f, path: str):
     setting, meta, blocks = _header(f, path, file_size)
     info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
             "records": sum(b.coded + b.raw for b in blocks)}
+    pruned = meta.get("pruned")
+    if isinstance(pruned, int) and not isinstance(pruned, bool) and pruned > 0:
+        info["pruned"] = pruned
     return setting, meta, blocks, info
 
 
@@ -413,8 +419,12 @@ def storage(scene: Scene) -> dict:
 
 
 def info_fields(meta: dict) -> dict:
-    """What ``info`` shows of a ``.splatvq`` (its ``meta``): its setting and block count."""
-    return {"setting": meta.get("setting"), "blocks": meta.get("blocks")}
+    """What ``info`` shows of a ``.splatvq`` (its ``meta``): its setting, block count, and the splats pruned
+    from it when its header says so."""
+    fields = {"setting": meta.get("setting"), "blocks": meta.get("blocks")}
+    if meta.get("pruned"):
+        fields["pruned"] = meta["pruned"]
+    return fields
 
 
 FORMAT = Format(

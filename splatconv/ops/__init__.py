@@ -7,7 +7,8 @@
 * :mod:`~splatconv.ops.transform`: p' = R (S p) + T for splats that move;
 * :mod:`~splatconv.ops.edit`: all of them in ``convert``'s order;
 * :mod:`~splatconv.ops.bake`: the scene at one time as a static scene;
-* :mod:`~splatconv.ops.merge`: several scenes in one, on one timeline.
+* :mod:`~splatconv.ops.merge`: several scenes in one, on one timeline;
+* :mod:`~splatconv.ops.prune`: rank splats by what they add to given frames, leave out the least.
 
 Every operation returns ``(Scene, OpReport)``; the input scene is never changed.
 """

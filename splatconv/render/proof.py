@@ -24,10 +24,12 @@ import numpy as np
 from .. import viewer
 from ..cameras import camera_for_box, framing_box
 from ..model import Scene
+from ..ops import prune
 from ..progress import SILENT, Progress
 from . import camera as cam
 from .frames import Source, compare_frames
 from .preview import View
+from .sort import depth_keys
 
 #: The view matrix splaTV's ``hybrid.js`` opens every file at (column-major, world to camera).
 SPLATV_VIEW = [0.99, 0.01, -0.14, 0.0, 0.02, 0.99, 0.12, 0.0, 0.14, -0.12, 0.98, 0.0, -0.09, -0.26, 0.2, 1.0]
@@ -39,6 +41,8 @@ PROOF_WIDTH = 640
 MAX_CAMERAS = 4
 NEAR_DEGREES = 4.0
 NEAR_STEP = 0.1
+#: The most important splats :func:`ranked` puts last (one is the first record the viewer draws twice).
+KEEP_IMPORTANT = 4
 
 
 @dataclass
@@ -135,3 +139,36 @@ def prove(source: Scene, candidate: Scene, views: list, times=None, *, progress:
     finite = values[np.isfinite(values)]  # identical frames (inf) are left out of the mean
     mean = float(finite.mean()) if len(finite) else float("inf")
     return Proof(float(values[worst]), mean, where[worst], len(values), times)
+
+
+def ranked(scene: Scene, views: list, times=None) -> np.ndarray:
+    """The drawable splats of ``scene``, least first by what they add to the proof's frames: ``(M,) intp``.
+
+    :func:`splatconv.ops.prune.contributions` from ``views`` (:func:`proof_views`)
+    at ``times`` (default :data:`PROOF_TIMES`), each splat's opacity at a time the
+    best between it and the next: a splat seen only between two proved times counts.
+    Last of all come the splats the viewer's sort depends on
+    (:func:`splatconv.render.sort.viewer_order`): it scales the depth keys by
+    their range, never draws a splat whose scaled key reaches the top (the
+    farthest, or none as the rounding falls), and draws the first record once
+    more in its place. Leaving out the nearest or the farthest from a view changes
+    the range, so another splat may go undrawn and the first record drawn twice
+    (on a real scene, 40 dB to 18). So the nearest and farthest from each view,
+    the first drawable row and the :data:`KEEP_IMPORTANT` most important (the
+    first record in importance order, its quantized key allowing) come last.
+    """
+    matrices = [(view.matrix, cam.projection_matrix(view.fx, view.fy, view.width, view.height), view.width,
+                 view.height) for _name, view in views]
+    score = prune.contributions(scene.columns, matrices, PROOF_TIMES if times is None else times)
+    order = prune.ranked(scene.columns, score)
+    xyz = np.stack([np.asarray(scene.columns[a])[order] for a in "xyz"], axis=1)
+    apart = np.zeros(len(order), bool)
+    for _name, view in views:
+        key = depth_keys(xyz, view.view_proj())
+        if len(key):  # one of each extreme keeps the range
+            apart[[np.argmax(key), np.argmin(key)]] = True
+    apart[order == order.min(initial=0)] = True
+    importance = np.nan_to_num(viewer.importance({k: np.asarray(v)[order] for k, v in scene.columns.items()}),
+                               nan=-np.inf)
+    apart[viewer.importance_order(importance)[:KEEP_IMPORTANT]] = True
+    return np.concatenate([order[~apart], order[apart]])

@@ -22,6 +22,17 @@ def _to_int32(x: np.ndarray) -> np.ndarray:
     return t.astype(np.int64)
 
 
+def depth_keys(positions: np.ndarray, view_proj: list) -> np.ndarray:
+    """The viewer's depth key of each splat, ``(vp[2]*x + vp[6]*y + vp[10]*z) * 4096 | 0``: ``(N,) int64``.
+
+    The splats whose key is the largest are never drawn (see :func:`viewer_order`).
+    """
+    with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
+        p = np.asarray(positions, dtype=np.float32).astype(np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return _to_int32((view_proj[2] * p[:, 0] + view_proj[6] * p[:, 1] + view_proj[10] * p[:, 2]) * 4096)
+
+
 def viewer_order(positions: np.ndarray, view_proj: list) -> np.ndarray:
     """Front-to-back draw order of splats, as splaTV computes it.
 
@@ -43,10 +54,8 @@ def viewer_order(positions: np.ndarray, view_proj: list) -> np.ndarray:
     (N,) int32 ndarray
         Splat indices in draw order.
     """
-    with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
-        p = np.asarray(positions, dtype=np.float32).astype(np.float64)
+    depth = depth_keys(positions, view_proj)
     with np.errstate(invalid="ignore", over="ignore"):
-        depth = _to_int32((view_proj[2] * p[:, 0] + view_proj[6] * p[:, 1] + view_proj[10] * p[:, 2]) * 4096)
         n = len(depth)
         out = np.zeros(n, dtype=np.int32)
         if n == 0:
