@@ -45,6 +45,41 @@ SPLAT_MEMORY_BYTES = 4 * len(LITE_ROW)
 #: viewer's record of it.
 TEXTURE_MEMORY_BYTES = SPLAT_MEMORY_BYTES + viewer.texture_bytes(1) // viewer.SPLATS_PER_ROW
 
+#: What the scenes read in a :func:`holding` block take at the command's peak (None: outside one).
+_holding = contextvars.ContextVar("splatconv_holding", default=None)
+
+
+class _Held:
+    """The splats read so far in a :func:`holding` block and the bytes each takes at the command's peak."""
+
+    def __init__(self, each: int):
+        self.each = each
+        self.splats = 0
+
+
+@contextlib.contextmanager
+def holding(each: int):
+    """While the block runs, every scene read is counted at ``each`` bytes a splat, all together.
+
+    A command that builds more from a scene than its table (a texture, a converted copy, float
+    reference rows, a second scene) states what a splat read costs it at its peak (its own
+    constant, measured by ``bench/bench_memory.py``); :func:`check_memory` then refuses a read
+    whose splats, with those of the scenes read before it in the block, would take more than
+    the ceiling at that rate. Reads outside a block count their own table (or texture) only.
+    """
+    token = _holding.set(_Held(each))
+    try:
+        yield
+    finally:
+        _holding.reset(token)
+
+
+def _held(count: int) -> None:
+    """Count a scene of ``count`` splats read into the running :func:`holding` block, if any."""
+    held = _holding.get()
+    if held is not None:
+        held.splats += count
+
 
 #: Share of a scene's splats, undrawable (:func:`splatconv.viewer.undrawable`), from which
 #: reading it gives a note suggesting ``--drop-undrawable`` (unless the output leaves them out
@@ -174,6 +209,7 @@ def reading(path: str | os.PathLike, *, color: str = "auto", progress=SILENT):
         if is_compressed(path) or fmt.expands:
             check_memory(fmt, plain, path)
         scene = fmt.read(plain, color=color)
+        _held(scene.count)
         if is_compressed(path):
             scene.meta["compressed_bytes"] = os.path.getsize(path)
         _check_undrawable(scene, path)
@@ -207,11 +243,12 @@ def check_memory(fmt, plain, path, each: int = SPLAT_MEMORY_BYTES) -> None:
 
     A few hundred kilobytes of zstd (or of ``.splatvq`` blocks) expand to gigabytes, and a
     scene read whole takes ``each`` bytes a splat (:data:`SPLAT_MEMORY_BYTES`, the table the
-    readers decode into; :data:`TEXTURE_MEMORY_BYTES` with its texture): a scene read from
-    such a file may take at most :func:`splatconv.zstd.max_decompressed` bytes
-    (``--max-decompressed``), so that a command holding it (``convert``) stays within 1.25
-    times that at its peak (``bench/bench_memory.py``). ``info`` holds no scene
-    (:func:`scanning`) and is not held to it.
+    readers decode into; :data:`TEXTURE_MEMORY_BYTES` with its texture), or what the command
+    reading it takes at its peak (:func:`holding`, counting the scenes it read before this one
+    too): a scene read from such a file may take at most :func:`splatconv.zstd.max_decompressed`
+    bytes (``--max-decompressed``), so that the command holding it stays within 1.25 times that
+    at its peak (``bench/bench_memory.py``). ``info`` holds no scene (:func:`scanning`) and is
+    not held to it.
 
     Parameters
     ----------
@@ -229,12 +266,18 @@ def check_memory(fmt, plain, path, each: int = SPLAT_MEMORY_BYTES) -> None:
     FormatError
     """
     ceiling = max_decompressed()
+    held = _holding.get()
+    before = 0
+    if held is not None:
+        each = max(each, held.each)
+        before = held.splats * each
     most = fmt.most_splats(plain)
-    if most * each <= ceiling:
+    if before + most * each <= ceiling:
         return
     holds = f"holds {most:,} splats" if fmt.splat_count(plain) == most else f"may hold up to {most:,} splats"
+    beside = f", beside {before:,} for the {plural(held.splats, 'splat')} read before it" if before else ""
     raise FormatError(f"{holds}: up to {most * each:,} bytes in memory ({each} a "
-                      f"splat), more than the "
+                      f"splat{beside}), more than the "
                       f"{describe_bytes(ceiling)} a decompressed scene may take (raise it with --max-decompressed "
                       f"or {MAX_DECOMPRESSED_ENV})", path)
 
@@ -268,6 +311,7 @@ def read_texture(path: str | os.PathLike, *, progress=SILENT):
         if is_compressed(path) or fmt.expands:
             check_memory(fmt, plain, path, TEXTURE_MEMORY_BYTES)
         padded, scene = fmt.texture.read(plain)
+    _held(scene.count)
     if is_compressed(path):
         scene.meta["compressed_bytes"] = os.path.getsize(path)
     _check_undrawable(scene, path)

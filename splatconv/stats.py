@@ -14,7 +14,7 @@ from .cameras import framing_camera
 from .compare import Comparison, pair
 from .errors import UnsupportedError
 from .formats import format_for, quantized_formats, texture_format
-from .io import note_undrawable, reading, scanning
+from .io import holding, note_undrawable, reading, scanning
 from .model import COLUMNS, GROUPS, SCALE, Scene
 from .packing import float_to_half, float_to_half_splatvjs
 from .progress import SILENT
@@ -195,6 +195,13 @@ HALF_GROUPS = ("rotation", "scale", "motion", "omega", "trbf")
 BLOCK = 1 << 16
 #: Bytes read at a time while a file's zstd size is measured.
 _READ_BYTES = 1 << 22
+#: Bytes a splat of the source takes at the peak of ``stats SOURCE`` (its table, the conversion
+#: simulated in memory and its zstd size, each quality setting's encoding, the motion
+#: percentiles), and a splat of either file at the peak of ``stats SOURCE CONVERTED`` (two
+#: tables, the pairing, the percentiles): what the decompression ceiling counts
+#: (:func:`splatconv.io.holding`; ``bench/bench_memory.py`` measures 383 and 144).
+STATS_MEMORY_BYTES = 400
+STATS_PAIR_MEMORY_BYTES = 160
 #: Smallest normal half: converted values below it (and not zero) are subnormal.
 _HALF_MIN_NORMAL = 2.0**-14
 #: float32 magnitude from which the nearest half is infinite: the largest half,
@@ -543,13 +550,15 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         Receives a stage per file compressed and one for the comparison.
     """
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
-    source, src_bytes, src_zstd = _read_measured(source_path, color, level, progress)
+    with holding(STATS_MEMORY_BYTES if converted_path is None else STATS_PAIR_MEMORY_BYTES):
+        source, src_bytes, src_zstd = _read_measured(source_path, color, level, progress)
+        if converted_path is not None:
+            converted, conv_bytes, conv_zstd = _read_measured(converted_path, color, level, progress)
     quantized, notes = None, []
     src_fmt = format_for(source_path)
     files = [_file_entry("source", source_path, src_fmt.name, src_bytes, source.count, src_zstd, level, src_bytes)]
     compare = True
     if converted_path is not None:
-        converted, conv_bytes, conv_zstd = _read_measured(converted_path, color, level, progress)
         conv_fmt = format_for(converted_path)
         # Ties between a writer's orders are broken as the viewer's texture would store the values.
         order, notes = pair(source, converted, source_path, converted_path,

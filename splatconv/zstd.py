@@ -132,8 +132,9 @@ def inner_name(path) -> str:
 
 
 #: Default ceiling on the bytes a ``.zst`` input may decompress to, and on the
-#: memory the scene read from it may take (2 GiB: 16.7 million splats at 128
-#: bytes a splat, see :func:`splatconv.io.check_memory`). A few hundred
+#: memory the scene read from it may take at the peak of the command reading it
+#: (2 GiB: 11.1 million splats for ``convert``, 192 bytes a splat, see
+#: :func:`splatconv.io.check_memory`). A few hundred
 #: kilobytes of zstd can expand to gigabytes; this bounds the temporary file and
 #: what reading it costs. Raised with ``--max-decompressed`` or the environment
 #: variable :data:`MAX_DECOMPRESSED_ENV`.

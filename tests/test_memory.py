@@ -18,18 +18,21 @@ import pytest
 
 from splatconv import io
 from splatconv.formats import splatvq
+from splatconv.jobs import convert
 from splatconv.formats import splatvq_codec as codec
 
 from .splatvq_files import declaring
 
 FEW, MANY = 4, 16
+#: The blocks of the files of zero codes (:func:`files`).
+BLOCKS = (FEW, MANY, 10)
 
 
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     folder = tmp_path_factory.mktemp("memory")
     out = {}
-    for blocks in (FEW, MANY):
+    for blocks in BLOCKS:
         out[blocks] = folder / f"b{blocks}.splatvq"
         out[blocks].write_bytes(declaring(blocks))
     return out
@@ -73,9 +76,10 @@ def test_info_holds_a_block_at_a_time_not_the_scene(files):
 def test_a_whole_scene_command_is_refused_at_once_under_the_ceiling(files, tmp_path):
     out = tmp_path / "out.ply"
     peak, r = _peak_rss(["--max-decompressed", "64M", "convert", files[MANY], out])
+    each = convert.CONVERT_MEMORY_BYTES
     assert r.returncode == 1 and r.stderr.decode().startswith(
         f"Error: {files[MANY]}: holds {MANY * codec.BLOCK:,} splats: up to "
-        f"{MANY * codec.BLOCK * io.SPLAT_MEMORY_BYTES:,} bytes in memory")
+        f"{MANY * codec.BLOCK * each:,} bytes in memory ({each} a splat)")
     assert "--max-decompressed" in r.stderr.decode()
     assert not out.exists()
     # Refused before a block is decoded: the interpreter's own memory, not the scene's table.
@@ -103,3 +107,92 @@ def test_a_read_holds_the_table_the_ceiling_counts(files):
     extra = (MANY - FEW) * codec.BLOCK
     # Exactly the table's growth (numpy's allocations are traced, whatever the allocator keeps).
     assert many - few < 1.05 * extra * io.SPLAT_MEMORY_BYTES
+
+
+#: A ceiling low enough that the scenes are small and the runs quick. The interpreter, numpy, GL and the
+#: work done a block of 65,536 splats at a time (two ``.splatvq`` blocks encoded at once: some 160 MB) are
+#: left out by measuring the growth over a run on two blocks' splats (in one scene or two).
+CEILING = 80 << 20
+#: The splats a whole-scene command was let read under CEILING before each counted what it holds: the
+#: scene's table, 128 bytes a splat.
+TABLE_SPLATS = CEILING // io.SPLAT_MEMORY_BYTES
+BASE = 2 * codec.BLOCK
+
+
+def _command(name: str, files, out) -> list:
+    """The command line of ``name`` on ``files`` (a ``.splatvq`` and two scene files, compressed or expanding)."""
+    vq, a, b = files
+    pictures = ["--size", "32x32"]
+    return {
+        "stats": ["stats", vq],
+        "stats-pair": ["stats", a, b],
+        "verify": ["verify", a, b, "--times", "0.5", "--cameras", "0", *pictures],
+        "diff": ["diff", a, b, "--reference", *pictures],
+        "render": ["render", a, out / "frame.png", "--reference", *pictures],
+        "bake": ["bake", a, out / "moment.ply", "--time", "0.5"],
+        "merge": ["merge", a, b, out / "merged.splatv"],
+        "convert": ["convert", a, out / "scene.splatvq"],
+    }[name]
+
+
+#: Each command: the bytes a splat read takes at its peak, as it declares them, and the scenes it reads.
+def _budgets():
+    from splatconv import stats
+    from splatconv.jobs import bake, convert, merge
+    from splatconv.render import commands, verify
+    return {"stats": (stats.STATS_MEMORY_BYTES, 1), "stats-pair": (stats.STATS_PAIR_MEMORY_BYTES, 2),
+            "verify": (verify.VERIFY_MEMORY_BYTES, 2), "diff": (verify.DIFF_MEMORY_BYTES, 2),
+            "render": (commands.RENDER_MEMORY_BYTES, 1), "bake": (bake.BAKE_MEMORY_BYTES, 1),
+            "merge": (merge.MERGE_MEMORY_BYTES, 2), "convert": (convert.CONVERT_MEMORY_BYTES, 1)}
+
+
+@pytest.fixture(scope="module")
+def scenes(tmp_path_factory):
+    """``scenes(n)``: files of a drawable scene of ``n`` splats, made once each."""
+    from .scenes import moving_scene
+    folder = tmp_path_factory.mktemp("scenes")
+    made = {}
+
+    def files(n: int, splatvq: bool):
+        key = (n, splatvq)
+        if key not in made:
+            scene = moving_scene(n)
+            vq, a, b = folder / f"s{n}.splatvq", folder / f"a{n}.splatv.zst", folder / f"b{n}.splatv.zst"
+            if splatvq and not vq.exists():
+                io.write(scene, vq)
+            if not a.exists():
+                io.write(scene, a)
+                b.write_bytes(a.read_bytes())
+            made[key] = (vq, a, b)
+        return made[key]
+    return files
+
+
+def _run(name, files, tmp_path):
+    out = tmp_path / "out"
+    out.mkdir(exist_ok=True)
+    for old in out.iterdir():
+        old.unlink()
+    return _peak_rss(["--max-decompressed", str(CEILING), *_command(name, files, out)])
+
+
+@pytest.mark.parametrize("name", ["stats", "stats-pair", "verify", "diff", "render", "bake", "merge", "convert"])
+def test_a_whole_scene_command_stays_within_the_ceiling(name, scenes, files, tmp_path):
+    """Each command, on the largest drawable scene it lets through, and on a ``.splatvq`` of as many splats as
+    the scene's table fitted in the ceiling (what it let through before it counted what it holds), grows by at most 1.25 times the ceiling over a run on a scene of one block, or refuses
+    the scene at once, naming --max-decompressed."""
+    each, files_read = _budgets()[name]
+    vq = name == "stats"
+    base, r = _run(name, scenes(BASE // files_read, vq), tmp_path)
+    assert r.returncode == 0, r.stderr
+    most = CEILING // each // files_read // 1024 * 1024  # a .splatv holds whole texture rows of 1,024
+    peak, r = _run(name, scenes(most, vq), tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert peak - base <= 1.25 * CEILING
+    peak, r = _run(name, (files[TABLE_SPLATS // codec.BLOCK],) * 3, tmp_path)
+    if r.returncode == 0:
+        assert peak - base <= 1.25 * CEILING
+    else:
+        err = r.stderr.decode()
+        assert r.returncode == 1 and err.startswith("Error: ") and "--max-decompressed" in err, err
+        assert peak - base < CEILING / 4

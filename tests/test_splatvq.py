@@ -15,6 +15,7 @@ from splatconv.errors import UsageError
 from splatconv.formats import splatv, splatvq
 from splatconv.model import Scene
 from splatconv.formats import splatvq_codec as codec
+from splatconv.jobs.convert import CONVERT_MEMORY_BYTES
 from splatconv.viewer import importance, importance_order, undrawable
 from tests.ops_helpers import CAMERA, draw, psnr
 from tests import splatvq_files as damage
@@ -381,7 +382,7 @@ def test_a_small_file_declaring_a_large_scene_is_held_to_the_decompression_ceili
     assert len(data) < 40_000 and splatvq.splat_count(path) == 8 * codec.BLOCK
     out = tmp_path / "out.ply"
     r = CliRunner().invoke(main, ["--max-decompressed", "32M", "convert", str(path), str(out)])
-    each = io.SPLAT_MEMORY_BYTES
+    each = CONVERT_MEMORY_BYTES
     assert r.exit_code == 1 and r.stderr == (
         f"Error: {path}: holds 524,288 splats: up to {524_288 * each:,} bytes in memory ({each} a splat), more than "
         "the 32 MiB a decompressed scene may take (raise it with --max-decompressed or SPLATCONV_MAX_DECOMPRESSED)\n")

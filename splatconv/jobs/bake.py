@@ -5,10 +5,15 @@ from __future__ import annotations
 import os
 
 from ..formats import FRAME_SUFFIX
-from ..io import check_write_options, write, write_sequence
+from ..io import check_write_options, holding, write, write_sequence
 from ..ops import bake as bake_ops
 from ..progress import SILENT
 from ._steps import check_job, read_input, silent
+
+#: Bytes a splat takes at the peak of ``bake`` (the scene, the baked scene and the float64 work of
+#: the bake, the writer's): what the decompression ceiling counts (:func:`splatconv.io.holding`;
+#: ``bench/bench_memory.py`` measures 507).
+BAKE_MEMORY_BYTES = 528
 
 
 def bake(source, output, *, time: float, sort=None, layout=None, quality=None, color: str = "auto",
@@ -32,7 +37,8 @@ def bake(source, output, *, time: float, sort=None, layout=None, quality=None, c
     (BakeReport, WriteReport)
     """
     check_job([source], output, force=force, sort=sort, layout=layout, quality=quality)
-    scene = read_input(source, color=color, progress=progress)
+    with holding(BAKE_MEMORY_BYTES):
+        scene = read_input(source, color=color, progress=progress)
     tell(scene.notes)
     baked, report = bake_ops.bake(scene, time, drop_nonfinite=drop_nonfinite)
     tell(report.notes)
@@ -67,7 +73,8 @@ def bake_frames(source, folder, *, frames: int, suffix: str = FRAME_SUFFIX, sort
     # The frames' options are checked before the (possibly long) read, as a file's are.
     if names:
         check_write_options(os.path.join(folder, names[0]), sort=sort, layout=layout, quality=quality)
-    scene = read_input(source, color=color, progress=progress)
+    with holding(BAKE_MEMORY_BYTES):
+        scene = read_input(source, color=color, progress=progress)
     tell(scene.notes)
     moments = list(bake_ops.frame_times(frames))
 

@@ -6,9 +6,14 @@ import os
 
 from ..cameras import load_cameras
 from ..errors import UnsupportedError
-from ..io import reading_for, refuse_empty, write
+from ..io import holding, reading_for, refuse_empty, write
 from ..progress import SILENT
 from ._steps import check_job, read_input, silent
+
+#: Bytes a splat takes at the peak of ``convert`` (the scene and what the writer builds: 128 to
+#: ``.ply``, 145 to ``.splatv``, 177 to ``.splatvq``, ``bench/bench_memory.py``): what the
+#: decompression ceiling counts (:func:`splatconv.io.holding`).
+CONVERT_MEMORY_BYTES = 192
 
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
@@ -46,7 +51,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     # The output is checked before the (possibly long) read: fail fast, touch nothing.
     fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout, quality=quality)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
-    with reading_for(output, quality=quality):
+    with reading_for(output, quality=quality), holding(CONVERT_MEMORY_BYTES):
         scene = read_input(source, color=color, progress=progress)
     refuse_empty(fmt, scene.count, source, "holds no splats")
     if camera_list is not None:

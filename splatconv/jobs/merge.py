@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 from ..errors import UnsupportedError
-from ..io import reading_for, write
+from ..io import holding, reading_for, write
 from ..ops import apply_transform
 from ..ops import drop_nonfinite as drop_nonfinite_splats
 from ..ops.merge import overlay
 from ..progress import SILENT
 from ._steps import check_job, read_input, silent
+
+#: Bytes a splat read takes at the peak of ``merge`` (every input, the merged scene, the writer's):
+#: what the decompression ceiling counts, over all the inputs together
+#: (:func:`splatconv.io.holding`; ``bench/bench_memory.py`` measures 306).
+MERGE_MEMORY_BYTES = 320
 
 
 def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=None, color: str = "auto",
@@ -38,18 +43,19 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=No
     placements = placements or {}
     check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality)
     scenes = []
-    for number, path in enumerate(inputs, 1):
-        with reading_for(output, quality=quality):
-            scene = read_input(path, color=color, progress=progress)
-        if drop_nonfinite:
-            scene, _report = drop_nonfinite_splats(scene)
-        if number in placements:
-            try:
-                scene, _report = apply_transform(scene, placements[number])
-            except UnsupportedError as e:  # a camera it cannot move: say whose
-                raise UnsupportedError(e.message, path, e.where) from None
-        tell(f"input {number} ({path}): {line}" for line in scene.notes)
-        scenes.append(scene)
+    with holding(MERGE_MEMORY_BYTES):  # the inputs together
+        for number, path in enumerate(inputs, 1):
+            with reading_for(output, quality=quality):
+                scene = read_input(path, color=color, progress=progress)
+            if drop_nonfinite:
+                scene, _report = drop_nonfinite_splats(scene)
+            if number in placements:
+                try:
+                    scene, _report = apply_transform(scene, placements[number])
+                except UnsupportedError as e:  # a camera it cannot move: say whose
+                    raise UnsupportedError(e.message, path, e.where) from None
+            tell(f"input {number} ({path}): {line}" for line in scene.notes)
+            scenes.append(scene)
     merged, report = overlay(scenes)
     tell(report.notes)
     written = write(merged, output, sort=sort, layout=layout, quality=quality, force=force, inputs=inputs,

@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import UsageError
 from ..files.output import atomic_writer, check_output
+from ..io import holding
 from ..progress import SILENT, Progress
 from . import camera as cam
 from . import diff as imgdiff
@@ -25,6 +26,10 @@ from .verify import DEFAULT_MIN_PSNR, Outcome, check_min_psnr, diff_scenes
 DEFAULT_TIME = 0.5
 #: Most frames one ``render`` sweeps over [0, 1].
 MAX_FRAMES = 1000
+#: Bytes a splat takes at the peak of ``render`` (the scene, the texture or float rows drawn, the
+#: renderer's copies): what the decompression ceiling counts (:func:`splatconv.io.holding`;
+#: ``bench/bench_memory.py`` measures 340, 397 with ``--reference``).
+RENDER_MEMORY_BYTES = 416
 
 
 def render_file(input_path, output_path, *, time: float = DEFAULT_TIME, camera: int | None = None,
@@ -57,7 +62,7 @@ def render_file(input_path, output_path, *, time: float = DEFAULT_TIME, camera: 
             raise UsageError(f"{name} must be a positive number")
     check_fit(fit, fx, fy)  # before the read
     check_output(output_path, [input_path], force)
-    with progress.stage("reading", 1, "file") as advance:
+    with progress.stage("reading", 1, "file") as advance, holding(RENDER_MEMORY_BYTES):
         source = load(input_path, color=color, progress=progress)
         advance()
     v = resolve_view(cameras_of(source), camera=camera, view=matrix, size=dims, fx=fx, fy=fy, fit=fit,

@@ -21,6 +21,7 @@ from ..compare import compare_scenes, pair
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_group, check_output
 from ..formats import format_for, texture_format
+from ..io import holding
 from ..progress import SILENT, Progress
 from ..wording import plural
 from . import camera as cam
@@ -41,6 +42,13 @@ VERIFY_MAX_WIDTH = 640
 #: diff's frames for two scene files: one quick frame, t = 0.5 from camera 0.
 DIFF_TIMES = (0.5,)
 DIFF_CAMERAS = 1
+#: Bytes a splat of either file takes at the peak of ``verify`` (both scenes, the pairing, the
+#: float reference rows and the stored texture, the renderer's copies) and of ``diff`` of scene
+#: files (both scenes and both textures, or with ``--reference`` both sets of float rows):
+#: what the decompression ceiling counts (:func:`splatconv.io.holding`;
+#: ``bench/bench_memory.py`` measures 222 and 329).
+VERIFY_MEMORY_BYTES = 240
+DIFF_MEMORY_BYTES = 352
 
 
 def parse_times(text: str) -> list:
@@ -163,10 +171,11 @@ def _request(min_psnr, times, default_times, cameras, size) -> tuple:
     return check_min_psnr(min_psnr), _times(times, default_times), parse_cameras(cameras), size
 
 
-def _load_pair(paths: tuple, color: str, progress: Progress) -> list:
-    """Both files of a comparison, loaded for drawing, with a "reading" stage."""
+def _load_pair(paths: tuple, color: str, progress: Progress, each: int) -> list:
+    """Both files of a comparison, loaded for drawing, with a "reading" stage (``each``: the bytes a splat
+    read takes at the command's peak, :func:`splatconv.io.holding`)."""
     loaded = []
-    with progress.stage("reading", 2, "file") as advance:
+    with progress.stage("reading", 2, "file") as advance, holding(each):
         for path in paths:
             loaded.append(load(path, color=color, progress=progress))
             advance()
@@ -212,7 +221,7 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
                          "--cameras or --size with it")
     min_psnr, times, picked, size = _request(min_psnr, times, DEFAULT_TIMES, cameras, size)
     paths = os.fspath(source_path), os.fspath(converted_path)
-    source, converted = _load_pair(paths, color, progress)
+    source, converted = _load_pair(paths, color, progress, VERIFY_MEMORY_BYTES)
     with progress.stage("checking attributes", 2, "step") as advance:
         # Ties between a writer's orders are broken as the viewer's texture would store the values.
         order, paired = pair(source.scene, converted.scene, *paths,
@@ -299,7 +308,7 @@ def diff_scenes(path_a, path_b, *, times=None, cameras: str | None = None, size=
     """
     min_psnr, times, picked, size = _request(min_psnr, times, DIFF_TIMES, cameras, size)
     paths = os.fspath(path_a), os.fspath(path_b)
-    a, b = _load_pair(paths, color, progress)
+    a, b = _load_pair(paths, color, progress, DIFF_MEMORY_BYTES)
     available = cameras_of(a, b)
     views = frame_views(available, pick_cameras(picked, len(available), DIFF_CAMERAS), size, VERIFY_MAX_WIDTH)
     outcome = Outcome("diff", paths, min_psnr)
