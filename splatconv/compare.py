@@ -369,26 +369,35 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
     n, m = source.count, converted.count
     if n != m:
         kinds = viewer.undrawable_kinds(source.columns)
-        keep = np.flatnonzero(kinds == viewer.DRAWABLE)
+        drawable = kinds == viewer.DRAWABLE
         pruned = converted.meta.get("pruned", 0)
+        kept = drawable
+        if np.count_nonzero(drawable) not in (m, m + pruned):
+            # A writer that leaves out undrawable splats keeps those the viewer's depth sort needs.
+            kept = drawable | viewer.sort_ends(source.columns, source.cameras, kinds)
+        keep = np.flatnonzero(kept)
+        extra = int(np.count_nonzero(kept & ~drawable))
+        also = f" and {plural(extra, 'undrawable one')} the viewer's depth sort needs" if extra else ""
+        other = " other" if extra else ""
         if pruned and len(keep) == m + pruned:
             # A pruned file (splatconv.ops.prune) holds some of the drawable splats: paired by content.
-            drawable = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
-                             meta=source.meta)
-            found = content_order(drawable, converted, complete=complete)
+            held = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
+                         meta=source.meta)
+            found = content_order(held, converted, complete=complete)
             order = np.where(found < 0, -1, keep[found])
-            return order, [f"{converted_name} holds {m:,} of {source_name}'s {plural(len(keep), 'drawable splat')} "
-                           f"(its header says {pruned:,} were pruned, and the {n - len(keep):,} undrawable ones "
-                           "are left out); compared against those it holds"]
+            return order, [f"{converted_name} holds {m:,} of {source_name}'s "
+                           f"{plural(len(keep) - extra, 'drawable splat')}{also} (its header says {pruned:,} "
+                           f"were pruned, and the {n - len(keep):,}{other} undrawable ones are left out); "
+                           "compared against those it holds"]
         if len(keep) == m:
-            drawable = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
-                             meta=source.meta)
-            found = align(drawable, converted, source_name, converted_name, storage=storage, complete=complete)
+            held = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
+                         meta=source.meta)
+            found = align(held, converted, source_name, converted_name, storage=storage, complete=complete)
             order = np.where(found < 0, -1, keep[found])
-            left = kinds_text(viewer.kind_counts(kinds))
-            return order, [f"{converted_name} holds the {plural(m, 'drawable splat')} of {source_name}'s {n:,} "
-                           f"(the {n - m:,} undrawable ones, {left}, left out: no frame changes); "
-                           "compared against those"]
+            left = kinds_text(viewer.kind_counts(np.where(kept, viewer.DRAWABLE, kinds).astype(kinds.dtype)))
+            return order, [f"{converted_name} holds the {plural(m - extra, 'drawable splat')} of {source_name}'s "
+                           f"{n:,}{also} (the {n - m:,}{other} undrawable ones, {left}, left out: no frame "
+                           "changes); compared against those"]
     return align(source, converted, source_name, converted_name, storage=storage, complete=complete), []
 
 

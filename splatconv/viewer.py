@@ -126,6 +126,85 @@ def importance(cols: dict) -> np.ndarray:
         return size * opacity(cols)
 
 
+#: The view matrix splaTV's ``hybrid.js`` opens every file at (column-major, world to camera).
+SPLATV_VIEW = (0.99, 0.01, -0.14, 0.0, 0.02, 0.99, 0.12, 0.0, 0.14, -0.12, 0.98, 0.0, -0.09, -0.26, 0.2, 1.0)
+#: Its built-in camera's focal lengths, in pixels of a window of :data:`SPLATV_WINDOW`.
+SPLATV_FOCAL = (1159.5880733038064, 1164.6601287484507)
+SPLATV_WINDOW = (1280, 720)
+#: How far from a camera's own direction :func:`depth_directions` looks (a user's first drag).
+DEPTH_CONE_DEGREES = 6.0
+
+
+def depth_directions(cameras: list) -> np.ndarray:
+    """The directions the viewer sorts splats along from ``cameras`` and its opening view: ``(K, 3) float64``.
+
+    The viewer's depth key is row 2 of projection x view, whose first three
+    values are a positive multiple of the camera's z axis (the third column of a
+    ``cameras.json`` rotation; the third row of :data:`SPLATV_VIEW`). Each
+    direction comes with four tilted :data:`DEPTH_CONE_DEGREES` away from it.
+    """
+    axes = [np.asarray(c["rotation"], np.float64)[:, 2] for c in cameras or ()]
+    axes.append(np.array([SPLATV_VIEW[2], SPLATV_VIEW[6], SPLATV_VIEW[10]]))
+    a = math.radians(DEPTH_CONE_DEGREES)
+    out = []
+    for axis in axes:
+        norm = np.linalg.norm(axis)
+        if not np.isfinite(norm) or norm == 0:
+            continue
+        axis = axis / norm
+        side = np.cross(axis, [0.0, 1.0, 0.0] if abs(axis[1]) < 0.9 else [1.0, 0.0, 0.0])
+        side /= np.linalg.norm(side)
+        up = np.cross(axis, side)
+        out.append(axis)
+        out.extend(math.cos(a) * axis + math.sin(a) * w for w in (side, -side, up, -up))
+    return np.asarray(out, np.float64).reshape(-1, 3)
+
+
+#: The viewer's depth key of a splat at depth d along a camera's z axis: ``d * DEPTH_KEY_SCALE | 0``
+#: (its projection's ``zfar / (zfar - znear)`` times 4096).
+DEPTH_KEY_SCALE = 4096 * 200.0 / (200.0 - 0.2)
+#: Splats nearest and farthest along each direction that :func:`depth_extremes` names, besides ties.
+DEPTH_ENDS = 2
+
+
+def js_int32(x) -> np.ndarray:
+    """JavaScript's ``x | 0``: truncate, wrap modulo 2^32 into int32; NaN and infinities give 0. ``int64``."""
+    x = np.asarray(x, dtype=np.float64)
+    finite = np.isfinite(x)
+    t = np.fmod(np.trunc(np.where(finite, x, 0.0)), 2.0**32)
+    t = np.where(t < 0, t + 2.0**32, t)
+    t = np.where(t >= 2.0**31, t - 2.0**32, t)
+    return t.astype(np.int64)
+
+
+def depth_extremes(x: np.ndarray, y: np.ndarray, z: np.ndarray, directions: np.ndarray) -> np.ndarray:
+    """The splats nearest and farthest along each direction: ``(N,) bool`` for positions ``(N,)`` each.
+
+    The viewer scales its depth keys by their range and never draws the
+    farthest splat when the scaled key reaches the top, drawing its first record
+    in its place (:func:`splatconv.render.sort.viewer_order`): which splat that
+    is, and whether the rounding drops it, follow from the two ends' exact
+    positions, drawable or not (the viewer sorts every record). Named are the
+    :data:`DEPTH_ENDS` splats of the lowest and of the highest keys
+    (``d * DEPTH_KEY_SCALE | 0``, so a non-finite or far position lands where
+    the viewer's key puts it) and every splat that ties with an end.
+    """
+    n = len(x)
+    out = np.zeros(n, bool)
+    if not n:
+        return out
+    ends = min(DEPTH_ENDS, n - 1)
+    with np.errstate(invalid="ignore", over="ignore"):
+        for d in np.asarray(directions, np.float64) * DEPTH_KEY_SCALE:
+            key = js_int32(np.asarray(x, np.float64) * d[0] + np.asarray(y, np.float64) * d[1]
+                           + np.asarray(z, np.float64) * d[2])
+            out |= (key == key.min()) | (key == key.max())
+            if ends:
+                out[np.argpartition(key, ends)[:ends]] = True
+                out[np.argpartition(key, n - 1 - ends)[n - ends:]] = True
+    return out
+
+
 def temporal_basis(dt, scale) -> np.ndarray:
     """The viewer's temporal radial basis exp(-(dt / scale)^2), broadcast: float64.
 
@@ -646,3 +725,33 @@ def _resort_ties(order: np.ndarray, ties: np.ndarray, key_of) -> None:
     # (full key, row) puts every member back inside its own run.
     rows = order[at]
     order[at] = rows[np.lexsort((rows, _descending_bits(key_of(rows))))]
+
+
+def sort_ends(cols: dict, cameras: list, kinds: np.ndarray | None = None) -> np.ndarray:
+    """The splats the viewer's depth sort turns on, seen from ``cameras`` or its opening view: ``(N,) bool``.
+
+    The viewer sorts every record, drawable or not, by a key scaled by the
+    keys' range; it never draws the farthest when the scaled key reaches the top,
+    and draws its first record in its place. So the frames drop and repeat what
+    a ``.splatv``'s do only if a file keeps, exactly: the splats at the ends of
+    the depth range (:func:`depth_extremes` along :func:`depth_directions`; of
+    undrawable ones, one at each position: only their keys count) and the first
+    record in importance order. A writer that leaves out undrawable splats keeps
+    these; :func:`splatconv.compare.pair` finds them the same way.
+
+    ``kinds`` : :func:`undrawable_kinds` of ``cols`` when the caller has them.
+    """
+    n = len(cols["x"])
+    out = np.zeros(n, bool)
+    if not n:
+        return out
+    drawable = (undrawable_kinds(cols) if kinds is None else kinds) == DRAWABLE
+    out[:] = depth_extremes(cols["x"], cols["y"], cols["z"], depth_directions(cameras))
+    rows = np.flatnonzero(out & ~drawable)
+    xyz = np.stack([np.asarray(cols[a], np.float32)[rows] for a in "xyz"], axis=1)
+    place = xyz.view(np.uint32).copy()
+    place[~np.isfinite(xyz).all(axis=1)] = 0x7FC00000  # a non-finite position's key is 0: one place
+    out[rows] = False
+    out[rows[np.unique(place, axis=0, return_index=True)[1]]] = True
+    out[importance_order(importance(cols))[0]] = True
+    return out

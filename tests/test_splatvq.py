@@ -13,14 +13,14 @@ from splatconv import io
 from splatconv.cli import main
 from splatconv.errors import UsageError
 from splatconv.formats import splatv, splatvq
-from splatconv.model import Scene
+from splatconv.model import COLUMNS, Scene
 from splatconv.formats import splatvq_codec as codec
 from splatconv.jobs.convert import CONVERT_MEMORY_BYTES
-from splatconv.viewer import importance, importance_order, undrawable
+from splatconv.viewer import importance, importance_order, sort_ends, undrawable
 from tests.ops_helpers import CAMERA, draw, psnr
 from tests import splatvq_files as damage
 from tests.real_scenes import real_scene
-from tests.scenes import overlapping_scene
+from tests.scenes import moving_scene, overlapping_scene
 
 TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
 
@@ -68,8 +68,12 @@ def test_a_second_conversion_changes_nothing(tmp_path, real, quality):
     assert np.array_equal(sorted_records(b), sorted_records(d))
     # The first step did change values (it is lossy), so the second had something to move.
     scene = real[0]
-    drawn = splatv.encode(scene, sort="none")[0][:scene.count][~undrawable(scene.columns)]
-    assert len(drawn) == len(b) and not np.array_equal(sorted_records(b), sorted_records(drawn))
+    records = splatv.encode(scene, sort="none")[0][:scene.count]
+    drawn = records[~undrawable(scene.columns)]
+    # b holds the drawable splats and the few undrawable ones the viewer's depth sort needs.
+    assert len(drawn) < len(b) < len(drawn) + 16
+    source = {r.tobytes() for r in records}
+    assert sum(r.tobytes() not in source for r in b) > len(drawn) // 2
 
 
 def test_same_input_same_bytes(real):
@@ -79,12 +83,13 @@ def test_same_input_same_bytes(real):
 def test_undrawable_splats_are_left_out_and_counted(tmp_path, real, renderer):
     scene, rows = real
     path, report = written(tmp_path, scene)
-    assert splatvq.splat_count(path) == scene.count - len(rows.undrawable)
-    note = next(n for n in report.notes if n.startswith("left out"))
-    assert note.startswith(f"left out {len(rows.undrawable):,} undrawable splats (")
-    assert f"zero rotation {len(rows.zero_rotation):,}" in note  # worded as info and convert word the kinds
     decoded = splatvq.read(path)
-    assert not undrawable(decoded.columns).any()
+    kept = int(undrawable(decoded.columns).sum())  # those the viewer's depth sort needs
+    assert 0 < kept <= 16
+    assert splatvq.splat_count(path) == scene.count - len(rows.undrawable) + kept
+    note = next(n for n in report.notes if n.startswith("left out"))
+    assert note.startswith(f"left out {len(rows.undrawable) - kept:,} undrawable splats (")
+    assert note.endswith(f"; kept {kept:,} that the viewer's depth sort needs")
 
 
 def test_fidelity_by_pixels(tmp_path, real, renderer):
@@ -410,13 +415,15 @@ def test_verify_and_stats_compare_against_the_sources_drawable_splats(tmp_path, 
     io.write(scene, source)
     io.write(scene, converted)
     kept = int(np.count_nonzero(~undrawable(scene.columns)))
-    assert kept < scene.count
-    note = f"note: {converted} holds the {kept:,} drawable splats of {source}'s {scene.count:,} (the "
+    extra = int(np.count_nonzero(undrawable(io.read(converted).columns)))  # those the depth sort needs
+    assert kept < scene.count and extra > 0
+    note = (f"note: {converted} holds the {kept:,} drawable splats of {source}'s {scene.count:,} and {extra:,} "
+            f"undrawable ones the viewer's depth sort needs (the {scene.count - kept - extra:,} other ")
     r = CliRunner().invoke(main, ["verify", str(source), str(converted), "--json", "--times", "0.2,0.8",
                                   "--size", "160x120"])
     assert r.exit_code == 0, r.output
     verified = json.loads(r.stdout)
-    assert verified["passed"] and verified["count"] == kept
+    assert verified["passed"] and verified["count"] == kept + extra
     assert verified["notes"][0].startswith(note[len("note: "):])
     assert verified["notes"][0].endswith("compared against those")
     assert note in r.stderr
@@ -435,13 +442,13 @@ def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path
     bytes equal, position within a hundredth); a file that lost other splats is still refused."""
     from splatconv.compare import _byte_key, pair
     from splatconv.errors import UnsupportedError
-    from splatconv.model import Scene
+    from splatconv.model import COLUMNS, Scene
 
     scene, _rows = real
     path, _report = written(tmp_path, scene)
     converted = io.read(path)
     order, notes = pair(scene, converted, storage=splatv.FORMAT.storage(converted))
-    keep = np.flatnonzero(~undrawable(scene.columns))
+    keep = np.flatnonzero(~undrawable(scene.columns) | sort_ends(scene.columns, scene.cameras))
     assert sorted(order.tolist()) == keep.tolist() and len(notes) == 1
     assert (_byte_key(scene.take(order)) == _byte_key(converted.columns)).all()
     moved = np.stack([np.abs(scene.columns[c][order] - converted.columns[c]) for c in "xyz"])
@@ -453,6 +460,7 @@ def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path
     # One splat fewer than the drawable ones: refused as before.
     short = Scene(columns={k: np.asarray(v)[1:] for k, v in converted.columns.items()})
     refused = f"SOURCE has {scene.count:,} splats but CONVERTED has {len(keep) - 1:,}"
+    assert len(keep) - 1 != np.count_nonzero(~undrawable(scene.columns))
     with pytest.raises(UnsupportedError, match=refused):
         pair(scene, short, storage=splatv.FORMAT.storage(converted))
 
@@ -512,3 +520,52 @@ def test_bake_and_merge_on_a_splatvq_input(tmp_path, pair, args):
     assert run("merge", vq, decoded, ma).exit_code == 0
     assert run("merge", decoded, decoded, mb).exit_code == 0
     assert ma.read_bytes() == mb.read_bytes()
+
+
+def _behind_an_unseen_splat(n: int, backdrop: float) -> Scene:
+    """Splats in front of the camera, the largest of them opaque, a backdrop ``backdrop`` behind them, and two
+    undrawable splats (zero rotation): splat 0 farther than all, splat 1 the largest and most opaque."""
+    scene = moving_scene(n, 3)
+    c = {k: np.array(scene.columns[k]) for k in COLUMNS}
+    rng = np.random.default_rng(3)
+    for k in ("scale_0", "scale_1", "scale_2"):
+        c[k][2:] = np.log(rng.uniform(0.3, 0.8, n - 2))
+    for i in range(4):
+        c[f"rot_{i}"][:2] = c[f"omega_{i}"][:2] = 0.0
+    c["z"][2] = c["z"][3:].max() + backdrop
+    c["z"][0] = c["z"][2] + 40.0
+    for k in ("scale_0", "scale_1", "scale_2"):
+        c[k][1], c[k][2] = np.log(3.0), np.log(2.5)
+    c["opacity"][1:3] = 4.0, 3.0
+    for i in range(9):
+        c[f"motion_{i}"][2] = 0.0
+    c["trbf_scale"][2] = np.log(1e3)
+    return Scene(c, cameras=scene.cameras)
+
+
+def test_the_depth_sort_drops_and_repeats_what_a_splatv_does(tmp_path):
+    """The viewer sorts every record, drawable or not: it never draws the farthest when its scaled key reaches
+    the top (as the rounding of the keys' range falls) and draws the first record in its place. Here the
+    farthest and the first record are undrawable; a file that left them out would drop (or not) and repeat
+    other splats: the backdrop, the largest drawable one. From every view of the proof, the decoded file
+    drops the records the source drops, at the same positions, and repeats the same first record."""
+    from splatconv.render import proof
+    from splatconv.render.frames import Source
+    from splatconv.render.sort import viewer_order
+
+    def dropped_and_first(scene, vp):
+        words = Source("", scene).texture().view(np.uint32).reshape(-1, 16)[:scene.count]
+        xyz = words[:, :3].view(np.float32)
+        kept = np.zeros(scene.count, bool)
+        kept[viewer_order(xyz, vp)] = True
+        return sorted(map(tuple, xyz[~kept].tolist())), tuple(xyz[0].tolist())
+
+    for backdrop in (0.5, 1.0, 2.0):
+        scene = _behind_an_unseen_splat(120, backdrop)
+        assert undrawable(scene.columns)[:2].all() and importance_order(importance(scene.columns))[0] == 1
+        path, report = written(tmp_path, scene, f"{backdrop}.splatvq")
+        decoded = splatvq.read(path)
+        for name, view in proof.proof_views(scene):
+            assert dropped_and_first(decoded, view.view_proj()) == dropped_and_first(scene, view.view_proj()), name
+        assert "kept 2 undrawable splats: the viewer's depth sort needs them" in report.notes
+        assert np.count_nonzero(undrawable(decoded.columns)) == 2

@@ -70,7 +70,7 @@ def test_the_floor_is_met_or_the_run_fails(tmp_path, kind):
     # verify --proof draws the same frames: its worst is the one convert printed.
     r = run("verify", src, out, "--proof", "--json", "--min-psnr", 40)
     assert r.exit_code == 0, r.output
-    assert json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.005)
+    assert json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.0051)  # printed to 2 places
 
 
 def test_a_floor_out_of_reach_is_an_error_unless_best_effort(tmp_path):
@@ -149,7 +149,8 @@ def test_prune_leaves_out_splats_and_the_floor_still_holds(tmp_path):
     left_out = int(line.split("pruned ")[1].split(" splat")[0].replace(",", ""))
     assert line.split(" of ")[1].startswith(f"{drawable:,} drawable")
     written = io.read(out)
-    assert left_out >= 30 and written.count == drawable - left_out
+    kept = int(np.count_nonzero(viewer.undrawable(written.columns)))  # the few the viewer's depth sort needs
+    assert left_out >= 30 and written.count == drawable - left_out + kept
     assert r.stdout.startswith(f"wrote {out}: {written.count:,} splats")
     printed = float(next(n for n in r.stderr.splitlines() if n.startswith("note: proved: "))
                     .split("worst frame ")[1].split(" dB")[0])
@@ -161,12 +162,13 @@ def test_prune_leaves_out_splats_and_the_floor_still_holds(tmp_path):
     assert json.loads(r.stdout)["details"]["pruned"] == left_out
     r = run("verify", src, out, "--proof", "--json", "--min-psnr", 40)
     assert r.exit_code == 0, r.output
-    assert json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.005)
+    assert json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.0051)  # printed to 2 places
     # Without --prune every drawable splat is kept, and the header says nothing of pruning.
     whole = tmp_path / "whole.splatvq"
     r = run("convert", src, whole, "--min-psnr", 40)
     assert r.exit_code == 0, r.output
-    assert io.read(whole).count == drawable and "pruned" not in io.read(whole).meta
+    held = io.read(whole)
+    assert held.count - np.count_nonzero(viewer.undrawable(held.columns)) == drawable and "pruned" not in held.meta
     assert not any(n.startswith("note: pruned ") for n in r.stderr.splitlines())
 
 

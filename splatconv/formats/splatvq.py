@@ -29,7 +29,7 @@ from ..files.inputs import open_input
 from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
 from ..progress import SILENT
-from ..viewer import UNDRAWABLE_KINDS, importance_order, undrawable_kinds
+from ..viewer import UNDRAWABLE_KINDS, importance_order, sort_ends, undrawable_kinds
 from ..wording import kinds_text, plural
 from . import splatv
 from . import splatv_engine as engine
@@ -113,12 +113,22 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     setting = codec.refined(codec.SETTINGS[base], precision)
     name = f"{base}{precision:+d}" if precision else base
     kinds = undrawable_kinds(scene.columns)
-    keep = np.flatnonzero(kinds == -1)
-    dropped = np.bincount(kinds[kinds != -1].astype(np.intp), minlength=len(UNDRAWABLE_KINDS))
-    n = len(keep)
-    if n == 0:
+    drawable = kinds == -1
+    if not drawable.any():
         raise UnsupportedError(f"none of the {plural(scene.count, 'splat')} can be drawn by the viewer; "
-                               "a .splatvq file holds drawable splats only")
+                               "a .splatvq file holds drawable splats, and the undrawable ones its sort needs")
+    cameras = scene.cameras
+    report = WriteReport()
+    if not cameras:
+        cameras = [camera_for_box(*framing_box(*(np.asarray(scene.columns[a])[drawable] for a in "xyz")))]
+        report.notes.append("no cameras given; wrote one camera that frames the scene")
+    # The splats the viewer's depth sort turns on (:func:`splatconv.viewer.sort_ends`) are stored
+    # verbatim, undrawable or not: the frames then drop and repeat the records a .splatv's do.
+    exact = sort_ends(scene.columns, scene.cameras, kinds)
+    keep = np.flatnonzero(drawable | exact)
+    shaping = int(np.count_nonzero(exact & ~drawable))
+    dropped = np.bincount(kinds[~drawable & ~exact].astype(np.intp), minlength=len(UNDRAWABLE_KINDS))
+    n = report.count = len(keep)
     # Records are packed a block of rows at a time, as the .splatv writer packs them (never the
     # whole texture at once: a block's records are all the memory a block needs).
     plan = engine.Plan(scene, False, "none")  # its row source and per-thread scratch; blocks chosen here
@@ -146,8 +156,9 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
             del key
 
         def job(start):
-            records, counts = packed(order[start:start + codec.BLOCK])
-            return codec.encode_block(records, setting, level), counts
+            rows = order[start:start + codec.BLOCK]
+            records, counts = packed(rows)
+            return codec.encode_block(records, setting, level, exact=exact[rows]), counts
 
         blocks = []
         with progress.stage("writing", n, "splat") as advance:
@@ -157,12 +168,8 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     counts = engine.new_counts()
     for _, part in blocks:
         engine.merge_counts(counts, part)
-    blocks = [block for block, _ in blocks]
-    cameras = scene.cameras
-    report = WriteReport(count=n)
-    if not cameras:
-        cameras = [camera_for_box(*framing_box(*(np.asarray(scene.columns[a])[keep] for a in "xyz")))]
-        report.notes.append("no cameras given; wrote one camera that frames the scene")
+    forced = sum(block[4] for block, _ in blocks)
+    blocks = [block[:4] for block, _ in blocks]
     header = {"count": n, "setting": name, "cameras": cameras}
     if scene.meta.get("pruned"):
         header["pruned"] = int(scene.meta["pruned"])  # splats pruned from the scene (splatconv.ops.prune)
@@ -175,14 +182,19 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     if dropped.any():
         what = kinds_text({kind: int(c) for kind, c in zip(UNDRAWABLE_KINDS, dropped)})
         report.notes.append(f"left out {plural(int(dropped.sum()), 'undrawable splat')} ({what}): "
-                            "no frame the viewer draws changes")
-    raw = sum(r for _, _, r, _ in blocks)
+                            "no frame the viewer draws changes"
+                            + (f"; kept {shaping:,} that the viewer's depth sort needs" if shaping else ""))
+    elif shaping:
+        report.notes.append(f"kept {plural(shaping, 'undrawable splat')}: the viewer's depth sort needs them")
+    raw = sum(r for _, _, r, _ in blocks) - forced
     # A scene read from a .splatvq of this very setting is on its grid already (the quantizers are
     # projections): encoding it again quantizes nothing, so the note says the setting was kept.
     kept = scene.variant == FORMAT.name and scene.meta.get("setting") == name
     how = f"kept the source's {name!r} setting" if kept else f"quantized with the {name!r} setting"
     report.notes.append(f"{how} ({len(data) / n:.1f} bytes a splat)"
-                        + (f"; {plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else ""))
+                        + (f"; {plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else "")
+                        + (f"; {plural(forced, 'splat')} at the ends of the viewer's depth sort kept exactly"
+                           if forced else ""))
     # What packing the drawable splats' records changed, as the .splatv writer says it.
     report.notes.extend(splatv.write_notes(counts, False))
     return data, report

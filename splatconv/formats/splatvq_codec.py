@@ -535,7 +535,8 @@ def _byte_planes(values: np.ndarray, width: int):
         yield ((v >> np.uint32(8 * b)) & np.uint32(0xFF)).astype(np.uint8).tobytes()
 
 
-def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple[bytes, int, int, int]:
+def encode_block(records: np.ndarray, setting: Setting, level: int = 9,
+                 exact: np.ndarray | None = None) -> tuple[bytes, int, int, int, int]:
     """Quantize and compress one block of records (importance order).
 
     Parameters
@@ -545,6 +546,9 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple
     setting : Setting
     level : int
         Deflate level (run-length matching only: the level changes little).
+    exact : (M,) bool ndarray, optional
+        Records to store verbatim besides those :func:`escapes` names (the
+        writer's depth-sort ends; the last value returned counts them).
 
     Returns
     -------
@@ -554,8 +558,14 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple
         Records quantized, records kept verbatim (stored after the coded ones; their scales on the lattice).
     payload : int
         Bytes of the payload (what ``stored`` inflates to).
+    forced : int
+        Records of ``exact`` that would not have been stored verbatim otherwise.
     """
     esc = escapes(records)
+    forced = 0
+    if exact is not None:
+        forced = int(np.count_nonzero(exact & ~esc))
+        esc |= exact
     while True:
         kept = np.flatnonzero(~esc)
         # Chunks in Morton order (stable: within a cell, importance order).
@@ -580,7 +590,7 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9) -> tuple
             out.append(comp.compress(part))
             out.append(comp.flush(zlib.Z_BLOCK))
     out.append(comp.flush())
-    return b"".join(out), len(kept), int(np.count_nonzero(esc)), size
+    return b"".join(out), len(kept), int(np.count_nonzero(esc)), size, forced
 
 
 def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:

@@ -22,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import viewer
+from ..viewer import SPLATV_FOCAL, SPLATV_VIEW, SPLATV_WINDOW
 from ..cameras import camera_for_box, framing_box
 from ..model import Scene
 from ..ops import prune
@@ -31,11 +32,6 @@ from .frames import Source, compare_frames
 from .preview import View
 from .sort import depth_keys
 
-#: The view matrix splaTV's ``hybrid.js`` opens every file at (column-major, world to camera).
-SPLATV_VIEW = [0.99, 0.01, -0.14, 0.0, 0.02, 0.99, 0.12, 0.0, 0.14, -0.12, 0.98, 0.0, -0.09, -0.26, 0.2, 1.0]
-#: Its built-in camera's focal lengths, in pixels of a window of :data:`SPLATV_WINDOW`.
-SPLATV_FOCAL = (1159.5880733038064, 1164.6601287484507)
-SPLATV_WINDOW = (1280, 720)
 PROOF_TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
 PROOF_WIDTH = 640
 MAX_CAMERAS = 4

@@ -9,17 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..viewer import js_int32
+
 BUCKETS = 1 << 16
-
-
-def _to_int32(x: np.ndarray) -> np.ndarray:
-    """JavaScript's ``x | 0``: truncate, wrap modulo 2^32 into int32; NaN and inf give 0."""
-    x = np.asarray(x, dtype=np.float64)
-    finite = np.isfinite(x)
-    t = np.fmod(np.trunc(np.where(finite, x, 0.0)), 2.0**32)
-    t = np.where(t < 0, t + 2.0**32, t)
-    t = np.where(t >= 2.0**31, t - 2.0**32, t)
-    return t.astype(np.int64)
 
 
 def depth_keys(positions: np.ndarray, view_proj: list) -> np.ndarray:
@@ -30,7 +22,7 @@ def depth_keys(positions: np.ndarray, view_proj: list) -> np.ndarray:
     with np.errstate(invalid="ignore"):  # a signalling NaN warns when widened; it stays NaN
         p = np.asarray(positions, dtype=np.float32).astype(np.float64)
     with np.errstate(invalid="ignore", over="ignore"):
-        return _to_int32((view_proj[2] * p[:, 0] + view_proj[6] * p[:, 1] + view_proj[10] * p[:, 2]) * 4096)
+        return js_int32((view_proj[2] * p[:, 0] + view_proj[6] * p[:, 1] + view_proj[10] * p[:, 2]) * 4096)
 
 
 def viewer_order(positions: np.ndarray, view_proj: list) -> np.ndarray:
@@ -62,7 +54,7 @@ def viewer_order(positions: np.ndarray, view_proj: list) -> np.ndarray:
             return out
         lo, hi = int(depth.min()), int(depth.max())
         inv = BUCKETS / (hi - lo) if hi != lo else np.inf
-        bucket = _to_int32((depth - lo) * inv)
+        bucket = js_int32((depth - lo) * inv)
     kept = np.flatnonzero(bucket < BUCKETS)
     order = kept[np.argsort(bucket[kept], kind="stable")]
     out[:len(order)] = order
