@@ -5,13 +5,12 @@ from __future__ import annotations
 import click
 
 from .. import io
-from ..formats import plays_segments
 from ..jobs.convert import convert as convert_scene
 from ..jobs.frames import convert_frames, is_sequence
 from ..jobs.prove import convert_proven
 from ..ops.sequence import SAME_SPLATS_MODES
+from ..publish import is_page, publish
 from ..text import sequence_text
-from ..publish import publish
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, proof_options, quality_option, quiet_option, wrote, zstd_option)
 from ._edit import edit_options, scene_editor
@@ -110,7 +109,7 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     if prune and min_psnr is None:
         raise Failure("--prune goes with --min-psnr", 2)
     # Player pages of several segments or with --external: splatconv.publish.
-    if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
+    if external or durations or (len(input_paths) > 1 and is_page(output_path)):
         if compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits):
             raise Failure("--external and several inputs take no other options but --durations, --quality and "
                           "--force", 2)
