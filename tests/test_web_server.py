@@ -392,6 +392,11 @@ def test_convert_html_refusals(sample, tmp_path):
     assert error_line(r, 2).startswith(f"Error: {tmp_path / 'x.html'}: unknown file type (expected one of .ply,")
     r = run("convert", sample, sample, tmp_path / "c.html", "--sort", "none")
     assert r.exit_code == 2 and not (tmp_path / "c.html").exists()
+    # Segments are not frames, and are read as they are: options that would change them were once ignored.
+    for more in (["--frame-times", "0,1"], ["--same-splats", "yes"], ["--max-error", "0.1"], ["--color", "rgb"]):
+        r = run("convert", sample, sample, tmp_path / "c.html", *more)
+        assert error_line(r, 2).startswith("Error: --external and several inputs take no other options"), more
+        assert not (tmp_path / "c.html").exists()
 
 
 @pytest.mark.parametrize("durations, message", [

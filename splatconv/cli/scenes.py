@@ -110,7 +110,9 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
         raise Failure("--prune goes with --min-psnr", 2)
     # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and is_page(output_path)):
-        if compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits):
+        # A page's segments are played as they are read, not fitted as frames: nothing else applies.
+        if (compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits) or color != "auto"
+                or frame_times is not None or same_splats != "auto" or max_error is not None):
             raise Failure("--external and several inputs take no other options but --durations, --quality and "
                           "--force", 2)
         report = publish(input_paths, output_path, external=external, force=force, durations=durations,
