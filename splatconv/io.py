@@ -16,12 +16,12 @@ import numpy as np
 from . import viewer
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
 from .files.output import atomic_group, atomic_writer, check_output
-from .formats import REGISTRY, compat_modes, format_for, layouts, playable_format, qualities
+from .formats import REGISTRY, compat_modes, format_for, layouts, qualities
 from .model import COLUMNS, LITE_ROW, Scene
 from .progress import SILENT
 from .wording import kinds_text, plural
-from .zstd import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, is_compressed, max_decompressed,
-                   output_stream, plain_input)
+from .zstd import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, inner_name, is_compressed,
+                   max_decompressed, output_stream, plain_input)
 
 #: Record orders a writer takes.
 SORT_MODES = ("importance", "none")
@@ -31,7 +31,7 @@ COLOR_MODES = ("auto", "rgb", "sh")
 COMPAT_MODES = compat_modes()
 #: Record layouts some writer offers (``.ply``: lite, 3dgs).
 LAYOUTS = layouts()
-#: Quality settings some writer offers (``.splatvq``, and ``.html``, which then embeds one), the default first.
+#: Quality settings some writer offers (``.splatvq``; a page then embeds one), the default first.
 QUALITIES = qualities()
 #: Bytes a splat takes in memory once read: a float32 for each field of the lite PLY row the readers
 #: decode into (:func:`splatconv.model.lite_rows`: the model's columns and the three zero normals,
@@ -83,7 +83,7 @@ def _held(count: int) -> None:
 
 #: Share of a scene's splats, undrawable (:func:`splatconv.viewer.undrawable`), from which
 #: reading it gives a note suggesting ``--drop-undrawable`` (unless the output leaves them out
-#: itself: :func:`reading_for`). Real trained scenes hold a
+#: itself: :func:`splatconv.jobs._steps.reading_for`). Real trained scenes hold a
 #: few dozen undrawable splats from NaN positions and faded opacities (well under 1%),
 #: which cost nothing worth a note; zero rotations make 17-95% of most of them. From a
 #: tenth of the splats on, removing them saves a tenth of the file, of the texture and
@@ -113,25 +113,6 @@ def noting_undrawable(receive):
         yield
     finally:
         _undrawable_listener.reset(token)
-
-
-def leaves_out_undrawable(output, *, quality: str | None = None) -> bool:
-    """Whether writing ``output`` (at ``quality``) leaves out the splats the viewer can never draw by itself
-    (``drawable_only``: a ``.splatvq``, or a page that embeds one at ``quality``)."""
-    fmt = format_for(output, purpose="write")
-    return fmt.drawable_only or (quality is not None and playable_format(quality).drawable_only)
-
-
-@contextlib.contextmanager
-def reading_for(output, *, quality: str | None = None):
-    """While the block runs, scenes read for writing ``output`` are noted as :func:`noting_undrawable`
-    says, but not when the output leaves their undrawable splats out itself: advice to remove them
-    would be moot, and the writer's note counts what it left out."""
-    if leaves_out_undrawable(output, quality=quality):
-        with noting_undrawable(None):
-            yield
-    else:
-        yield
 
 
 def _check_undrawable(scene: Scene, path) -> None:
@@ -326,27 +307,42 @@ def refuse_empty(fmt, count: int, path, what: str = "no splats to write") -> Non
 
 
 def check_write_options(path, *, compat: str | None = None, sort: str | None = None, layout: str | None = None,
-                        quality: str | None = None):
+                        quality: str | None = None, also: tuple = ()):
     """Refuse options the output's format does not take; return that format.
+
+    Parameters
+    ----------
+    path : path
+    compat, sort, layout, quality
+        As for :func:`write`.
+    also : tuple
+        Outputs the caller writes besides the formats (:data:`splatconv.publish.PAGE`, the
+        player page), each declaring ``suffixes``, ``compat_modes``, ``layouts`` and
+        ``qualities`` as a format does: a ``path`` with one of their suffixes is checked
+        against it (and it is returned), and every message lists them beside the formats.
 
     Raises
     ------
     UsageError
     """
-    fmt = format_for(path, purpose="write")
+    fmt = next((other for other in also if _has_suffix(path, other.suffixes)), None)
+    if fmt is None:
+        fmt = format_for(path, purpose="write", also=tuple(s for other in also for s in other.suffixes))
+    outputs = [(suffix, f) for suffix, f in REGISTRY.items() if f.can_write]
+    outputs += [(suffix, other) for other in also for suffix in other.suffixes]
     _choice(compat, COMPAT_MODES, "compat mode")
     if compat is not None and compat not in fmt.compat_modes:
-        suffixes = ", ".join(_suffixes_taking(compat))
-        raise UsageError(f"--compat {compat} applies to {suffixes} output only", path)
+        takes = [suffix for suffix, f in outputs if compat in f.compat_modes]
+        raise UsageError(f"--compat {compat} applies to {', '.join(takes)} output only", path)
     _choice(sort, SORT_MODES, "sort")
     if layout is not None and layout not in fmt.layouts:
-        takes = [suffix for suffix, f in REGISTRY.items() if layout in f.layouts]
+        takes = [suffix for suffix, f in outputs if layout in f.layouts]
         if not takes:
             raise UsageError(f"unknown layout {layout!r}")
         raise UsageError(f"layout {layout} applies to {', '.join(takes)} output only", path)
     _choice(quality, QUALITIES, "quality")
     if quality is not None and quality not in fmt.qualities:
-        takes = [suffix for suffix, f in REGISTRY.items() if quality in f.qualities]
+        takes = [suffix for suffix, f in outputs if quality in f.qualities]
         raise UsageError(f"--quality {quality} applies to {', '.join(takes)} output only", path)
     if quality is not None and compat is not None:
         raise UsageError("--compat and --quality exclude each other (--compat keeps the texture's bytes, "
@@ -354,9 +350,9 @@ def check_write_options(path, *, compat: str | None = None, sort: str | None = N
     return fmt
 
 
-def _suffixes_taking(compat: str) -> list:
-    """Suffixes of the formats whose writer takes ``compat``."""
-    return [suffix for suffix, fmt in REGISTRY.items() if compat in fmt.compat_modes]
+def _has_suffix(path, suffixes) -> bool:
+    """Whether ``path`` ends in one of ``suffixes`` (case-insensitive, after any ``.zst``)."""
+    return inner_name(os.fspath(path)).lower().endswith(tuple(suffixes))
 
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
@@ -384,9 +380,8 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         A record layout the output's format offers (``layouts``; ``.ply``:
         ``lite`` or ``3dgs``); None: the format's choice for the scene.
     quality : str, optional
-        A quality setting the output's format offers (``qualities``; ``.splatvq``,
-        and ``.html``, which then embeds the scene as ``.splatvq``); None: the
-        format's default.
+        A quality setting the output's format offers (``qualities``; ``.splatvq``);
+        None: the format's default.
     precision : int, optional
         A precision step beside the quality that the output's format offers
         (``precisions``); None: the quality as named.
@@ -411,9 +406,9 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
 
 
 #: Bytes a splat in memory (the model's float32 columns): more than any format's file takes a splat
-#: but the rare worst case of a ``.splatvq`` (a .splatv 64, a PLY 68 or 128, the page 86).
+#: but the rare worst case of a ``.splatvq`` (a .splatv 64, a PLY 68 or 128).
 _MODEL_BYTES_A_SPLAT = 4 * len(COLUMNS)
-#: What a file holds besides its splats, about: header, cameras, the page's player.
+#: What a file holds besides its splats, about: header, cameras.
 _HEADER_BYTES = 1 << 20
 
 

@@ -1,9 +1,13 @@
-"""Publish scenes in the player page: the bytes the page plays for any scene file, and pages written.
+"""The player page's one home: what bytes a page plays for a scene or a scene file, and every page written.
 
 The page itself is built by :mod:`splatconv.web.page`, which knows no format:
 this module asks the registry which formats the page plays as they are
 (``check_playable``) and gives it every other scene as the viewer's texture
-format (:func:`splatconv.formats.texture_format`), converted in memory.
+format (:func:`splatconv.formats.texture_format`), converted in memory. A page is
+no scene format (it is written, never read): ``convert OUT.html``, ``bake``,
+``merge`` and ``view`` all come here (:func:`write_page`, :func:`publish`,
+:func:`page_bytes`), so every page chooses its bytes by one rule: a file's own bytes when the page
+plays it as it is and nothing changes it, else :func:`scene_bytes`.
 """
 
 from __future__ import annotations
@@ -13,23 +17,81 @@ import os
 from dataclasses import dataclass, field
 from urllib.parse import quote
 
-from .errors import UnsupportedError, UsageError
-from .formats import format_for, page_format, playable_format, texture_format
+from .errors import SplatconvError, UnsupportedError, UsageError
 from .files.inputs import open_input
-from .files.output import atomic_group, check_output
+from .files.output import atomic_group, atomic_writer, check_output
+from .formats import format_for, playable_format, playable_formats, playable_qualities, texture_format
+from .formats.base import WriteReport
 from .io import check_write_options
 from .io import read as read_scene
-from .zstd import is_compressed, plain_input
+from .model import Scene
+from .progress import SILENT
+from .zstd import DEFAULT_LEVEL, inner_name, is_compressed, output_stream, plain_input
 from .web.page import SceneRef, build_page, parse_durations
+
+#: The suffix of a player page (``.zst`` after it: the same page, compressed).
+PAGE_SUFFIX = ".html"
+
+
+@dataclass(frozen=True)
+class PageOutput:
+    """What the player page takes as an output, in the words of a scene format's declaration
+    (:class:`splatconv.formats.base.Format`), so that one check reads any output alike
+    (:func:`splatconv.io.check_write_options` with ``also``, :func:`splatconv.io.refuse_empty`).
+    A page is no format: nothing here reads, writes or describes a scene file.
+
+    Attributes
+    ----------
+    suffixes : tuple of str
+    compat_modes : tuple of str
+        The texture format's: a page embeds its bytes.
+    qualities : tuple of str
+        Those of the formats the page plays as they are: a page at a quality embeds one.
+    layouts, precisions : tuple
+        Empty: a page has no record layout and proves no quality (``--min-psnr``).
+    holds_empty : bool
+        False: the viewer cannot show an empty scene.
+    drawable_only : bool
+        False: only a page at a quality may leave splats out (:func:`leaves_out_undrawable`).
+    """
+
+    suffixes: tuple
+    compat_modes: tuple
+    qualities: tuple
+    layouts: tuple = ()
+    precisions: tuple = ()
+    holds_empty: bool = False
+    drawable_only: bool = False
+
+
+#: The player page as an output.
+PAGE = PageOutput(suffixes=(PAGE_SUFFIX,), compat_modes=texture_format().compat_modes,
+                  qualities=playable_qualities())
+
+
+def is_page(path: str | os.PathLike) -> bool:
+    """Whether ``path`` names a player page (its suffix, case-insensitive, after any ``.zst``)."""
+    return inner_name(os.fspath(path)).lower().endswith(PAGE_SUFFIX)
+
+
+def leaves_out_undrawable(quality: str | None = None) -> bool:
+    """Whether a page at ``quality`` leaves out the splats the viewer can never draw: when the format it
+    then embeds does (``drawable_only``)."""
+    return quality is not None and playable_format(quality).drawable_only
+
+
+def _plays_as_is(path, quality: str | None = None) -> bool:
+    """Whether the page is given ``path``'s own bytes: a format the page plays as it is, no quality asked."""
+    return quality is None and format_for(path, purpose="read").check_playable is not None
 
 
 def _played_as(path, quality: str | None = None):
     """The format whose bytes the page is given for ``path``: its own when the page plays it as it is;
     with a ``quality``, the format the page plays that offers it."""
-    fmt = format_for(path, purpose="read")
     if quality is not None:
+        format_for(path, purpose="read")
         return playable_format(quality)
-    return fmt if fmt.check_playable is not None else texture_format()
+    return format_for(path, purpose="read") if _plays_as_is(path) else texture_format()
 
 
 def page_suffix(path: str | os.PathLike, quality: str | None = None) -> str:
@@ -54,15 +116,64 @@ def is_plain_playable(path: str | os.PathLike) -> bool:
     return format_for(path, purpose="read").check_playable is not None and not is_compressed(path)
 
 
+def scene_bytes(scene: Scene, *, compat: str | None = None, sort: str | None = None, quality: str | None = None,
+             progress=SILENT) -> tuple[bytes, WriteReport]:
+    """The bytes a page plays for ``scene``, packed in memory: the one rule every page follows for a scene
+    that is not a file's own bytes (:func:`page_bytes` passes those through).
+
+    * With a ``quality``: the format the page plays that offers it
+      (:func:`splatconv.formats.playable_format`, a ``.splatvq``), at that setting.
+    * A scene read from a format the page plays that has quality settings (a
+      ``.splatvq``), without ``compat``: that format again, at the setting it was
+      read at (its ``meta["setting"]``; the quantizers are projections, so its
+      records come back unchanged): about half the texture's bytes.
+    * Otherwise the viewer's texture format (:func:`splatconv.formats.texture_format`),
+      with ``compat`` and ``sort``: exactly what ``convert`` writes to a ``.splatv``.
+
+    Returns
+    -------
+    data : bytes
+    report : WriteReport
+        What the write did (its count and notes).
+
+    Raises
+    ------
+    UsageError
+        For ``compat`` with ``quality``.
+    """
+    if quality is not None and compat is not None:
+        raise UsageError(f"compat {compat!r} and quality {quality!r} exclude each other: a quality embeds "
+                         "a quantized scene, compat the texture's bytes")
+    played = playable_format(quality) if quality is not None else _kept_format(scene, compat)
+    buffer = io.BytesIO()
+    if played is None:
+        texture = texture_format()
+        report = texture.write(scene, buffer, compat=compat, sort=sort or texture.default_sort, progress=progress)
+        return buffer.getvalue(), report
+    setting = quality or scene.meta.get("setting")
+    kept = setting if setting in played.qualities else None
+    report = played.write(scene, buffer, sort=sort or played.default_sort, quality=kept, progress=progress)
+    if kept != setting:
+        report.notes.append(f"the source's {played.suffixes[0]} setting {setting!r} is not one this version "
+                            f"writes; embedded with the {played.qualities[0]!r} setting")
+    return buffer.getvalue(), report
+
+
+def _kept_format(scene: Scene, compat: str | None):
+    """The format the page plays with quality settings that ``scene`` was read from (kept without
+    ``compat``), or None."""
+    if compat is not None:
+        return None
+    return next((fmt for fmt in playable_formats() if fmt.name == scene.variant and fmt.qualities), None)
+
+
 def page_bytes(path: str | os.PathLike, quality: str | None = None) -> tuple[bytes, list]:
     """The bytes the page plays for any scene file, and notes on what converting it lost.
 
-    A file the page plays as it is (the viewer's texture, ``.splatv``; maybe
-    ``.zst``) is passed through unchanged; any other format is read and packed
-    in memory as the texture format, exactly as ``convert`` would write it. With
-    a ``quality``, every file is read and written in memory as the format the page
-    plays that offers it (:func:`splatconv.formats.playable_format`: a ``.splatvq``
-    at that setting).
+    A file the page plays as it is (the viewer's texture, ``.splatv``, or a
+    ``.splatvq``; maybe ``.zst``) is passed through unchanged, once checked as
+    every command reads it; any other file, or any file with a ``quality``, is
+    read and packed in memory by :func:`scene_bytes`.
 
     Returns
     -------
@@ -70,8 +181,8 @@ def page_bytes(path: str | os.PathLike, quality: str | None = None) -> tuple[byt
     notes : list of str
     """
     path = os.fspath(path)
-    fmt = format_for(path, purpose="read")
-    if fmt.check_playable is not None and quality is None:
+    if _plays_as_is(path, quality):
+        fmt = format_for(path, purpose="read")
         with plain_input(path, declared_size=fmt.declared_size) as plain:
             fmt.check_playable(plain)
             with open_input(plain) as f:
@@ -79,14 +190,63 @@ def page_bytes(path: str | os.PathLike, quality: str | None = None) -> tuple[byt
     scene = read_scene(path)
     if scene.count == 0:
         raise UnsupportedError("holds no splats to show", path)
-    buffer = io.BytesIO()
-    if quality is not None:
-        played = playable_format(quality)
-        report = played.write(scene, buffer, sort=played.default_sort, quality=quality)
-    else:
-        texture = texture_format()
-        report = texture.write(scene, buffer, sort=texture.default_sort)
-    return buffer.getvalue(), list(scene.notes) + list(report.notes)
+    data, report = scene_bytes(scene, quality=quality)
+    return data, list(scene.notes) + list(report.notes)
+
+
+def write_page(scene: Scene, output: str | os.PathLike, *, source=None, compat: str | None = None,
+               sort: str | None = None, quality: str | None = None, force: bool = False, inputs=(),
+               zstd_level: int | None = None, progress=SILENT) -> WriteReport:
+    """Write ``output``, the player page with ``scene`` embedded, atomically (``.html.zst``: compressed).
+
+    Parameters
+    ----------
+    scene : Scene
+        Not empty (the caller refuses an empty scene as it reads it, naming its file).
+    source : path, optional
+        The file ``scene`` was read from, given when nothing changed it since: without
+        ``compat``, ``sort`` and ``quality``, a file the page plays as it is is then
+        embedded as its own bytes (:func:`page_bytes`), as :func:`publish` and ``view``
+        give it. Otherwise the scene is packed by :func:`scene_bytes`.
+    compat, sort, quality
+        As for :func:`scene_bytes`.
+    force, inputs, zstd_level, progress
+        As for :func:`splatconv.io.write`.
+
+    Returns
+    -------
+    WriteReport
+        The splats embedded and the notes of packing them.
+    """
+    output = os.fspath(output)
+    check_output(output, inputs, force)
+    try:
+        if source is not None and compat is None and sort is None and _plays_as_is(source, quality):
+            data, _ = page_bytes(source)
+            report = WriteReport(count=scene.count)
+        else:
+            data, report = scene_bytes(scene, compat=compat, sort=sort, quality=quality, progress=progress)
+    except SplatconvError as e:
+        if e.path is not None:
+            raise
+        raise type(e)(e.message, output, e.where) from None  # a writer does not know the page's name
+    stem = _stem(output)
+    page = _page([SceneRef(name=stem or "scene", data=data)], stem)
+    level = DEFAULT_LEVEL if zstd_level is None else zstd_level
+    with atomic_writer(output, replace=force) as stream, \
+            output_stream(stream, output, level, progress, size_hint=len(page)) as out:
+        out.write(page)
+    return report
+
+
+def _stem(output: str) -> str:
+    """A page's file name without its suffixes: its title, and the name of a scene made for it."""
+    return os.path.basename(inner_name(output))[: -len(PAGE_SUFFIX)]
+
+
+def _page(refs: list, stem: str) -> bytes:
+    """The page playing ``refs``, titled ``stem`` (when its name has one)."""
+    return build_page(refs, title=stem) if stem else build_page(refs)
 
 
 @dataclass
@@ -133,14 +293,13 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
     """
     inputs = [os.fspath(p) for p in inputs]
     output = os.fspath(output)
-    page_ending = page_format().suffixes[0]
-    if not output.lower().endswith(page_ending):
-        raise UsageError(f"a player page must be written to an {page_ending} file", output)
+    if not is_page(output) or is_compressed(output):
+        raise UsageError(f"a player page must be written to an {PAGE_SUFFIX} file", output)
     if not inputs:
         raise UsageError("give at least one scene file")
-    check_write_options(output, quality=quality)
+    check_write_options(output, quality=quality, also=(PAGE,))
     shares = parse_durations(durations, len(inputs))
-    stem = output[: -len(page_ending)]
+    stem = output[: -len(PAGE_SUFFIX)]
     suffixes = [page_suffix(path, quality) for path in inputs]
     names = [f"{stem}{suffixes[0]}"] if len(inputs) == 1 else [f"{stem}.{i}{s}" for i, s in enumerate(suffixes)]
     # An input that is already the file the page would fetch stays where it is.
@@ -171,7 +330,7 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
                 refs.append(SceneRef(name=os.path.basename(name), url=quote(os.path.basename(name)), duration=share))
             else:
                 refs.append(SceneRef(name=os.path.basename(path), data=data, duration=share))
-        page = build_page(refs, title=os.path.basename(stem))
+        page = _page(refs, _stem(output))
         with group.open(output) as stream:
             stream.write(page)
     report.written.insert(0, (output, len(page)))

@@ -12,6 +12,7 @@ from click.testing import CliRunner
 from splatconv import io
 from splatconv.cli import main
 from splatconv.formats import splatvq
+from splatconv.jobs._steps import write_output
 from splatconv.viewer import sort_ends, undrawable
 from tests import splatvq_files as damage
 from tests.conftest import ProgressRecorder
@@ -132,10 +133,14 @@ def test_a_splatvq_kept_at_its_setting_is_not_called_quantized(tmp_path, source)
     first, last = QUALITIES[0], QUALITIES[-1]
     vq = tmp_path / "in.splatvq"
     assert run("convert", source, vq, "--quality", first).exit_code == 0
-    for out, more in (("kept.html", ()), ("same.html", ("--quality", first)), ("again.splatvq", ())):
+    for out, more in (("same.html", ("--quality", first)), ("again.splatvq", ())):
         r = run("convert", vq, tmp_path / out, *more)
         assert r.exit_code == 0, r.output
         assert "quantized" not in r.stderr and f"kept the source's {first!r} setting" in r.stderr
+    # Asked nothing, the page plays the file's own bytes, as publish and view give it: nothing is encoded.
+    r = run("convert", vq, tmp_path / "kept.html")
+    assert r.exit_code == 0 and "quantized" not in r.stderr and "setting" not in r.stderr
+    assert embedded(tmp_path / "kept.html") == vq.read_bytes()
     # Another setting does quantize it, and says so.
     r = run("convert", vq, tmp_path / "other.html", "--quality", last)
     assert r.exit_code == 0 and f"quantized with the {last!r} setting" in r.stderr
@@ -168,7 +173,7 @@ def test_the_writing_bar_counts_the_splats_written(tmp_path, source, name, quali
     """A .splatvq leaves undrawable splats out: its bar's total and count are the splats it writes."""
     scene = io.read(source)
     rec = ProgressRecorder()
-    report = io.write(scene, tmp_path / name, quality=quality, progress=rec)
+    report = write_output(scene, tmp_path / name, quality=quality, progress=rec)  # a page, or io.write
     writing = [s for s in rec.stages if s[0] == "writing"]
     assert [s[1:] for s in writing] == [[report.count, "splat", report.count]]
     drawn = int((~undrawable(scene.columns) | sort_ends(scene.columns, scene.cameras)).sum())
@@ -206,8 +211,9 @@ def test_every_writing_command_refuses_it_for_other_outputs_before_reading(tmp_p
     names = {"bad": bad, "out": tmp_path / "out.ply", "dir": tmp_path / "frames"}
     r = run(*[a.format(**names) for a in args], "--quality", QUALITIES[0])
     assert r.exit_code == 2, r.output
+    takes = ".splatvq" if "{dir}" in args else ".splatvq, .html"  # a frame is a scene file, never a page
     assert r.stderr.startswith("Error: ") and r.stderr.endswith(
-        f"--quality {QUALITIES[0]} applies to .splatvq, .html output only\n")
+        f"--quality {QUALITIES[0]} applies to {takes} output only\n")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["damaged.ply"]
 
 

@@ -309,6 +309,34 @@ def test_convert_to_html_embeds_the_splatv(tmp_path):
     assert run("convert", SAMPLE, out, "--force").exit_code == 0
 
 
+def _embedded(page: Path) -> list:
+    """The scenes a page embeds, in order: their bytes."""
+    return [base64.b64decode(block.replace("\n", "")) for block in
+            re.findall(r'data-asset="scene-\d+">\n(.*?)\n</script>', page.read_text(), re.S)]
+
+
+def test_every_page_chooses_its_bytes_one_way(tmp_path):
+    """One rule for a page's bytes, whichever command writes it: a file the page plays, given no option
+    that changes it, is embedded as its own bytes (as publish and view give it); a scene made or changed
+    in memory is packed as that file format would write it."""
+    unsorted = tmp_path / "unsorted.splatv"  # records in PLY order: writing it again would sort them
+    assert run("convert", SAMPLE, unsorted, "--sort", "none").exit_code == 0
+    r = run("convert", unsorted, tmp_path / "one.html")
+    assert r.exit_code == 0 and r.stdout.startswith(f"wrote {tmp_path / 'one.html'}: 5,000 splats")
+    assert run("convert", unsorted, unsorted, tmp_path / "two.html").exit_code == 0
+    assert _embedded(tmp_path / "one.html") == [unsorted.read_bytes()]
+    assert _embedded(tmp_path / "two.html") == [unsorted.read_bytes()] * 2
+    # Asked to change it, or made by another command: packed as the same write to a .splatv.
+    for i, args in enumerate([["convert", unsorted, "{out}", "--sort", "importance"],
+                              ["convert", unsorted, "{out}", "--scale", "2"], ["merge", unsorted, unsorted, "{out}"],
+                              ["bake", unsorted, "{out}", "--time", "0.5"]]):
+        outs = [tmp_path / f"{args[0]}{i}{suffix}" for suffix in (".html", ".splatv")]
+        for out in outs:
+            r = run(*[out if a == "{out}" else a for a in args])
+            assert r.exit_code == 0, r.output
+        assert _embedded(outs[0]) == [outs[1].read_bytes()], args
+
+
 def test_convert_external_and_segments(sample, tmp_path):
     out = tmp_path / "clip.html"
     r = run("convert", sample, SAMPLE, out, "--external")
@@ -360,9 +388,15 @@ def test_convert_html_refusals(sample, tmp_path):
     assert r.exit_code == 1 and "taken.splatv: already exists" in r.stderr
     assert not (tmp_path / "taken.html").exists() and (tmp_path / "taken.splatv").read_bytes() == b"keep"
     r = run("convert", tmp_path / "x.html", tmp_path / "x.splatv")
-    assert error_line(r, 2).startswith(f"Error: {tmp_path / 'x.html'}: html files can be written, not read")
+    # A page is written, never read: not a file type any command reads.
+    assert error_line(r, 2).startswith(f"Error: {tmp_path / 'x.html'}: unknown file type (expected one of .ply,")
     r = run("convert", sample, sample, tmp_path / "c.html", "--sort", "none")
     assert r.exit_code == 2 and not (tmp_path / "c.html").exists()
+    # Segments are not frames, and are read as they are: options that would change them were once ignored.
+    for more in (["--frame-times", "0,1"], ["--same-splats", "yes"], ["--max-error", "0.1"], ["--color", "rgb"]):
+        r = run("convert", sample, sample, tmp_path / "c.html", *more)
+        assert error_line(r, 2).startswith("Error: --external and several inputs take no other options"), more
+        assert not (tmp_path / "c.html").exists()
 
 
 @pytest.mark.parametrize("durations, message", [

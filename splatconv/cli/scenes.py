@@ -5,13 +5,12 @@ from __future__ import annotations
 import click
 
 from .. import io
-from ..formats import plays_segments
 from ..jobs.convert import convert as convert_scene
 from ..jobs.frames import convert_frames, is_sequence
 from ..jobs.prove import convert_proven
 from ..ops.sequence import SAME_SPLATS_MODES
+from ..publish import is_page, publish
 from ..text import sequence_text
-from ..publish import publish
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, proof_options, quality_option, quiet_option, wrote, zstd_option)
 from ._edit import edit_options, scene_editor
@@ -110,8 +109,10 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     if prune and min_psnr is None:
         raise Failure("--prune goes with --min-psnr", 2)
     # Player pages of several segments or with --external: splatconv.publish.
-    if external or durations or (len(input_paths) > 1 and plays_segments(output_path)):
-        if compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits):
+    if external or durations or (len(input_paths) > 1 and is_page(output_path)):
+        # A page's segments are played as they are read, not fitted as frames: nothing else applies.
+        if (compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits) or color != "auto"
+                or frame_times is not None or same_splats != "auto" or max_error is not None):
             raise Failure("--external and several inputs take no other options but --durations, --quality and "
                           "--force", 2)
         report = publish(input_paths, output_path, external=external, force=force, durations=durations,

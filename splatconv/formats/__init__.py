@@ -7,7 +7,8 @@ with :func:`format_for` (or, for the viewer's texture, :func:`texture_format`)
 and read its fields; none of them names a format. Adding a format is adding a
 module that ends with ``FORMAT = Format(...)`` and one line to ``FORMATS``. A
 ``.zst`` suffix after a format's suffix means the same format, zstd-compressed
-(see :mod:`splatconv.zstd`).
+(see :mod:`splatconv.zstd`). The player page is no format: :mod:`splatconv.publish`
+writes it, asking these formats what the page plays (``check_playable``).
 """
 
 from __future__ import annotations
@@ -16,19 +17,18 @@ import os
 
 from ..errors import UsageError
 from ..zstd import inner_name
-from . import html, ply, splat, splatv, splatvq
+from . import ply, splat, splatv, splatvq
 from .base import Format
 
 #: Every format, in the order suffixes are tried.
-FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, html.FORMAT)
+FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT)
 REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
 #: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
 FRAME_SUFFIX = ply.FORMAT.suffixes[0]
 
 _TEXTURE = [fmt for fmt in FORMATS if fmt.stores_texture and fmt.can_write]
-_PAGE = [fmt for fmt in FORMATS if fmt.plays_segments]
-if len(_TEXTURE) != 1 or len(_PAGE) != 1:  # pragma: no cover (a registry mistake, caught on import)
-    raise TypeError("exactly one writable format must store the viewer's texture, and one be the player page")
+if len(_TEXTURE) != 1:  # pragma: no cover (a registry mistake, caught on import)
+    raise TypeError("exactly one writable format must store the viewer's texture")
 
 
 def _lookup(path: str) -> Format | None:
@@ -40,7 +40,7 @@ def _lookup(path: str) -> Format | None:
     return None
 
 
-def format_for(path: str | os.PathLike, *, purpose: str | None = None) -> Format:
+def format_for(path: str | os.PathLike, *, purpose: str | None = None, also: tuple = ()) -> Format:
     """The format of ``path``, chosen by its (case-insensitive) suffix.
 
     Parameters
@@ -48,6 +48,9 @@ def format_for(path: str | os.PathLike, *, purpose: str | None = None) -> Format
     path : path
     purpose : {None, "read", "write"}
         Refuse a format that cannot be read (or written).
+    also : tuple of str
+        Suffixes of outputs the caller writes besides the formats (the player page's,
+        :data:`splatconv.publish.PAGE`), named beside them when ``path`` has none of these.
 
     Raises
     ------
@@ -57,7 +60,7 @@ def format_for(path: str | os.PathLike, *, purpose: str | None = None) -> Format
     path = os.fspath(path)
     fmt = _lookup(path)
     if fmt is None:
-        known = ", ".join(sorted(REGISTRY))
+        known = ", ".join(sorted({*REGISTRY, *also}))
         raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)
     if purpose == "read" and not fmt.can_read:
         raise UsageError(f"{fmt.name} files can be written, not read", path)
@@ -70,18 +73,6 @@ def texture_format() -> Format:
     """The format that stores the viewer's texture itself and can be written: what the viewer loads,
     and what any other scene becomes for it (``stats``' simulated conversion, drawing, the player)."""
     return _TEXTURE[0]
-
-
-def page_format() -> Format:
-    """The format whose files are the player page (``plays_segments``): what ``publish`` writes."""
-    return _PAGE[0]
-
-
-def plays_segments(path: str | os.PathLike) -> bool:
-    """Whether ``path``'s format plays several scenes as the segments of one clip (``plays_segments``);
-    False for a suffix no format claims."""
-    fmt = _lookup(os.fspath(path))
-    return fmt is not None and fmt.plays_segments
 
 
 def compat_modes() -> tuple:
@@ -103,16 +94,27 @@ def playable_format(quality: str) -> Format:
     UsageError
         When no such format offers ``quality``.
     """
-    for fmt in FORMATS:
-        if fmt.check_playable is not None and quality in fmt.qualities:
+    for fmt in playable_formats():
+        if quality in fmt.qualities:
             return fmt
     raise UsageError(f"unknown quality {quality!r} (expected one of {', '.join(qualities())})")
 
 
+def playable_formats() -> tuple:
+    """The formats whose files the player page plays as they are (``check_playable``)."""
+    return tuple(fmt for fmt in FORMATS if fmt.check_playable is not None)
+
+
+def playable_qualities() -> tuple:
+    """Every quality setting a format the page plays as it is offers (first offered first): the
+    settings a page can embed a scene at."""
+    return tuple(dict.fromkeys(name for fmt in playable_formats() for name in fmt.qualities))
+
+
 def quantized_formats() -> tuple:
-    """The scene formats whose writer offers quality settings (``qualities``), the page that embeds one
-    left out: what ``stats`` measures a scene in at each setting."""
-    return tuple(fmt for fmt in FORMATS if fmt.qualities and not fmt.plays_segments)
+    """The formats whose writer offers quality settings (``qualities``): what ``stats`` measures a scene
+    in at each setting."""
+    return tuple(fmt for fmt in FORMATS if fmt.qualities)
 
 
 def qualities() -> tuple:

@@ -154,9 +154,6 @@ class Format:
     texture : Texture or None
         Given when a file stores the viewer's texture itself: drawn, played and
         measured as stored. Exactly one writable format does (:func:`splatconv.formats.texture_format`).
-    plays_segments : bool
-        Several scenes given for one output play as the segments of one clip (a
-        player page), not as a frame sequence.
     check_playable : callable or None
         Given when the player page plays this format's files as they are:
         ``check_playable(path)`` raises :class:`~splatconv.errors.FormatError` for a file
@@ -189,7 +186,6 @@ class Format:
     precisions: tuple[int, ...] = ()
     declared_size: Callable | None = None
     texture: Texture | None = None
-    plays_segments: bool = False
     check_playable: Callable | None = None
     expands: bool = False
     drawable_only: bool = False

@@ -455,6 +455,5 @@ FORMAT = Format(
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
     write=write, layouts=tuple(LAYOUTS),
     info_fields=info_fields, storage=storage,
-    # Attributes, not the viewer's texture; one scene a file (several inputs for one
-    # output are a frame sequence, not a page's segments).
+    # Attributes, not the viewer's texture.
 )

@@ -1,13 +1,20 @@
-"""The steps every job takes: check before reading, read with progress, tell notes."""
+"""The steps every job takes: check before reading, read with progress, write, tell notes.
+
+An output is a scene file (a format, :mod:`splatconv.io`) or the player page
+(:mod:`splatconv.publish`, which alone writes pages); the steps here tell them
+apart, so that no job does.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 from ..files.output import check_output
 from ..formats import format_for
-from ..io import check_write_options, read
+from ..io import check_write_options, noting_undrawable, read, write
 from ..progress import SILENT
+from ..publish import PAGE, is_page, leaves_out_undrawable, write_page
 
 
 def silent(lines) -> None:
@@ -29,8 +36,8 @@ def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: s
 
     Returns
     -------
-    splatconv.formats.base.Format
-        The output's format.
+    splatconv.formats.base.Format or splatconv.publish.PageOutput
+        The output's format, or :data:`splatconv.publish.PAGE` for a player page.
 
     Raises
     ------
@@ -39,9 +46,38 @@ def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: s
     inputs = [os.fspath(p) for p in inputs]
     for path in inputs:
         format_for(path, purpose="read")
-    fmt = check_write_options(output, compat=compat, sort=sort, layout=layout, quality=quality)
+    fmt = check_write_options(output, compat=compat, sort=sort, layout=layout, quality=quality, also=(PAGE,))
     check_output(output, inputs, force)
     return fmt
+
+
+@contextlib.contextmanager
+def reading_for(output, *, quality: str | None = None):
+    """While the block runs, scenes read for writing ``output`` are noted as
+    :func:`splatconv.io.noting_undrawable` says, but not when the output leaves their undrawable
+    splats out itself (``drawable_only``; a page at a quality whose format does): advice to remove
+    them would be moot, and the writer's note counts what it left out."""
+    leaves = leaves_out_undrawable(quality) if is_page(output) else format_for(output, purpose="write").drawable_only
+    with noting_undrawable(None) if leaves else contextlib.nullcontext():
+        yield
+
+
+def write_output(scene, output, *, source=None, compat: str | None = None, sort: str | None = None,
+                 layout: str | None = None, quality: str | None = None, force: bool = False, inputs=(),
+                 zstd_level: int | None = None, progress=SILENT):
+    """Write ``scene`` to ``output``: a scene file (:func:`splatconv.io.write`) or a player page
+    (:func:`splatconv.publish.write_page`, which may embed ``source``, the file the scene was read from
+    unchanged, as it is). The options are :func:`splatconv.io.write`'s.
+
+    Returns
+    -------
+    WriteReport
+    """
+    if is_page(output):
+        return write_page(scene, output, source=source, compat=compat, sort=sort, quality=quality, force=force,
+                          inputs=inputs, zstd_level=zstd_level, progress=progress)
+    return write(scene, output, compat=compat, sort=sort, layout=layout, quality=quality, force=force,
+                 inputs=inputs, zstd_level=zstd_level, progress=progress)
 
 
 def read_input(path, *, color: str, progress=SILENT):

@@ -5,10 +5,10 @@ from __future__ import annotations
 import os
 
 from ..formats import FRAME_SUFFIX
-from ..io import check_write_options, holding, write, write_sequence
+from ..io import check_write_options, holding, write_sequence
 from ..ops import bake as bake_ops
 from ..progress import SILENT
-from ._steps import check_job, read_input, silent
+from ._steps import check_job, read_input, silent, write_output
 
 #: Bytes a splat takes at the peak of ``bake`` (the scene, the baked scene and the float64 work of
 #: the bake, the writer's): what the decompression ceiling counts (:func:`splatconv.io.holding`;
@@ -42,8 +42,8 @@ def bake(source, output, *, time: float, sort=None, layout=None, quality=None, c
     tell(scene.notes)
     baked, report = bake_ops.bake(scene, time, drop_nonfinite=drop_nonfinite)
     tell(report.notes)
-    written = write(baked, output, sort=sort, layout=layout, quality=quality, force=force, inputs=[source],
-                    progress=progress)
+    written = write_output(baked, output, sort=sort, layout=layout, quality=quality, force=force, inputs=[source],
+                           progress=progress)
     tell(written.notes)
     return report, written
 

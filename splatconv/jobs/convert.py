@@ -1,4 +1,4 @@
-"""``convert`` of one scene file: read, optionally edit, write in another format."""
+"""``convert`` of one scene file: read, optionally edit, write in another format or as a player page."""
 
 from __future__ import annotations
 
@@ -6,9 +6,9 @@ import os
 
 from ..cameras import load_cameras
 from ..errors import UnsupportedError
-from ..io import holding, reading_for, refuse_empty, write
+from ..io import holding, refuse_empty
 from ..progress import SILENT
-from ._steps import check_job, read_input, silent
+from ._steps import check_job, read_input, reading_for, silent, write_output
 
 #: Bytes a splat takes at the peak of ``convert`` (the scene and what the writer builds: 128 to
 #: ``.ply``, 145 to ``.splatv``, 177 to ``.splatvq``, ``bench/bench_memory.py``): what the
@@ -20,7 +20,9 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
             zstd_level: int | None = None, layout: str | None = None, quality: str | None = None, progress=SILENT,
             edit=None, tell=silent, writer=None):
-    """Read ``source`` and write it to ``output``; formats by suffix.
+    """Read ``source`` and write it to ``output``; formats by suffix, ``.html`` a player page
+    (:func:`splatconv.publish.write_page`: a file the page plays as it is, given no option that changes it,
+    is embedded as its own bytes, as ``publish`` and ``view`` give it).
 
     Parameters
     ----------
@@ -33,7 +35,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         As for :func:`splatconv.io.write`.
     writer : callable, optional
         ``writer(scene, output, *, quality, sort, zstd_level, force, progress) -> (WriteReport, notes)``
-        instead of :func:`splatconv.io.write`, e.g. one that proves the output's
+        instead of writing the output, e.g. one that proves the output's
         quality (:func:`splatconv.jobs.prove.convert_proven`); its notes are told
         after the write report's.
     progress : splatconv.progress.Progress
@@ -54,6 +56,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     with reading_for(output, quality=quality), holding(CONVERT_MEMORY_BYTES):
         scene = read_input(source, color=color, progress=progress)
     refuse_empty(fmt, scene.count, source, "holds no splats")
+    changed = camera_list is not None or edit is not None
     if camera_list is not None:
         scene.cameras = camera_list
     if edit is not None:
@@ -66,8 +69,9 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
             raise UnsupportedError(e.message, cameras if given else source, e.where) from None
     proved = []
     if writer is None:
-        report = write(scene, output, compat=compat, sort=sort, force=force, inputs=[source], zstd_level=zstd_level,
-                       layout=layout, quality=quality, progress=progress)
+        report = write_output(scene, output, source=None if changed else source, compat=compat, sort=sort,
+                              force=force, inputs=[source], zstd_level=zstd_level, layout=layout, quality=quality,
+                              progress=progress)
     else:
         report, proved = writer(scene, output, quality=quality, sort=sort, zstd_level=zstd_level, force=force,
                                 progress=progress)

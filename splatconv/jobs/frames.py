@@ -15,13 +15,14 @@ import numpy as np
 
 from ..cameras import load_cameras
 from ..errors import UsageError
-from ..formats import REGISTRY
-from ..io import read, reading_for, refuse_empty, splat_count, write
+from ..formats import REGISTRY, texture_format
+from ..io import read, refuse_empty, splat_count
 from ..model import COLUMNS, Scene
 from ..ops.sequence import fit_sequence
 from ..progress import SILENT
 from ..zstd import inner_name
-from ._steps import check_job, silent
+from ..publish import is_page
+from ._steps import check_job, reading_for, silent, write_output
 
 _GLOB_CHARS = re.compile(r"[*?[]")
 
@@ -118,14 +119,15 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     # Counted from headers, not by reading: only the fit's own passes read the frames.
     # Frame times must stay apart as the output stores them (halves in the viewer's texture).
     empty = Scene(columns={name: np.empty(0, np.float32) for name in COLUMNS})
-    time_type = np.float16 if fmt.storage(empty).get("trbf") == "half" else np.float32
+    stored = texture_format() if is_page(output) else fmt  # a page plays the viewer's texture
+    time_type = np.float16 if stored.storage(empty).get("trbf") == "half" else np.float32
     scene, fit = fit_sequence(read_frame, len(paths), times=frame_times, same_splats=same_splats,
                               max_error=max_error, counts=[splat_count(p) for p in paths], time_type=time_type,
                               progress=progress)
     refuse_empty(fmt, scene.count, paths[0], "the frames hold no splats")
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
-    report = write(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
-                   layout=layout, quality=quality, progress=progress)
+    report = write_output(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
+                          layout=layout, quality=quality, progress=progress)
     tell(scene.notes)
     tell(fit.notes)
     tell(report.notes)

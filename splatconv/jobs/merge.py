@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 from ..errors import UnsupportedError
-from ..io import holding, reading_for, write
+from ..io import holding
 from ..ops import apply_transform
 from ..ops import drop_nonfinite as drop_nonfinite_splats
 from ..ops.merge import overlay
 from ..progress import SILENT
-from ._steps import check_job, read_input, silent
+from ._steps import check_job, read_input, reading_for, silent, write_output
 
 #: Bytes a splat read takes at the peak of ``merge`` (every input, the merged scene, the writer's):
 #: what the decompression ceiling counts, over all the inputs together
@@ -58,7 +58,7 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=No
             scenes.append(scene)
     merged, report = overlay(scenes)
     tell(report.notes)
-    written = write(merged, output, sort=sort, layout=layout, quality=quality, force=force, inputs=inputs,
-                    progress=progress)
+    written = write_output(merged, output, sort=sort, layout=layout, quality=quality, force=force, inputs=inputs,
+                           progress=progress)
     tell(written.notes)
     return report, written

@@ -16,10 +16,11 @@ import tempfile
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_writer
 from ..formats import format_for
-from ..io import read, write
+from ..io import check_write_options, read, write
 from ..model import Scene
 from ..progress import SILENT
 from ..ops.prune import leave_out
+from ..publish import PAGE
 from ..render.proof import proof_views, prove, ranked
 from ..wording import plural
 from .convert import convert
@@ -38,7 +39,7 @@ def check_proof_options(output, min_psnr: float | None, max_bytes: int | None, p
         raise UsageError("--prune goes with --min-psnr: it leaves out splats while the floor holds")
     if min_psnr is None and max_bytes is None:
         return
-    if not format_for(output, purpose="write").precisions:
+    if not check_write_options(output, also=(PAGE,)).precisions:
         raise UsageError("--min-psnr and --max-bytes apply to outputs whose format has precision steps "
                          "(.splatvq)", output)
     if min_psnr is not None and not min_psnr > 0:

@@ -9,12 +9,12 @@ from __future__ import annotations
 
 import os
 
-from ..io import read, reading_for, write
+from ..io import read
 from ..ops.segments import (DEFAULT_BUDGET, DEFAULT_LEAK, check_budget, check_durations, check_segment_count,
                             merge_segments as merge_scenes)
 from ..progress import SILENT
 from ..render.fidelity import DEFAULT_CAMERA, checked_frames, fidelity, fidelity_summary
-from ._steps import check_job, silent
+from ._steps import check_job, reading_for, silent, write_output
 
 #: The first key of ``merge --segments --json`` (specs/json.md).
 SEGMENTS_SCHEMA = "splatconv.merge-segments/3"
@@ -58,8 +58,8 @@ def merge_segments(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, 
     merged, report = merge_scenes(scenes, durations, leak=leak, budget=budget, progress=progress)
     frames = checked_frames(report, check_every) if check else []
     rows = fidelity(merged, scenes, report, camera=camera, frames=frames, progress=progress) if check else []
-    written = write(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level, layout=layout,
-                    quality=quality, progress=progress)
+    written = write_output(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level,
+                           layout=layout, quality=quality, progress=progress)
     tell(merged.notes)
     tell(report.notes)
     tell(written.notes)

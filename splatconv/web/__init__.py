@@ -4,7 +4,7 @@ The page (``assets/``: HTML, CSS, JavaScript, the depth-sort worker) runs the sa
 shader sources as :mod:`splatconv.render` (read from ``splatconv/render/shaders``,
 never copied). :mod:`.page` builds it, self-contained, around one scene or a list
 of segments, given as bytes or URLs. Nothing here reads or writes a scene file or
-knows a format: the ``.html`` format (:mod:`splatconv.formats.html`), publishing
-(:mod:`splatconv.publish`) and the ``view`` server (:mod:`splatconv.server`) use it.
+knows a format: publishing (:mod:`splatconv.publish`, which writes every ``.html``
+page) and the ``view`` server (:mod:`splatconv.server`) use it.
 Nothing here imports moderngl.
 """
