@@ -1,7 +1,8 @@
 """The player page plays ``.splatvq`` itself: decoded in its workers, into the texture the shader reads.
 
 The page's decoded texture, read back from the GPU, must hold exactly the words
-splatconv's decoder gives (``splatvq.decode``), zero padding after them; its frame
+splatconv's decoder gives (``splatvq.decode``), zero padding after them, once put in
+the order the page draws depth ties in (its importance order); its frame
 must match ``splatconv render`` of the same file at >= 40 dB; bad files show a
 plain message. Scenes come from ``tests/real_scenes.py`` (zero rotations, NaN and
 huge positions, infinite temporal scales, flat splats: raw records and every escape).
@@ -20,6 +21,7 @@ import pytest
 
 import splatconv
 from splatconv import packing
+from splatconv.model import COLUMNS, Scene
 from splatconv.errors import FormatError
 from splatconv.formats import splatvq
 from splatconv.formats import splatvq_codec as codec
@@ -30,7 +32,8 @@ from splatconv.server import ViewServer
 
 from . import splatvq_files as damage
 from .real_scenes import real_file, real_scene
-from .scenes import overlapping_scene
+from .conftest import splatv_bytes
+from .scenes import CAMERA, overlapping_scene
 from .test_web import MIN_PSNR, W, H, assert_matches, rendered
 from .web_support import capture, open_page, serving, wait_settled
 
@@ -56,10 +59,27 @@ def large(tmp_path_factory):
     return path
 
 
-def page_words(page) -> np.ndarray:
-    """The page's texture as the GPU holds it: ``(rows * 1024, 16) uint32``."""
+def texture_words(page) -> np.ndarray:
+    """The page's texture as the GPU holds it: ``(rows * 1024, 16) uint32`` (a .splatvq's blocks' records in the
+    order the blocks store them)."""
     text = page.evaluate("window.splatconvPlayer.textureWords(0)")
     return np.frombuffer(base64.b64decode(text), "<u4").reshape(-1, 16)
+
+
+def record_order(page) -> np.ndarray | None:
+    """Which texture record the page draws k-th among depth ties: ``(rows * 1024,) uint32``, None for the texture's
+    own order."""
+    text = page.evaluate("window.splatconvPlayer.recordOrder(0)")
+    return None if text is None else np.frombuffer(base64.b64decode(text), "<u4")
+
+
+def page_words(page) -> np.ndarray:
+    """The page's records in the order it draws depth ties in: ``(rows * 1024, 16) uint32``."""
+    words, order = texture_words(page), record_order(page)
+    if order is None:
+        return words
+    assert np.array_equal(np.sort(order), np.arange(len(words)))  # each texture record once
+    return words[order]
 
 
 def assert_same_words(page, path):
@@ -411,3 +431,54 @@ def test_the_page_draws_a_splatvq_as_it_draws_the_splatv_of_its_decoded_scene(br
         print(f"{vq.name} against {plain.name} at t={t}: {diff.psnr:.2f} dB, largest error {diff.max_abs_error}")
         psnrs.append(diff.psnr)
     assert min(psnrs) >= MIN_PSNR, psnrs
+
+
+def _tied_scene(n: int = 24) -> Scene:
+    """``n`` large, partly transparent splats of other colours on the plane z = 0, facing :data:`CAMERA`: one
+    depth key, so the viewer blends them all in record order. Their importance (scale) grows with x, and a
+    block stores them by x: its payload order is the reverse of their importance order. One more splat, tiny
+    and far behind, is the farthest: the depth sort drops it, and the viewer draws its first record in its
+    place, last."""
+    c = {name: np.zeros(n + 1, np.float32) for name in COLUMNS}
+    c["x"][:n] = np.linspace(-3.0, 3.0, n)
+    c["y"][:n] = np.linspace(-1.5, 1.5, n)[::-1]
+    c["z"][n] = 40.0
+    for i in range(3):
+        c[f"scale_{i}"] = np.log(np.r_[np.linspace(0.8, 1.6, n), 0.01]).astype(np.float32)
+        c[f"f_dc_{i}"] = (0.5 + 0.45 * np.sin(np.arange(n + 1) * 2.4 + 2.1 * i)).astype(np.float32)
+    c["opacity"][:] = 0.3
+    c["rot_0"][:] = 1.0
+    c["trbf_scale"][:] = np.log(1e3)
+    c["trbf_center"][:] = 0.5
+    return Scene(c, cameras=[dict(CAMERA)])
+
+
+def _frame_of(browser, tmp_path, name: str, data: bytes) -> tuple:
+    """(the page's frame of a scene file's bytes, the page)."""
+    page_path = tmp_path / f"{name}.html"
+    page_path.write_bytes(build_page([SceneRef(name=name, data=data)]))
+    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
+    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
+    return capture(page), page
+
+
+def test_depth_ties_are_drawn_in_importance_order_not_in_the_order_blocks_store(browser, tmp_path):
+    """The page keeps a block's records where the block stores them and draws depth ties in importance order:
+    its frame is the very frame of a .splatv holding the decoded records in decode_block's order, and not that
+    of a .splatv holding them in the texture's order."""
+    vq = tmp_path / "tied.splatvq"
+    splatconv.write(_tied_scene(), vq)
+    decoded = splatvq.decode(vq)
+    n = len(decoded)
+    frame, page = _frame_of(browser, tmp_path, "tied.splatvq", vq.read_bytes())
+    stored, order = texture_words(page)[:n], record_order(page)[:n]
+    page.close()
+    assert not np.array_equal(order, np.arange(n))  # the block stores them in another order
+    assert np.array_equal(stored[order], decoded)
+    same, page = _frame_of(browser, tmp_path, "decoded.splatv", splatv_bytes(decoded, [dict(CAMERA)]))
+    page.close()
+    other, page = _frame_of(browser, tmp_path, "stored.splatv", splatv_bytes(stored, [dict(CAMERA)]))
+    page.close()
+    assert compare(same, other).max_abs_error > 30  # record order shows in this scene
+    # The same records blended in the same order by the same shader: the same pixels.
+    assert np.array_equal(frame, same), compare(same, frame)

@@ -189,6 +189,10 @@
     return {
       source, index, duration, generation: Math.random(), name: source.name,
       header: null, texheight: 0, total: 0, data: null, words: null,
+      // A .splatvq's records lie in the texture as its blocks store them; order[k] is the texture
+      // record of the k-th in importance order (decode_block's order, a .splatv's of the decoded
+      // scene), which the sort draws depth ties in. null: the texture's own order (.splatv).
+      order: null,
       // A .splatvq's inflate and decode time (summed over blocks), when its first and last bytes arrived.
       format: "splatv", decodeMs: null, firstByteAt: null, lastByteAt: null, loadedAt: null,
       received: 0,   // texture bytes arrived
@@ -387,8 +391,10 @@
   }
 
   // Stream a .splatvq into the decode worker (splatvq_decode.js): its blocks come back
-  // as .splatv texture records, in importance order, and land where a .splatv's bytes
-  // would, so uploading, sorting and drawing are the same from here on.
+  // as .splatv texture records, each block's in the order it stores them, with their
+  // importance order beside them (seg.order), and land where a .splatv's bytes would;
+  // uploading and drawing are the same from here on, and the sort draws depth ties in
+  // importance order, as it draws a .splatv of the decoded scene.
   async function loadSplatvq(seg, reader, first) {
     const decoder = startDecoder();
     let failure = null;
@@ -407,9 +413,14 @@
           seg.format = "splatvq";
           seg.decodeMs = 0;
           startTexture(seg, {texheight, count: msg.count, cameras: msg.cameras});
+          seg.order = new Uint32Array(seg.total);
+          for (let k = 0; k < seg.total; k++) seg.order[k] = k; // a block's own order, the padding's
         } else if (msg.type === "block") {
-          // Blocks arrive in file order: every record before this block's end is in.
+          // Blocks arrive in file order: every record before this block's end is in. The file is in
+          // importance order block after block, so a record's rank is its block's start plus its rank
+          // in the block.
           seg.data.set(new Uint8Array(msg.words.buffer), msg.start * RECORD_BYTES);
+          if (msg.order) for (let k = 0; k < msg.count; k++) seg.order[msg.start + k] = msg.start + msg.order[k];
           seg.received = (msg.start + msg.count) * RECORD_BYTES;
           seg.decodeMs += msg.ms;
         } else if (msg.type === "done") {
@@ -458,7 +469,9 @@
     state.version++; // redraw once complete, as a .splatv's load does
   }
 
-  // Upload whatever arrived since the last frame and hand the positions to the worker.
+  // Upload whatever arrived since the last frame and hand the positions to the worker, in
+  // importance order with the texture record of each where that is not the texture's order
+  // (whole blocks arrive at once: the records of [uploaded, records) are those ranked there).
   function pump(seg) {
     if (!seg.texture) return;
     const records = seg.done ? seg.total : Math.floor(seg.received / RECORD_BYTES);
@@ -469,14 +482,15 @@
     gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, firstRow, TEXWIDTH, lastRow - firstRow, gl.RGBA_INTEGER,
                      gl.UNSIGNED_INT, seg.words, firstRow * TEXWIDTH * 4);
     const n = records - seg.uploaded;
-    const positions = new Float32Array(n * 3);
-    for (let i = 0, r = seg.uploaded * 16; i < n; i++, r += 16) {
+    const positions = new Float32Array(n * 3), order = seg.order ? seg.order.slice(seg.uploaded, records) : null;
+    for (let i = 0, k = seg.uploaded; i < n; i++, k++) {
+      const r = 16 * (order ? order[i] : k);
       positions[3 * i] = seg.floats[r];
       positions[3 * i + 1] = seg.floats[r + 1];
       positions[3 * i + 2] = seg.floats[r + 2];
     }
-    worker.postMessage({type: "append", segment: seg.index, start: seg.uploaded, total: seg.total, positions},
-                       [positions.buffer]);
+    worker.postMessage({type: "append", segment: seg.index, start: seg.uploaded, total: seg.total, positions, order},
+                       order ? [positions.buffer, order.buffer] : [positions.buffer]);
     if (seg.index === 0 && seg.uploaded === 0 && !state.userMoved) framePivot(seg, records);
     seg.uploaded = records;
     seg.sortable = records;
@@ -489,7 +503,7 @@
     const v = state.view;
     const depths = [];
     for (let i = 0; i < Math.min(records, 4096); i++) {
-      const r = i * 16, x = seg.floats[r], y = seg.floats[r + 1], z = seg.floats[r + 2];
+      const r = 16 * (seg.order ? seg.order[i] : i), x = seg.floats[r], y = seg.floats[r + 1], z = seg.floats[r + 2];
       const d = v[2] * x + v[6] * y + v[10] * z + v[14];
       if (Number.isFinite(d) && d > 0) depths.push(d);
     }
@@ -919,6 +933,18 @@
     return btoa(text);
   }
 
+  // Which texture record is k-th in importance order, the order the sort draws depth ties in
+  // (tests put the texture's words in it to compare them with splatconv's decoder): base64 of
+  // uint32 little endian, or null where it is the texture's own order (.splatv).
+  function recordOrder(segment) {
+    const seg = state.segments[segment];
+    if (!seg || !seg.order) return null;
+    const bytes = new Uint8Array(seg.order.buffer, seg.order.byteOffset, seg.order.byteLength);
+    let text = "";
+    for (let i = 0; i < bytes.length; i += 0x8000) text += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+    return btoa(text);
+  }
+
   // Decode the .splatvq at `url` in the decode workers, all its bytes in memory first and
   // nothing drawn (bench): the wall milliseconds, the splats, the blocks' summed work.
   async function benchDecode(url) {
@@ -943,7 +969,7 @@
     });
   }
 
-  window.splatconvPlayer = {status, capture, benchSort, benchDecode, textureWords,
+  window.splatconvPlayer = {status, capture, benchSort, benchDecode, textureWords, recordOrder,
                             useCamera: (i) => useCamera(i, true)};
 
   // ---------------------------------------------------------------- start

@@ -3,9 +3,10 @@
 // The page posts its source ({type: "init", source}), then the file's bytes as they
 // arrive ({type: "bytes", data}) and then
 // {type: "end"}; the worker answers {type: "header", count, cameras, blocks}, then
-// one {type: "block", start, count, words, ms} per block, in file order (words: the
-// block's .splatv texture records, 16 uint32 a splat), then {type: "done"} -- or
-// {type: "error", message} with a plain-language reason, and nothing more.
+// one {type: "block", start, count, words, order, ms} per block, in file order (words:
+// the block's .splatv texture records, 16 uint32 a splat, in payload order; order: their
+// indices in the block in importance order, or null where that is payload order), then
+// {type: "done"} -- or {type: "error", message} with a plain-language reason, and nothing more.
 //
 // Every byte is as specs/splatvq.md says (version 3), refused where
 // splatconv/formats/splatvq.py and splatvq_codec.py refuse it, and the arithmetic is
@@ -13,8 +14,9 @@
 // doubles (products with exact powers of two, one sum, one square root, one
 // division), rounded to float32 (Math.fround) and then to a half by round to nearest
 // even, saturating at +-65504: the words are Python's, bit for bit (tests check).
-// Each block's records come out in importance order (record_order in splatvq_codec.py:
-// the order the viewer draws depth ties in, as in a .splatv), not in payload order.
+// Each block's records come out in payload order, with their importance order beside them
+// (record_order in splatvq_codec.py: the order the viewer draws depth ties in, as in a
+// .splatv, and the order decode_block gives them in): the page draws ties in it.
 // Each block is a raw deflate stream, inflated by the browser's own
 // DecompressionStream("deflate-raw"): native code, no decoder shipped in the page.
 "use strict";
@@ -200,7 +202,7 @@ function startHelpers(blocks) {
         const msg = event.data, job = jobs.get(msg.id);
         jobs.delete(msg.id);
         if (msg.error !== undefined) job.reject(new Refusal(msg.error));
-        else job.resolve({words: msg.words, ms: msg.ms, inflateMs: msg.inflateMs});
+        else job.resolve({words: msg.words, order: msg.order, ms: msg.ms, inflateMs: msg.inflateMs});
       };
       helper.onerror = (event) => {
         event.preventDefault();
@@ -229,11 +231,11 @@ function schedule(block, stored, i) {
   posted = posted.then(async () => {
     if (failed) return;
     try {
-      const {words, ms, inflateMs} = await (result || decodeBlock(stored, block.coded, block.raw, block.payload,
-                                                       file.setting, which));
+      const {words, order, ms, inflateMs} = await (result || decodeBlock(stored, block.coded, block.raw,
+                                                                        block.payload, file.setting, which));
       if (failed) return;
-      self.postMessage({type: "block", start: block.start, count: block.coded + block.raw, words, ms, inflateMs},
-                       [words.buffer]);
+      self.postMessage({type: "block", start: block.start, count: block.coded + block.raw, words, order, ms,
+                        inflateMs}, order ? [words.buffer, order.buffer] : [words.buffer]);
     } catch (e) {
       fail(e instanceof Refusal ? e.message : `the decoder failed (${e && e.message ? e.message : e}).`);
     }
@@ -384,8 +386,8 @@ async function decodeBlock(stored, coded, raw, size, setting, which) {
   const t0 = performance.now();
   const payload = await inflate(stored, size, which);
   const t1 = performance.now();
-  const words = decodePayload(payload, coded, raw, setting, which);
-  return {words, ms: performance.now() - t0, inflateMs: t1 - t0};
+  const {words, order} = decodePayload(payload, coded, raw, setting, which);
+  return {words, order, ms: performance.now() - t0, inflateMs: t1 - t0};
 }
 
 // A zigzag code -> its integer: 0, -1, 1, -2, ... Codes may pass 2^32 (a saturating
@@ -494,7 +496,7 @@ function decodePayload(p, n, raw, s, which) {
   const {columns, rawAt} = layout(p, n, raw, which);
   const out = new Uint32Array((n + raw) * WORDS);
   new Uint8Array(out.buffer, n * WORDS * 4).set(p.subarray(rawAt, rawAt + raw * RAW_BYTES));
-  if (!n) return inImportanceOrder(out, raw);
+  if (!n) return {words: out, order: importanceOrder(out, raw)};
   const chunks = Math.ceil(n / CHUNK);
   const posBase = new Float64Array(p.buffer, p.byteOffset, 3 * chunks);
   for (let j = 0; j < 3 * chunks; j++) {
@@ -525,7 +527,7 @@ function decodePayload(p, n, raw, s, which) {
   }
   motionAndOmega(b);
   temporalCentres(b);
-  return inImportanceOrder(out, n + raw);
+  return {words: out, order: importanceOrder(out, n + raw)};
 }
 
 // ------------------------------------------------------------------ importance order
@@ -539,15 +541,18 @@ for (let h = 0; h < 65536; h++) {
 }
 const DIGIT_BITS = 13, DIGITS = 4, RADIX = 1 << DIGIT_BITS, DIGIT = RADIX - 1;
 
-// A block's records in importance order, as record_order in splatvq_codec.py: the key is
-// the product of the three scale halves' values and the alpha byte (exact in doubles: the
-// same bits as numpy's), records sorted stably by a 64-bit code of it that ascends as the
-// key descends (0x7fffffffffffffff - bits for a key of 0 or more, -0 as +0; the bits of a
-// negative key; all ones for NaN). An exact key has at most 41 significant bits, so the
-// code's low 12 bits follow from its sign: the sort takes bits 12..63, in two 26-bit
-// halves, with an LSD radix sort of four 13-bit digits (a digit all records share is
-// skipped), all four counts made in one pass.
-function inImportanceOrder(words, n) {
+// A block's importance order, as record_order in splatvq_codec.py: the records' indices,
+// most important first, or null where that is their payload order. The records themselves
+// stay where they are (moving 64 bytes a record cost a tenth of the decode): the page draws
+// depth ties in this order instead (sort_worker.js). The key is the product of the three
+// scale halves' values and the alpha byte (exact in doubles: the same bits as numpy's),
+// records sorted stably by a 64-bit code of it that ascends as the key descends
+// (0x7fffffffffffffff - bits for a key of 0 or more, -0 as +0; the bits of a negative
+// key; all ones for NaN). An exact key has at most 41 significant bits, so the code's low
+// 12 bits follow from its sign: the sort takes bits 12..63, in two 26-bit halves, with an
+// LSD radix sort of four 13-bit digits (a digit all records share is skipped), all four
+// counts made in one pass.
+function importanceOrder(words, n) {
   const halves = new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2);
   const keys = new Float64Array(n), bits = new Uint32Array(keys.buffer);
   for (let i = 0; i < n; i++) {
@@ -572,8 +577,7 @@ function inImportanceOrder(words, n) {
     count[2 * RADIX + (b & DIGIT)]++;
     count[3 * RADIX + (b >>> DIGIT_BITS)]++;
   }
-  let order = new Uint32Array(n), spare = new Uint32Array(n), moved = false;
-  for (let i = 0; i < n; i++) order[i] = i;
+  let order = null, spare = new Uint32Array(n);
   for (let d = 0; d < DIGITS; d++) {
     const at = d * RADIX, code = d < 2 ? low : high, shift = d & 1 ? DIGIT_BITS : 0;
     if (count[at + ((code[0] >>> shift) & DIGIT)] === n) continue; // one digit: the order stands
@@ -582,31 +586,18 @@ function inImportanceOrder(words, n) {
       count[k] = sum;
       sum += c;
     }
-    for (let i = 0; i < n; i++) {
-      const r = order[i];
-      spare[count[at + ((code[r] >>> shift) & DIGIT)]++] = r;
+    if (order === null) {
+      for (let i = 0; i < n; i++) spare[count[at + ((code[i] >>> shift) & DIGIT)]++] = i;
+      order = new Uint32Array(n);
+    } else {
+      for (let i = 0; i < n; i++) {
+        const r = order[i];
+        spare[count[at + ((code[r] >>> shift) & DIGIT)]++] = r;
+      }
     }
     [order, spare] = [spare, order];
-    moved = true;
   }
-  return moved ? permuted(words, order, n) : words;
-}
-
-// The records in `order`: each record's 16 words written where it goes, records read in
-// turn (reading them in turn and writing them apart runs some twice as fast as the other way
-// round; the 16 words written out, not a loop, faster again).
-function permuted(w, order, n) {
-  const place = new Uint32Array(n);
-  for (let i = 0; i < n; i++) place[order[i]] = WORDS * i;
-  const o = new Uint32Array(w.length);
-  for (let i = 0, f = 0; i < n; i++, f += WORDS) {
-    const t = place[i];
-    o[t] = w[f]; o[t + 1] = w[f + 1]; o[t + 2] = w[f + 2]; o[t + 3] = w[f + 3];
-    o[t + 4] = w[f + 4]; o[t + 5] = w[f + 5]; o[t + 6] = w[f + 6]; o[t + 7] = w[f + 7];
-    o[t + 8] = w[f + 8]; o[t + 9] = w[f + 9]; o[t + 10] = w[f + 10]; o[t + 11] = w[f + 11];
-    o[t + 12] = w[f + 12]; o[t + 13] = w[f + 13]; o[t + 14] = w[f + 14]; o[t + 15] = w[f + 15];
-  }
-  return o;
+  return order;
 }
 
 // Scales (words 5-6, half slots 10-12) and the temporal scale (slot 31): integers only.
@@ -764,7 +755,8 @@ self.onmessage = (event) => {
   if (helperMode) {
     // One block at a time, so that each block's time is its own work.
     queue = queue.then(() => decodeBlock(msg.stored, msg.coded, msg.raw, msg.payload, msg.setting, msg.which)).then(
-      ({words, ms, inflateMs}) => self.postMessage({id: msg.id, words, ms, inflateMs}, [words.buffer]),
+      ({words, order, ms, inflateMs}) => self.postMessage({id: msg.id, words, order, ms, inflateMs},
+                                                          order ? [words.buffer, order.buffer] : [words.buffer]),
       (e) => self.postMessage({id: msg.id, error: e instanceof Refusal ? e.message
                                                   : `the decoder failed (${e && e.message ? e.message : e}).`}));
     return;
