@@ -436,16 +436,17 @@ def test_the_page_draws_a_splatvq_as_it_draws_the_splatv_of_its_decoded_scene(br
 def _tied_scene(n: int = 24) -> Scene:
     """``n`` large, partly transparent splats of other colours on the plane z = 0, facing :data:`CAMERA`: one
     depth key, so the viewer blends them all in record order. Their importance (scale) grows with x, and a
-    block stores them by x: its payload order is the reverse of their importance order. One more splat, tiny
-    and far behind, is the farthest: the depth sort drops it, and the viewer draws its first record in its
-    place, last."""
-    c = {name: np.zeros(n + 1, np.float32) for name in COLUMNS}
+    block stores them by x: its payload order is the reverse of their importance order. Four more splats,
+    tiny, lie at the ends of the depth range, so that the plane's are none of the ends a .splatvq keeps
+    verbatim: two far behind (the farthest is dropped by the depth sort, and the viewer draws its first
+    record in its place, last) and two near the camera."""
+    c = {name: np.zeros(n + 4, np.float32) for name in COLUMNS}
     c["x"][:n] = np.linspace(-3.0, 3.0, n)
     c["y"][:n] = np.linspace(-1.5, 1.5, n)[::-1]
-    c["z"][n] = 40.0
+    c["z"][n:] = 40.0, 41.0, -5.0, -5.5
     for i in range(3):
-        c[f"scale_{i}"] = np.log(np.r_[np.linspace(0.8, 1.6, n), 0.01]).astype(np.float32)
-        c[f"f_dc_{i}"] = (0.5 + 0.45 * np.sin(np.arange(n + 1) * 2.4 + 2.1 * i)).astype(np.float32)
+        c[f"scale_{i}"] = np.log(np.r_[np.linspace(0.8, 1.6, n), [0.01] * 4]).astype(np.float32)
+        c[f"f_dc_{i}"] = (0.5 + 0.45 * np.sin(np.arange(n + 4) * 2.4 + 2.1 * i)).astype(np.float32)
     c["opacity"][:] = 0.3
     c["rot_0"][:] = 1.0
     c["trbf_scale"][:] = np.log(1e3)
