@@ -135,3 +135,13 @@ class ProgressRecorder:
             entry[3] += n
 
         return contextlib.nullcontext(advance)
+
+
+@pytest.fixture(autouse=True)
+def _small_proofs(monkeypatch):
+    """A .splatvq convert proves its file by drawing it: in tests, the same views at a test's size and two
+    times (tests/test_splatvq_proof.py and the real-scene tests check the frames themselves)."""
+    from splatconv.render import proof
+
+    monkeypatch.setattr(proof, "PROOF_WIDTH", 160)
+    monkeypatch.setattr(proof, "PROOF_TIMES", (0.2, 0.8))

@@ -182,16 +182,29 @@ def test_the_test_vector_decodes_as_written():
 def test_precision_steps_are_as_written():
     text = " ".join(SPEC.split())
     first, last = codec.PRECISIONS[0], codec.PRECISIONS[-1]
-    assert f"a `precision` step from −{-first} to {last} (`PRECISIONS`, `refined`)" in text
+    assert f"a `precision` step from −{-first} to {last} (`PRECISIONS`, `refined`), in half steps" in text
     assert codec.PRECISIONS == tuple(range(first, last + 1))
     base = codec.SETTINGS["default"]
-    finer = codec.refined(base, 1)
+    angular = ("rotation_bits", "omega_shift", "scale_step")
+    geometric = ("position_shift", "motion_shift", "time_shift", "trbf_scale_step")
+    relations = ("flat_octaves", "acceleration_shift")
+
+    def moved(step):
+        s = codec.refined(base, step)
+        return {f for f in angular + geometric + relations + ("jerk_shift", "alpha_levels")
+                if getattr(s, f) != getattr(base, f)}
+
+    assert moved(1) == set(angular) and moved(2) == set(angular + geometric)
+    assert moved(-1) == set(relations) and moved(-2) == set(relations + geometric)
+    assert moved(-3) == set(relations + geometric + angular)
+    finer = codec.refined(base, 2)
     assert (finer.position_shift, finer.motion_shift) == (base.position_shift - 1, base.motion_shift - 1)
     assert (finer.rotation_bits, finer.time_shift, finer.omega_shift) == (
         base.rotation_bits + 1, base.time_shift + 1, base.omega_shift + 1)
     assert (finer.scale_step, finer.trbf_scale_step) == (round(base.scale_step / 2), round(base.trbf_scale_step / 2))
-    kept = ("acceleration_shift", "jerk_shift", "alpha_levels", "flat_octaves")
-    assert all(getattr(finer, f) == getattr(base, f) for f in kept)
+    coarser = codec.refined(base, -1)
+    assert (coarser.flat_octaves, coarser.acceleration_shift) == (base.flat_octaves - 1, base.acceleration_shift + 1)
+    assert codec.precision_name("default", 2) == "default+1" and codec.precision_name("small", -1) == "small-0.5"
     for step in codec.PRECISIONS:  # held to the header's limits
         s = codec.refined(base, step)
         assert all(low <= getattr(s, f) <= high for f, (low, high) in codec.SETTING_LIMITS.items())

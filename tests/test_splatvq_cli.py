@@ -42,12 +42,15 @@ def embedded(page) -> bytes:
 @pytest.mark.parametrize("quality", QUALITIES)
 def test_convert_writes_the_setting_asked_for(tmp_path, source, quality):
     out = tmp_path / f"{quality}.splatvq"
-    r = run("convert", source, out, "--quality", quality)
+    r = run("convert", source, out, "--quality", quality, "--no-proof")
     assert r.exit_code == 0, r.output
     assert io.read(out).meta["setting"] == quality
     # The very bytes the library writes with that setting.
     assert out.read_bytes() == splatvq.encode(io.read(source), quality=quality)[0]
     assert f"quantized with the {quality!r} setting" in r.stderr
+    # Proved (the default), the header names the precision step the proof chose beside the setting.
+    assert run("convert", source, out, "--quality", quality, "--force").exit_code == 0
+    assert io.read(out).meta["setting"].startswith(quality)
 
 
 def test_the_settings_give_different_sizes_the_last_the_smallest(tmp_path, source):
@@ -120,7 +123,7 @@ def test_a_splatvq_page_takes_another_setting(tmp_path, source):
     """A .splatvq input's page keeps its setting, unless --quality asks for another."""
     first, last = QUALITIES[0], QUALITIES[-1]
     vq = tmp_path / "in.splatvq"
-    assert run("convert", source, vq, "--quality", first).exit_code == 0
+    assert run("convert", source, vq, "--quality", first, "--no-proof").exit_code == 0
     assert run("convert", vq, tmp_path / "kept.html").exit_code == 0
     assert run("convert", vq, tmp_path / "other.html", "--quality", last).exit_code == 0
     for name, setting in (("kept.html", first), ("other.html", last)):
@@ -132,7 +135,7 @@ def test_a_splatvq_kept_at_its_setting_is_not_called_quantized(tmp_path, source)
     """Written again at its own setting, a .splatvq input is quantized by nothing: no note says it was."""
     first, last = QUALITIES[0], QUALITIES[-1]
     vq = tmp_path / "in.splatvq"
-    assert run("convert", source, vq, "--quality", first).exit_code == 0
+    assert run("convert", source, vq, "--quality", first, "--no-proof").exit_code == 0
     for out, more in (("same.html", ("--quality", first)), ("again.splatvq", ())):
         r = run("convert", vq, tmp_path / out, *more)
         assert r.exit_code == 0, r.output

@@ -10,6 +10,7 @@ from click.testing import CliRunner
 
 from splatconv import io, viewer
 from splatconv.cli import main
+from splatconv.formats import splatvq_codec as codec
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import prune
 from splatconv.render import camera as cam
@@ -94,23 +95,26 @@ def test_max_bytes_gives_the_finest_step_that_fits(tmp_path):
     scene = _shaped("large")
     io.write(scene, src)
     sizes = {}
-    for step in (-3, 0, 3):
+    coarsest = codec.PRECISIONS[0]
+    for step in (coarsest, 0, 3):
         io.write(scene, tmp_path / f"{step}.splatvq", precision=step)
         sizes[step] = (tmp_path / f"{step}.splatvq").stat().st_size
-    assert sizes[-3] < sizes[0] < sizes[3]
+    assert sizes[coarsest] < sizes[0] < sizes[3]
     out = tmp_path / "o.splatvq"
     r = run("convert", src, out, "--max-bytes", sizes[0])
     assert r.exit_code == 0, r.output
     assert out.stat().st_size == sizes[0]  # step 1 would not fit: the steps grow
     assert any(n.startswith("note: proved: worst frame ") for n in r.stderr.splitlines())
-    r = run("convert", src, tmp_path / "tiny.splatvq", "--max-bytes", sizes[-3] - 1)
+    r = run("convert", src, tmp_path / "tiny.splatvq", "--max-bytes", sizes[coarsest] - 1)
     assert error_line(r, 1).startswith(f"Error: {tmp_path / 'tiny.splatvq'}: even the coarsest step")
     assert not (tmp_path / "tiny.splatvq").exists()
 
 
 @pytest.mark.parametrize("args", [("o.splatv", "--min-psnr", "40"), ("o.ply", "--max-bytes", "5M"),
-                                  ("o.splatvq", "--best-effort"), ("o.splatvq", "--max-bytes", "lots"),
-                                  ("o.splatvq", "--prune"), ("o.splatvq", "--max-bytes", "5M", "--prune")])
+                                  ("o.splatvq", "--max-bytes", "5M", "--best-effort"),
+                                  ("o.splatvq", "--max-bytes", "lots"), ("o.splatvq", "--no-proof", "--prune"),
+                                  ("o.splatvq", "--max-bytes", "5M", "--prune"), ("o.ply", "--prune"),
+                                  ("o.splatvq", "--no-proof", "--min-psnr", "40")])
 def test_proof_options_are_refused_where_they_mean_nothing(tmp_path, args):
     src = tmp_path / "s.ply"
     io.write(moving_scene(20), src)

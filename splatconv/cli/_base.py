@@ -112,26 +112,31 @@ class ByteSize(click.ParamType):
 
 
 def proof_options():
-    """``--min-psnr``, ``--max-bytes``, ``--best-effort`` and ``--prune``: a compressed output that proves its quality."""
+    """``--min-psnr``, ``--max-bytes``, ``--best-effort``, ``--prune`` and ``--no-proof``: a compressed output
+    that proves its quality."""
     return (
         click.option("--min-psnr", type=POSITIVE, metavar="DB",
-                     help="A .splatvq OUTPUT proves its quality: written at the precision step (the --quality "
-                          "setting, finer or coarser) whose worst frame reaches DB against the scene it encodes, "
-                          "drawn as the viewer draws them from the header cameras, views near them and splaTV's "
-                          "opening view at five times; exit 1 if no step does. 45 suits the default setting, "
-                          "40 small."),
+                     help="A .splatvq OUTPUT proves its quality: it is written at the precision step (the "
+                          "--quality setting, finer or coarser by half steps) whose worst frame reaches DB "
+                          "against the scene it encodes, drawn as the viewer draws them from the header cameras, "
+                          "views near them and splaTV's opening view at five times (fewer frames for a scene of "
+                          "millions of splats); exit 1 if no step does. Default: the setting's floor, 45 dB for "
+                          "default, 40 for small."),
         click.option("--max-bytes", type=ByteSize(), metavar="SIZE",
                      help="A .splatvq OUTPUT of at most SIZE bytes (e.g. 5M, binary units): the finest precision "
                           "step that fits (with --min-psnr, that also reaches DB); its quality is measured as "
                           "for --min-psnr and said."),
         click.option("--best-effort", is_flag=True,
-                     help="With --min-psnr: when no step reaches DB, write the best one measured and say how "
-                          "far short it is."),
+                     help="When no step reaches the floor, write the best one measured and say how far short "
+                          "it is."),
         click.option("--prune", is_flag=True,
-                     help="With --min-psnr: also leave out the drawable splats that add least to the proof's "
-                          "frames (ranked by their blend weight over its views and times), as many as keep the "
-                          "worst frame at DB or above; a note and the file's header say how many. Without it "
-                          "every drawable splat is kept."),
+                     help="Also leave out the drawable splats that add least to the proof's frames (ranked by "
+                          "their blend weight over its views and times), as many as keep the worst frame at "
+                          "the floor or above; a note and the file's header say how many. Without it every "
+                          "drawable splat is kept."),
+        click.option("--no-proof", is_flag=True,
+                     help="Write a .splatvq OUTPUT at the --quality setting as named, without drawing it: "
+                          "faster, and its quality unmeasured."),
     )
 
 

@@ -5,7 +5,6 @@ from __future__ import annotations
 import click
 
 from .. import io
-from ..jobs.convert import convert as convert_scene
 from ..jobs.frames import convert_frames, is_sequence
 from ..jobs.prove import convert_proven
 from ..ops.sequence import SAME_SPLATS_MODES
@@ -85,8 +84,8 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 @edit_options()
 @library_errors
 def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, quality, min_psnr,
-            max_bytes, best_effort, prune, color, zstd_level, frame_times, same_splats, max_error, force, quiet,
-            **edits):
+            max_bytes, best_effort, prune, no_proof, color, zstd_level, frame_times, same_splats, max_error, force,
+            quiet, **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
@@ -100,14 +99,15 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
       splatconv convert scene.splatv scene.ply
       splatconv convert 'frames/*.ply' clip.splatv --max-error 0.001
       splatconv convert scene.splatv scene.html
-      splatconv convert scene.ply scene.splatvq --min-psnr 45
-      splatconv convert scene.ply scene.splatvq --min-psnr 40 --prune
+      splatconv convert scene.ply scene.splatvq
+      splatconv convert scene.ply scene.splatvq --quality small --prune
+      splatconv convert scene.ply scene.splatvq --max-bytes 5M
+
+    A .splatvq OUTPUT proves its quality: the file written is drawn against
+    the scene it encodes and reaches its setting's floor (or --min-psnr), or
+    the command fails; the note says what it reached.
     """
-    proving = min_psnr is not None or max_bytes is not None
-    if best_effort and min_psnr is None:
-        raise Failure("--best-effort goes with --min-psnr", 2)
-    if prune and min_psnr is None:
-        raise Failure("--prune goes with --min-psnr", 2)
+    proving = min_psnr is not None or max_bytes is not None or best_effort or prune or no_proof
     # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and is_page(output_path)):
         # A page's segments are played as they are read, not fitted as frames: nothing else applies.
@@ -123,7 +123,8 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
         return
     if is_sequence(input_paths):
         if proving:
-            raise Failure("--min-psnr and --max-bytes apply to one INPUT (convert a frame sequence first)", 2)
+            raise Failure("--min-psnr, --max-bytes, --best-effort, --prune and --no-proof apply to one INPUT "
+                          "(convert a frame sequence first)", 2)
         _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
                         quality=quality, color=color, zstd_level=zstd_level, frame_times=frame_times,
                         same_splats=same_splats, max_error=max_error, force=force, quiet=quiet, edits=edits)
@@ -131,11 +132,10 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     if frame_times is not None or same_splats != "auto" or max_error is not None:
         raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
     input_path = input_paths[0]
-    job, proof = (convert_proven, {"min_psnr": min_psnr, "max_bytes": max_bytes, "best_effort": best_effort,
-                                  "prune": prune}) \
-        if proving else (convert_scene, {})
-    _scene, report = job(input_path, output_path, compat=compat, sort=sort, cameras=cameras, color=color,
-                         force=force, zstd_level=zstd_level, layout=layout, quality=quality,
-                         progress=progress(quiet), edit=scene_editor(edits), tell=notes, **proof)
+    _scene, report = convert_proven(input_path, output_path, min_psnr=min_psnr, max_bytes=max_bytes,
+                                    best_effort=best_effort, prune=prune, proof=not no_proof, compat=compat,
+                                    sort=sort, cameras=cameras, color=color, force=force, zstd_level=zstd_level,
+                                    layout=layout, quality=quality, progress=progress(quiet),
+                                    edit=scene_editor(edits), tell=notes)
     wrote(output_path, report)
 

@@ -146,8 +146,15 @@ class Format:
         Quality settings its writer offers (``quality=``), the default first.
     precisions : tuple of int
         Steps of precision its writer offers beside each quality (``precision=``),
-        coarsest first: 0 is the quality as named, each step up about halves every
-        quantizer's step. ``convert --min-psnr`` and ``--max-bytes`` walk them.
+        coarsest first: 0 is the quality as named, each two steps up about halve every
+        quantizer's step. ``convert`` (its proof, ``--min-psnr``, ``--max-bytes``) walks them.
+    floors : dict
+        Quality setting -> the worst-frame PSNR (dB) ``convert`` proves a file of that
+        setting reaches unless told another floor (``--min-psnr``) or none.
+    kept_step : callable or None
+        ``kept_step(scene, quality) -> int or None``: the precision step at which
+        ``scene``, read from a file of this format, is written again losslessly
+        at ``quality`` (its own setting), or None.
     declared_size : callable or None
         ``declared_size(head) -> int or None``: the file size the header at the start
         of ``head`` (bytes) declares; bounds the decompression of a ``.zst`` file.
@@ -184,6 +191,8 @@ class Format:
     layouts: tuple = ()
     qualities: tuple = ()
     precisions: tuple[int, ...] = ()
+    floors: dict = field(default_factory=dict, hash=False, compare=False)
+    kept_step: Callable | None = None
     declared_size: Callable | None = None
     texture: Texture | None = None
     check_playable: Callable | None = None

@@ -95,8 +95,8 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     quality : {None, "default", "small"}
         The quality setting (:data:`QUALITIES`).
     precision : int
-        Steps finer (or, below 0, coarser) than the setting (:func:`splatvq_codec.refined`,
-        one of :data:`splatvq_codec.PRECISIONS`); the header names it ``"default+2"``.
+        Half steps finer (or, below 0, coarser) than the setting (:func:`splatvq_codec.refined`,
+        one of :data:`splatvq_codec.PRECISIONS`); the header names step 2 ``"default+1"``.
     level : int
         Deflate level.
     progress : splatconv.progress.Progress
@@ -111,7 +111,7 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     if precision not in codec.PRECISIONS:
         raise UsageError(f"precision {precision} is not one of {codec.PRECISIONS[0]}..{codec.PRECISIONS[-1]}")
     setting = codec.refined(codec.SETTINGS[base], precision)
-    name = f"{base}{precision:+d}" if precision else base
+    name = codec.precision_name(base, precision)
     kinds = undrawable_kinds(scene.columns)
     drawable = kinds == -1
     if not drawable.any():
@@ -192,12 +192,24 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     kept = scene.variant == FORMAT.name and scene.meta.get("setting") == name
     how = f"kept the source's {name!r} setting" if kept else f"quantized with the {name!r} setting"
     report.notes.append(f"{how} ({len(data) / n:.1f} bytes a splat)"
-                        + (f"; {plural(raw, 'splat')} kept verbatim (NaN, infinite or far values)" if raw else "")
+                        + (f"; {plural(raw, 'splat')} kept verbatim (a zero rotation, or NaN, infinite or far values)" if raw else "")
                         + (f"; {plural(forced, 'splat')} at the ends of the viewer's depth sort kept exactly"
                            if forced else ""))
     # What packing the drawable splats' records changed, as the .splatv writer says it.
     report.notes.extend(splatv.write_notes(counts, False))
     return data, report
+
+
+def kept_step(scene: Scene, quality: str | None) -> int | None:
+    """The precision step that writes ``scene``, read from a ``.splatvq`` of ``quality``'s setting, losslessly.
+
+    The quantizers are projections: a scene on a step's grid is written again at
+    that step unchanged. None for a scene of another format or setting.
+    """
+    if scene.variant != FORMAT.name:
+        return None
+    base = _setting_name(quality)
+    return next((p for p in codec.PRECISIONS if codec.precision_name(base, p) == scene.meta.get("setting")), None)
 
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
@@ -459,4 +471,6 @@ FORMAT = Format(
     # The quality write option, the default setting first (for the help text).
     qualities=tuple(sorted(QUALITIES, key=lambda name: name != codec.DEFAULT_SETTING)),
     precisions=codec.PRECISIONS,
+    floors=dict(codec.FLOORS),
+    kept_step=kept_step,
 )

@@ -111,43 +111,63 @@ class Setting:
 
 #: Quality settings by name, best first. The bench (``bench/bench_splatvq.py``) measures them.
 SETTINGS = {
-    "default": Setting(position_shift=-5, rotation_bits=10, scale_step=48, trbf_scale_step=96, time_shift=11,
-                       omega_shift=8, motion_shift=2, acceleration_shift=1, jerk_shift=1, alpha_levels=4,
+    "default": Setting(position_shift=-5, rotation_bits=10, scale_step=48, trbf_scale_step=192, time_shift=10,
+                       omega_shift=8, motion_shift=2, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
                        flat_octaves=2),
-    "small": Setting(position_shift=-4, rotation_bits=8, scale_step=72, trbf_scale_step=128, time_shift=9,
-                     omega_shift=6, motion_shift=3, acceleration_shift=0, jerk_shift=0, alpha_levels=4,
+    "small": Setting(position_shift=-4, rotation_bits=9, scale_step=96, trbf_scale_step=255, time_shift=9,
+                     omega_shift=7, motion_shift=3, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
                      flat_octaves=2),
 }
 DEFAULT_SETTING = "default"
-#: Precision steps beside a setting (:func:`refined`), coarsest first: 0 is the setting as named.
-PRECISIONS = tuple(range(-3, 7))
+#: The worst-frame PSNR (dB) each setting promises: what ``convert`` proves a file of it reaches.
+FLOORS = {"default": 45.0, "small": 40.0}
+#: Precision steps beside a setting (:func:`refined`), coarsest first: 0 is the setting as named,
+#: each two steps about halve every quantizer's step.
+PRECISIONS = tuple(range(-6, 13))
+
+
+def precision_name(base: str, step: int) -> str:
+    """The header's name of ``base`` at precision ``step``: ``"default"``, ``"default+1"``, ``"small-0.5"``."""
+    return f"{base}{step / 2:+g}" if step else base
 
 
 def refined(setting: Setting, step: int) -> Setting:
-    """``setting`` made ``step`` times finer (``step`` < 0: coarser), every quantizer together.
+    """``setting`` made ``step`` half steps finer (``step`` < 0: coarser).
 
-    Each step halves every geometric step (position, motion), the temporal
-    centre's and omega's lattice steps and each scale lattice step, and gives
-    the rotation a bit more: about 6 dB a step where the error is spread over
-    them all. The numbers that say how steps relate to one another (the
-    acceleration and jerk shifts, the alpha levels, the flat octaves) are kept. Values are held to
-    :data:`SETTING_LIMITS`, so the far steps may change fewer of them.
+    Two half steps about halve every quantizer's step: the geometric steps
+    (position, motion), the temporal centre's and omega's lattice steps and
+    each scale lattice step, and give the rotation a bit more (about 6 dB
+    where the error is spread over them all). On real scenes the angular
+    quantizers (rotation, omega, scale) buy the most dB for a byte, and the
+    geometric ones (position, motion, temporal centre and scale) lose the
+    fewest when coarsened, after two relations that cost least of all: the
+    flat splats' position step (``flat_octaves``) and the acceleration's
+    (``acceleration_shift``). So, finer, the angular group leads by a half
+    step; coarser, the first half step relaxes those two relations, the next
+    coarsens the geometric group, the next the angular group, and so on.
+    Values are held to :data:`SETTING_LIMITS`, so the far steps may change fewer of them.
     """
     def held(name, value):
         low, high = SETTING_LIMITS[name]
         return min(high, max(low, value))
 
-    def lattice(step_units):  # a factor of 2 in size is 1024 half-bit units
-        return max(1, round(step_units / 2.0 ** step))
+    def lattice(step_units, by):  # a factor of 2 in size is 1024 half-bit units
+        return max(1, round(step_units / 2.0 ** by))
 
+    if step >= 0:
+        angular, geometric, relaxed = -(-step // 2), step // 2, 0
+    else:
+        angular, geometric, relaxed = -(-(step + 1) // 2), -(-step // 2), 1
     return replace(
-        setting, position_shift=held("position_shift", setting.position_shift - step),
-        rotation_bits=held("rotation_bits", setting.rotation_bits + step),
-        scale_step=held("scale_step", lattice(setting.scale_step)),
-        trbf_scale_step=held("trbf_scale_step", lattice(setting.trbf_scale_step)),
-        time_shift=held("time_shift", setting.time_shift + step),
-        omega_shift=held("omega_shift", setting.omega_shift + step),
-        motion_shift=held("motion_shift", setting.motion_shift - step))
+        setting, position_shift=held("position_shift", setting.position_shift - geometric),
+        rotation_bits=held("rotation_bits", setting.rotation_bits + angular),
+        scale_step=held("scale_step", lattice(setting.scale_step, angular)),
+        trbf_scale_step=held("trbf_scale_step", lattice(setting.trbf_scale_step, geometric)),
+        time_shift=held("time_shift", setting.time_shift + geometric),
+        omega_shift=held("omega_shift", setting.omega_shift + angular),
+        motion_shift=held("motion_shift", setting.motion_shift - geometric),
+        acceleration_shift=held("acceleration_shift", setting.acceleration_shift + relaxed),
+        flat_octaves=held("flat_octaves", setting.flat_octaves - relaxed))
 
 
 #: Limits a header's setting is checked against.

@@ -1,10 +1,13 @@
 """``convert`` to a compressed output that proves its quality: candidates at each precision step, measured,
 the one that holds written.
 
-``convert OUT.splatvq --min-psnr DB`` and ``--max-bytes SIZE``: each candidate is
+``convert OUT.splatvq`` proves the file it writes reaches its setting's floor
+(:attr:`splatconv.formats.base.Format.floors`: 45 dB default, 40 small), or the
+floor ``--min-psnr`` sets; ``--max-bytes SIZE`` asks for a size instead;
+``--no-proof`` writes the setting as named, unmeasured. Each candidate is
 written in full to a temporary folder, read back as any reader would, and drawn
-against the scene it encodes (:mod:`splatconv.render.proof`); the output is then
-the very bytes that were measured.
+against the scene it encodes (:mod:`splatconv.render.proof`, whose source
+frames are drawn once); the output is then the very bytes that were measured.
 """
 
 from __future__ import annotations
@@ -12,49 +15,69 @@ from __future__ import annotations
 import os
 import shutil
 import tempfile
+import time
 
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_writer
-from ..formats import format_for
 from ..io import check_write_options, read, write
 from ..model import Scene
 from ..progress import SILENT
 from ..ops.prune import leave_out
 from ..publish import PAGE
-from ..render.proof import proof_views, prove, ranked
+from ..render.proof import PROOF_TIMES, Prover, proof_plan, proof_views, ranked
 from ..wording import plural
 from .convert import convert
 
-#: Coarser steps tried below the first that holds, to spend fewer bytes (each costs a proof).
-MAX_COARSER = 2
+#: Half steps tried coarser than the first that holds, to spend fewer bytes (each costs a proof).
+MAX_COARSER = 3
 #: Candidates ``--prune`` proves at most, and the share of the drawable splats it stops at (1/128).
 PRUNE_PROOFS = 7
 PRUNE_RESOLUTION = 128
 
 
-def check_proof_options(output, min_psnr: float | None, max_bytes: int | None, prune: bool = False) -> None:
-    """Refuse ``--min-psnr`` and ``--max-bytes`` for an output whose format has no precision steps, and
-    ``prune`` without ``min_psnr``."""
-    if prune and min_psnr is None:
-        raise UsageError("--prune goes with --min-psnr: it leaves out splats while the floor holds")
-    if min_psnr is None and max_bytes is None:
-        return
-    if not check_write_options(output, also=(PAGE,)).precisions:
-        raise UsageError("--min-psnr and --max-bytes apply to outputs whose format has precision steps "
-                         "(.splatvq)", output)
+def _precisions(output) -> tuple:
+    """The precision steps of ``output``'s format (none for a page or a format without them)."""
+    try:
+        return check_write_options(output, also=(PAGE,)).precisions
+    except (UsageError, AttributeError):
+        return ()
+
+
+def check_proof_options(output, min_psnr: float | None, max_bytes: int | None, prune: bool = False,
+                        proof: bool = True, best_effort: bool = False) -> bool:
+    """Refuse proof options that mean nothing for ``output`` or together; whether ``output`` is proved.
+
+    A format with precision steps is proved unless ``proof`` is False (``--no-proof``).
+    """
+    asked = min_psnr is not None or max_bytes is not None
+    if not proof and (asked or prune or best_effort):
+        raise UsageError("--no-proof writes the setting unmeasured: no --min-psnr, --max-bytes, --best-effort "
+                         "or --prune with it")
     if min_psnr is not None and not min_psnr > 0:
         raise UsageError(f"--min-psnr must be a positive number of dB, got {min_psnr:g}")
     if max_bytes is not None and max_bytes <= 0:
         raise UsageError(f"--max-bytes must be a positive size, got {max_bytes}")
+    if prune and min_psnr is None and max_bytes is not None:
+        raise UsageError("--prune leaves out splats while a floor holds: with --max-bytes, give --min-psnr")
+    if best_effort and min_psnr is None and max_bytes is not None:
+        raise UsageError("--best-effort goes with a floor: with --max-bytes, give --min-psnr")
+    if not _precisions(output):
+        if asked or prune or best_effort:
+            raise UsageError("--min-psnr, --max-bytes, --best-effort and --prune apply to outputs whose format "
+                             "has precision steps (.splatvq)", output)
+        return False
+    return proof
 
 
-def convert_proven(source, output, *, min_psnr: float | None, max_bytes: int | None, best_effort: bool = False,
-                   prune: bool = False, **options):
-    """:func:`splatconv.jobs.convert.convert` whose output proves its quality (:func:`write_proven`).
+def convert_proven(source, output, *, min_psnr: float | None = None, max_bytes: int | None = None,
+                   best_effort: bool = False, prune: bool = False, proof: bool = True, **options):
+    """:func:`splatconv.jobs.convert.convert`, whose output proves its quality (:func:`write_proven`) when its
+    format has precision steps and ``proof`` holds.
 
     The proof's options are checked before anything is read.
     """
-    check_proof_options(output, min_psnr, max_bytes, prune)
+    if not check_proof_options(output, min_psnr, max_bytes, prune, proof, best_effort):
+        return convert(source, output, **options)
 
     def writer(scene, out, **write_options):
         return write_proven(scene, out, min_psnr=min_psnr, max_bytes=max_bytes, best_effort=best_effort,
@@ -70,8 +93,8 @@ class _Candidates:
     that many of ``ranked`` (drawable rows, least contributing first).
     """
 
-    def __init__(self, scene: Scene, path: str, views: list, options: dict, advance):
-        self.scene, self.path, self.views, self.options, self.advance = scene, path, views, options, advance
+    def __init__(self, scene: Scene, path: str, prover: Prover, options: dict, advance):
+        self.scene, self.path, self.prover, self.options, self.advance = scene, path, prover, options, advance
         self.ranked = None
         self.sizes, self.proofs = {}, {}
         self.on_disk = None, None, None  # the candidate the file holds, its write report, its pruning report
@@ -95,26 +118,29 @@ class _Candidates:
     def proof(self, key):
         if key not in self.proofs:
             self.put(key)
-            self.proofs[key] = prove(self.scene, read(self.path), self.views)
+            self.proofs[key] = self.prover.prove(read(self.path))
             self.advance()
         return self.proofs[key]
 
 
-def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float | None, max_bytes: int | None,
-                 best_effort: bool = False, prune: bool = False, sort: str | None = None,
-                 zstd_level: int | None = None, force: bool = False, progress=SILENT):
-    """Write ``scene`` to ``output`` at the precision step that meets ``min_psnr`` within ``max_bytes``.
+def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float | None = None,
+                 max_bytes: int | None = None, best_effort: bool = False, prune: bool = False,
+                 sort: str | None = None, zstd_level: int | None = None, force: bool = False, progress=SILENT):
+    """Write ``scene`` to ``output`` at the precision step that meets a floor within ``max_bytes``.
 
-    Without ``max_bytes``, steps are tried from the setting as named (0) finer
-    until the worst frame reaches ``min_psnr``, then up to :data:`MAX_COARSER`
-    coarser while it still does (a frame can be worse at a finer step: the
-    viewer's depth sort makes a large splat's small move show). With
-    ``max_bytes``, the finest step that fits is tried first, then coarser ones.
+    The floor is ``min_psnr``, else the setting's (``Format.floors``) unless
+    ``max_bytes`` is given (then the finest step that fits, whatever it reaches).
+    Without ``max_bytes``, the setting as named (step 0) is proved first; while
+    the worst frame reaches the floor, up to :data:`MAX_COARSER` half steps
+    coarser are tried (a frame can be worse at a finer step: the viewer's depth
+    sort makes a large splat's small move show), else finer ones until one
+    does. With ``max_bytes``, the finest step that fits is tried first, then
+    coarser ones.
 
-    With ``prune`` (and ``min_psnr``), at the step chosen so, the drawable splats
-    that add least to the proof's frames (:func:`splatconv.render.proof.ranked`)
-    are left out, as many as a bisection of :data:`PRUNE_PROOFS` candidates finds
-    while the worst frame still reaches ``min_psnr``.
+    With ``prune``, at the step chosen so, the drawable splats that add least
+    to the proof's frames (:func:`splatconv.render.proof.ranked`) are left out,
+    as many as a bisection of :data:`PRUNE_PROOFS` candidates finds while the
+    worst frame still reaches the floor.
 
     Returns
     -------
@@ -124,17 +150,30 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     Raises
     ------
     OutputError
-        Nothing fits ``max_bytes``, or no step reaches ``min_psnr`` (unless
+        Nothing fits ``max_bytes``, or no step reaches the floor (unless
         ``best_effort``, which writes the best measured and says how far short).
     """
     output = os.fspath(output)
-    fmt = format_for(output, purpose="write")
+    fmt = check_write_options(output, quality=quality)
     steps = list(fmt.precisions)
     name = quality or fmt.qualities[0]
-    views = proof_views(scene)
+    floor = min_psnr if min_psnr is not None else fmt.floors.get(name) if max_bytes is None else None
+    whose = f"--min-psnr {floor:g} dB floor" if min_psnr is not None else f"{floor:g} dB floor of the {name!r} setting" \
+        if floor is not None else ""
+    kept = fmt.kept_step(scene, quality) if fmt.kept_step is not None else None
+    if kept is not None and min_psnr is None and max_bytes is None and not prune:
+        # A file of this very setting, written again at its own step: nothing changes, nothing to prove.
+        report = write(scene, output, quality=quality, precision=kept, sort=sort, zstd_level=zstd_level,
+                       force=force, progress=progress)
+        return report, [f"not proved again: {precision_text(name, kept)} keeps every value of the source, "
+                        "a file of that setting"]
+    started = time.perf_counter()
+    views, times = proof_plan(scene)
+    every = len(proof_views(scene))
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
-            progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0), "candidate") as advance:
-        c = _Candidates(scene, os.path.join(folder, os.path.basename(output)), views,
+            progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0), "candidate") as advance, \
+            Prover(scene, views, times) as prover:
+        c = _Candidates(scene, os.path.join(folder, os.path.basename(output)), prover,
                         {"quality": quality, "sort": sort, "zstd_level": zstd_level}, advance)
         if max_bytes is not None:
             fits = [p for p in steps if c.size((p, 0)) <= max_bytes] if c.size((steps[0], 0)) <= max_bytes else []
@@ -144,55 +183,67 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
             order = fits[::-1]  # the finest that fits first
         else:
             order = [p for p in steps if p >= 0]
-        chosen = next((p for p in order if min_psnr is None or c.proof((p, 0)).worst >= min_psnr), None)
-        if chosen is not None and min_psnr is not None and max_bytes is None:
+        chosen = next((p for p in order if floor is None or c.proof((p, 0)).worst >= floor), None)
+        if chosen is not None and floor is not None and max_bytes is None:
             for p in [q for q in steps if q < chosen][::-1][:MAX_COARSER]:
-                if c.proof((p, 0)).worst < min_psnr:
+                if c.proof((p, 0)).worst < floor:
                     break
                 chosen = p
         short = None
         if chosen is None:
             chosen = max((key for key in c.proofs), key=lambda key: c.proofs[key].worst)[0]
-            short = min_psnr - c.proofs[(chosen, 0)].worst
+            short = floor - c.proofs[(chosen, 0)].worst
             if not best_effort:
                 b = c.proofs[(chosen, 0)]
-                raise OutputError(f"reaches at best {b.worst:.2f} dB in its worst frame ({b.where}, at the "
-                                  f"{name!r} setting, precision step {chosen:+d}), below the --min-psnr "
-                                  f"{min_psnr:g} dB floor (--best-effort writes it all the same)", output)
-        left_out = _pruned(c, chosen, min_psnr) if prune and short is None else 0
+                raise OutputError(f"reaches at best {b.worst:.2f} dB in its worst frame ({b.where}, at "
+                                  f"{precision_text(name, chosen)}), below the {whose} (--best-effort writes it "
+                                  "all the same)", output)
+        left_out = _pruned(c, chosen, floor, views, times) if prune and short is None else 0
         proof = c.proof((chosen, left_out))
         report, pruned = c.put((chosen, left_out))
         # The output is the very file measured, copied into place.
         with open(c.path, "rb") as src, atomic_writer(output, replace=force) as dst:
             shutil.copyfileobj(src, dst, 1 << 20)
+        tried = len(c.proofs)
     notes = []
     if prune:
         notes.append(pruned.notes[0] if pruned is not None else
                      f"pruned no splat of {len(c.ranked):,} drawable: leaving out the least would break "
                      f"the floor" if short is None else "pruned no splat: the floor is not reached")
+    drawn = f"{plural(len(views), 'view')} at t = {', '.join(f'{t:g}' for t in proof.times)}"
+    if len(views) < every or len(times) < len(PROOF_TIMES):
+        drawn += f" (of {every} views: a scene of {scene.count:,} splats is proved from fewer frames)"
     notes.append(f"proved: worst frame {proof.worst:.2f} dB ({proof.where}), mean {proof.mean:.2f} dB, drawn "
-                 f"against the scene it encodes from {plural(len(views), 'view')} at t = "
-                 f"{', '.join(f'{t:g}' for t in proof.times)}" + (f" (floor {min_psnr:g} dB)" if min_psnr else ""))
+                 f"against the scene it encodes from {drawn}, at {precision_text(name, chosen)}"
+                 + (f" (floor {floor:g} dB)" if floor is not None else "")
+                 + f"; {plural(tried, 'candidate')} in {time.perf_counter() - started:.1f} s")
     if short is not None:
-        notes.append(f"{short:.2f} dB short of the --min-psnr {min_psnr:g} dB floor (--best-effort)")
+        notes.append(f"{short:.2f} dB short of the {whose} (--best-effort)")
     return report, notes
 
 
-def _pruned(c: _Candidates, step: int, min_psnr: float) -> int:
-    """How many of the least contributing drawable splats ``step`` can leave out and still reach ``min_psnr``.
+def precision_text(name: str, step: int) -> str:
+    """``"the 'default' setting"`` or ``"the 'default' setting, 1.5 steps finer"``."""
+    if not step:
+        return f"the {name!r} setting"
+    return f"the {name!r} setting, {abs(step) / 2:g} {'step' if abs(step) == 2 else 'steps'} " \
+           f"{'finer' if step > 0 else 'coarser'}"
+
+
+def _pruned(c: _Candidates, step: int, floor: float, views: list, times) -> int:
+    """How many of the least contributing drawable splats ``step`` can leave out and still reach ``floor``.
 
     A bisection over the share left out, :data:`PRUNE_PROOFS` proofs at most:
     none left out holds (proved), all cannot (a file holds a splat).
     """
-    c.ranked = ranked(c.scene, c.views)
+    c.ranked = ranked(c.scene, views, times)
     holds, breaks = 0, len(c.ranked)
     for _ in range(PRUNE_PROOFS):
         if breaks - holds <= max(1, len(c.ranked) // PRUNE_RESOLUTION):
             break
         mid = (holds + breaks) // 2
-        if c.proof((step, mid)).worst >= min_psnr:
+        if c.proof((step, mid)).worst >= floor:
             holds = mid
         else:
             breaks = mid
     return holds
-

@@ -28,12 +28,19 @@ from ..model import Scene
 from ..ops import prune
 from ..progress import SILENT, Progress
 from . import camera as cam
-from .frames import Source, compare_frames
-from .preview import View
+from . import diff as imgdiff
+from .frames import Source
+from .preview import Renderer, View
 from .sort import depth_keys
 
 PROOF_TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
 PROOF_WIDTH = 640
+#: Splats a proof draws at most, over one scene's frames: a larger scene is proved from fewer
+#: frames (:func:`proof_plan`), chosen first of all views and times, at least :data:`MIN_FRAMES`.
+PROOF_SPLAT_FRAMES = 6_000_000
+MIN_FRAMES = 2
+#: The times a limited proof takes first.
+TIME_PRIORITY = (0.5, 0.1, 0.9, 0.3, 0.7)
 MAX_CAMERAS = 4
 NEAR_DEGREES = 4.0
 NEAR_STEP = 0.1
@@ -113,6 +120,83 @@ def proof_views(scene: Scene) -> list:
     return views
 
 
+def proof_plan(scene: Scene, views: list | None = None) -> tuple:
+    """The views and times a proof of ``scene`` draws: ``(views, times)``.
+
+    Every view of :func:`proof_views` (or ``views``) at every one of
+    :data:`PROOF_TIMES`, unless that draws more than :data:`PROOF_SPLAT_FRAMES`
+    splats (the scene's count per frame); then as many frames as that allows
+    (at least :data:`MIN_FRAMES`), about as many views as times: the first
+    camera, splaTV's opening view, then the first camera's near views and the
+    other cameras; the times of :data:`TIME_PRIORITY`, in time order.
+    """
+    views = proof_views(scene) if views is None else views
+    times = list(PROOF_TIMES)
+    allowed = max(MIN_FRAMES, PROOF_SPLAT_FRAMES // max(1, scene.count))
+    if len(views) * len(times) <= allowed:
+        return views, tuple(times)
+    per_time = max(1, min(len(times), math.isqrt(allowed)))
+    firsts = sorted(range(len(views)), key=lambda i: (i != 0, i != len(views) - 1, i))
+    chosen = sorted(firsts[:max(1, min(len(views), allowed // per_time))])
+    prior = [t for t in TIME_PRIORITY if t in times] + [t for t in times if t not in TIME_PRIORITY]
+    return [views[i] for i in chosen], tuple(sorted(prior[:per_time]))
+
+
+class Prover:
+    """A proof's source frames, drawn once, against which each candidate is drawn and compared.
+
+    Parameters
+    ----------
+    source : Scene
+    views, times
+        From :func:`proof_plan` (one size).
+    """
+
+    def __init__(self, source: Scene, views: list, times, *, progress: Progress = SILENT):
+        self.views, self.times = views, tuple(times)
+        first = views[0][1]
+        self.renderer = Renderer(first.width, first.height)
+        self.frames = []
+        try:
+            self.renderer.load(Source("<source>", source).texture())
+            with progress.stage("drawing", len(views) * len(self.times), "frame") as advance:
+                for _name, view in views:
+                    for t in self.times:
+                        self.frames.append(self.renderer.draw(view, float(t)))
+                        advance()
+        except BaseException:
+            self.close()
+            raise
+
+    def prove(self, candidate: Scene, *, progress: Progress = SILENT) -> Proof:
+        """Draw ``candidate`` from each view at each time, as the viewer draws it, against the source."""
+        self.renderer.load(Source("<candidate>", candidate).texture())
+        psnrs, where = [], []
+        with progress.stage("drawing", len(self.frames), "frame") as advance:
+            frames = iter(self.frames)
+            for name, view in self.views:
+                for t in self.times:
+                    psnrs.append(imgdiff.compare(next(frames), self.renderer.draw(view, float(t))).psnr)
+                    where.append(f"{name} at t={t:g}")
+                    advance()
+        values = np.asarray(psnrs, np.float64)
+        worst = int(np.argmin(values))
+        finite = values[np.isfinite(values)]  # identical frames (inf) are left out of the mean
+        mean = float(finite.mean()) if len(finite) else float("inf")
+        return Proof(float(values[worst]), mean, where[worst], len(values), self.times)
+
+    def close(self) -> None:
+        if self.renderer is not None:
+            self.renderer.release()
+            self.renderer = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
 def prove(source: Scene, candidate: Scene, views: list, times=None, *, progress: Progress = SILENT) -> Proof:
     """Draw ``source`` and ``candidate`` from each view at each time, as the viewer draws them, and compare.
 
@@ -120,21 +204,12 @@ def prove(source: Scene, candidate: Scene, views: list, times=None, *, progress:
     ----------
     source, candidate : Scene
     views : list of (str, View)
-        From :func:`proof_views` (one size).
+        From :func:`proof_views` or :func:`proof_plan` (one size).
     times : sequence of float, optional
         Default :data:`PROOF_TIMES`.
     """
-    times = tuple(PROOF_TIMES if times is None else times)
-    frames = compare_frames(lambda: Source("<source>", source).texture(),
-                            lambda: Source("<candidate>", candidate).texture(),
-                            [(i, view) for i, (_name, view) in enumerate(views)], times, progress=progress)
-    psnrs = [frame.diff.psnr for frame in frames]
-    where = [f"{views[frame.camera][0]} at t={frame.time:g}" for frame in frames]
-    values = np.asarray(psnrs, np.float64)
-    worst = int(np.argmin(values))
-    finite = values[np.isfinite(values)]  # identical frames (inf) are left out of the mean
-    mean = float(finite.mean()) if len(finite) else float("inf")
-    return Proof(float(values[worst]), mean, where[worst], len(values), times)
+    with Prover(source, views, PROOF_TIMES if times is None else times, progress=progress) as prover:
+        return prover.prove(candidate, progress=progress)
 
 
 def ranked(scene: Scene, views: list, times=None) -> np.ndarray:

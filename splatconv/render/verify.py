@@ -232,9 +232,9 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
         advance()
     outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=len(order), notes=paired)
     if proof:
-        named = proving.proof_views(source.scene)
+        named, times = proving.proof_plan(source.scene)
         views = [(i, view) for i, (_name, view) in enumerate(named)]
-        times = list(proving.PROOF_TIMES)
+        times = list(times)
         outcome.notes.append("drew the views convert --min-psnr proves by, as the viewer draws both files: "
                              + "; ".join(f"camera {i}: {name}" for i, (name, _view) in enumerate(named)))
     else:
