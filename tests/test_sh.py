@@ -128,3 +128,12 @@ def test_rotate_through_the_cli_keeps_degree_three(tmp_path, gs_ply):
     d = unit(np.random.default_rng(2).normal(size=(src.count, 3)))
     assert np.abs(sh.evaluate(coefficients(back.columns), d @ r_.T)
                   - sh.evaluate(coefficients(src.columns), d)).max() < 1e-4
+
+
+def test_bake_of_a_static_scene_keeps_its_bands():
+    from splatconv.ops.bake import bake
+
+    scene = sh_scene(200, 2)
+    baked, _ = bake(scene, 0.3)
+    assert baked.sh_degree == 2 and baked.count == scene.count
+    assert np.array_equal(baked.columns["f_rest_23"], scene.columns["f_rest_23"])
