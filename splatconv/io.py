@@ -17,7 +17,7 @@ from . import viewer
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
 from .files.output import atomic_group, atomic_writer, check_output
 from .formats import REGISTRY, compat_modes, format_for, layouts, qualities
-from .model import COLUMNS, LITE_ROW, Scene
+from .model import COLUMNS, LITE_ROW, Scene, sh_dropped_note
 from .progress import SILENT
 from .wording import kinds_text, plural
 from .zstd import (DEFAULT_LEVEL, MAX_DECOMPRESSED_ENV, describe_bytes, inner_name, is_compressed,
@@ -428,12 +428,15 @@ def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, s
              if value is not None}
     try:
         with output_stream(stream, path, level, progress, size_hint=_size_hint(scene)) as out:
-            return fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,
-                             name=os.path.basename(path), **extra)
+            report = fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,
+                               name=os.path.basename(path), **extra)
     except SplatconvError as e:
         if e.path is not None:
             raise
         raise type(e)(e.message, path, e.where) from None  # a writer does not know its file's name
+    if not fmt.holds_sh:
+        report.notes.extend(sh_dropped_note(scene.sh_degree, f"a .{fmt.name} file"))
+    return report
 
 
 def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = None, quality: str | None = None,

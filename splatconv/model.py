@@ -25,6 +25,13 @@ OMEGA = ("omega_0", "omega_1", "omega_2", "omega_3")
 
 COLUMNS = POSITION + TRBF + MOTION + COLOR + OPACITY + SCALE + ROTATION + OMEGA
 
+#: Optional view-dependent colour: the spherical-harmonic coefficients of degrees 1 to 3 beside the
+#: degree-0 colour, named and ordered as a 3DGS PLY stores them: channel-major, ``f_rest_{c * K + k}``
+#: for channel c (r, g, b) and coefficient k of the K a channel holds at the scene's degree.
+SH_REST = tuple(f"f_rest_{i}" for i in range(45))
+#: Coefficients a channel holds beyond degree 0, by SH degree.
+SH_COEFFS = {0: 0, 1: 3, 2: 8, 3: 15}
+
 #: Normals: in the lite PLY row, always zero, not part of the model.
 NORMALS = ("nx", "ny", "nz")
 #: Fields of a Spacetime Gaussians lite PLY row, in file order.
@@ -54,6 +61,57 @@ STATIC_TRBF_CENTER = np.float32(0.5)
 STATIC_TRBF_SCALE = np.float32(np.log(1024.0))
 
 
+def sh_names(degree: int) -> tuple:
+    """The ``f_rest_*`` columns of a scene of SH ``degree`` (0 to 3): 0, 9, 24 or 45 names."""
+    return SH_REST[:3 * SH_COEFFS[degree]]
+
+
+def sh_degree(columns: dict) -> int:
+    """The SH degree (0 to 3) whose ``f_rest_*`` columns ``columns`` holds.
+
+    Raises
+    ------
+    ValueError
+        When the ``f_rest_*`` columns present are not exactly those of one degree.
+    """
+    present = [name for name in columns if name.startswith("f_rest_")]
+    for degree in SH_COEFFS:
+        if len(present) == 3 * SH_COEFFS[degree] and set(present) == set(sh_names(degree)):
+            return degree
+    raise ValueError(f"scene holds {len(present)} f_rest columns: not those of one SH degree (9, 24 or 45)")
+
+
+def attribute_names(columns: dict) -> tuple:
+    """Every column a scene's ``columns`` holds, in order: :data:`COLUMNS`, then its SH bands."""
+    return COLUMNS + sh_names(sh_degree(columns))
+
+
+def with_sh(columns: dict, source: dict, index=None) -> dict:
+    """``columns`` with the SH bands of ``source`` (rows ``index`` of them; all when None) added."""
+    names = sh_names(sh_degree(source))
+    if names:
+        columns = dict(columns)
+        for name in names:
+            col = np.asarray(source[name])
+            columns[name] = col.copy() if index is None else col[index]
+    return columns
+
+
+def drop_sh(columns: dict) -> dict:
+    """``columns`` without SH bands (the same dict when it holds none)."""
+    if not sh_degree(columns):
+        return columns
+    return {name: columns[name] for name in columns if not name.startswith("f_rest_")}
+
+
+def sh_dropped_note(degree: int, what: str) -> list:
+    """The note that a write into ``what`` dropped SH bands of ``degree`` (none for degree 0)."""
+    if not degree:
+        return []
+    bands = "1" if degree == 1 else f"1\u2013{degree}"
+    return [f"dropped SH degree {bands} bands: {what} holds colour only"]
+
+
 @dataclass
 class Scene:
     """A set of splats plus what a viewer needs to show them.
@@ -63,7 +121,8 @@ class Scene:
     columns : dict of str to ndarray
         One ``(N,) float32`` array per name in :data:`COLUMNS`. Arrays may be
         read-only views (memory-mapped input, broadcast constants); treat them as
-        immutable.
+        immutable. Besides them, optionally the SH bands of one degree
+        (:func:`sh_names`), as long.
     cameras : list of dict or None
         Cameras in the 3DGS ``cameras.json`` form, or None when the source had none.
     variant : str
@@ -85,9 +144,14 @@ class Scene:
         missing = [name for name in COLUMNS if name not in self.columns]
         if missing:
             raise ValueError(f"scene lacks columns {missing}")
-        lengths = {len(self.columns[name]) for name in COLUMNS}
+        lengths = {len(self.columns[name]) for name in attribute_names(self.columns)}
         if len(lengths) != 1:
             raise ValueError(f"scene columns differ in length: {sorted(lengths)}")
+
+    @property
+    def sh_degree(self) -> int:
+        """Degree (0 to 3) of the SH bands the scene holds (0: colour only)."""
+        return sh_degree(self.columns)
 
     @property
     def count(self) -> int:
@@ -106,7 +170,7 @@ class Scene:
         -------
         dict of str to (M,) float32 ndarray
         """
-        return {name: np.asarray(self.columns[name])[index] for name in COLUMNS}
+        return {name: np.asarray(self.columns[name])[index] for name in attribute_names(self.columns)}
 
 
 def constant_column(value, count: int) -> np.ndarray:

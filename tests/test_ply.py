@@ -62,7 +62,9 @@ def test_plain_3dgs_becomes_static_scene_with_sh_colour(gs_ply):
     # visible at every time in [0, 1]: exp(-(dt/s)^2) stays ~1
     dt = np.array([0.0, 1.0]) - scene.columns["trbf_center"][0]
     assert np.all(np.exp(-(dt / np.exp(float(scene.columns["trbf_scale"][0]))) ** 2) > 0.999)
-    assert any("f_rest_" in n for n in scene.notes)
+    # its SH bands (degree 3: 45 f_rest_*) are kept as they are, nothing dropped
+    assert scene.sh_degree == 3 and np.array_equal(scene.columns["f_rest_44"], raw["f_rest_44"])
+    assert not any("f_rest_" in n for n in scene.notes)
     assert splatconv.read(gs_ply, color="rgb").columns["f_dc_0"][3] == raw["f_dc_0"][3]
 
 

@@ -214,12 +214,13 @@ def test_3dgs_ply_round_trip(tmp_path, gs_ply):
     out = tmp_path / "back.ply"
     r = run("convert", gs_ply, out)
     assert r.exit_code == 0, r.output
-    assert "note: 45 higher-order SH coefficients (f_rest_*) dropped" in r.stderr
+    assert "f_rest" not in r.stderr and "dropped" not in r.stderr
+    # 3DGS's own order, its SH bands (degree 3) after f_dc_2
     names = [p.name for p in plyfile.PlyData.read(str(out))["vertex"].properties]
-    assert names == list(ply.GS_LAYOUT)
+    assert names == list(ply.gs_layout(3)) and names[9] == "f_rest_0" and names[53] == "f_rest_44"
     src, back = io.read(gs_ply), io.read(out)
-    assert back.variant == model.VARIANT_3DGS
-    for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION:
+    assert back.variant == model.VARIANT_3DGS and back.sh_degree == 3
+    for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION + model.SH_REST:
         assert np.array_equal(back.columns[name], src.columns[name]), name
     raw_src = plyfile.PlyData.read(str(gs_ply))["vertex"].data
     raw_back = plyfile.PlyData.read(str(out))["vertex"].data
@@ -229,8 +230,11 @@ def test_3dgs_ply_round_trip(tmp_path, gs_ply):
 
 def test_ply_layout_option(tmp_path, gs_ply, lite_ply):
     lite = tmp_path / "lite.ply"
-    assert run("convert", gs_ply, lite, "--ply-layout", "lite").exit_code == 0
-    assert io.read(lite).variant == model.VARIANT_LITE
+    r = run("convert", gs_ply, lite, "--ply-layout", "lite")
+    assert r.exit_code == 0
+    # the lite layout holds colour only: the SH bands go, and the note says so
+    assert "note: dropped SH degree 1\u20133 bands: a Spacetime Gaussians lite PLY holds colour only" in r.stderr
+    assert io.read(lite).variant == model.VARIANT_LITE and io.read(lite).sh_degree == 0
     # A lite file of a static scene goes to 3DGS when asked.
     again = tmp_path / "again.ply"
     assert run("convert", lite, again, "--ply-layout", "3dgs").exit_code == 0

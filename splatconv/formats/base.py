@@ -170,6 +170,9 @@ class Format:
         A file is compressed inside: a small one can declare a scene many times
         its size (``most_splats``), so a read is held to the decompression ceiling
         (``--max-decompressed``) as a ``.zst`` file's is.
+    holds_sh : bool
+        A file can hold a scene's SH bands of degrees 1 to 3 (:data:`splatconv.model.SH_REST`); a
+        write to any other format drops them and its report says so.
     drawable_only : bool
         A write leaves out the splats the viewer can never draw
         (:func:`splatconv.viewer.undrawable`) by itself, and its report says how many.
@@ -198,6 +201,7 @@ class Format:
     check_playable: Callable | None = None
     expands: bool = False
     drawable_only: bool = False
+    holds_sh: bool = False
 
     def __post_init__(self):
         readers = (self.read, self.scan, self.splat_count, self.most_splats)

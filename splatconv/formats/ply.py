@@ -2,9 +2,10 @@
 
 Reading accepts binary (either endianness) and ASCII PLY, float or double
 properties (narrowed to float32 once, here), CRLF headers, comments and
-obj_info, any property order, extra properties and extra elements. Writing
-produces the Spacetime Gaussians lite layout or the plain 3DGS layout (SH
-degree 0), float32 little endian. The container (header, elements, rows)
+obj_info, any property order, extra properties and extra elements. A plain 3DGS
+file's SH bands (``f_rest_*`` of degree 1, 2 or 3) are kept in the scene. Writing
+produces the Spacetime Gaussians lite layout (colour only: SH bands dropped, said
+so) or the plain 3DGS layout (with the scene's SH bands), float32 little endian. The container (header, elements, rows)
 is :mod:`splatconv.formats.ply_container`; this module maps the ``vertex``
 properties to the model's columns and back.
 """
@@ -117,7 +118,8 @@ def _opened(path: str):
     parsed = container.read_rows(path)
     vertex = _vertex_element(parsed.header, path)
     variant = _variant_of(vertex, path)
-    used = _used_properties(variant)
+    degree = _sh_degree_of(vertex, variant)
+    used = _used_properties(variant) | set(model.sh_names(degree))
     ignored = [p.name for p in vertex.properties if p.name not in used]
     doubles = [p.name for p in vertex.properties if p.name in used and p.val_dtype.endswith("8")]
     meta = {
@@ -128,14 +130,16 @@ def _opened(path: str):
         "extra_elements": [e.name for e in parsed.header.elements if e.name != "vertex"],
         "double_properties": doubles,
         "file_bytes": os.path.getsize(path),
+        "sh_degree": degree,
     }
     cameras = _cameras_from_comments(parsed.header.comments, path)
     return parsed.vertex, variant, meta, cameras, parsed.notes + _narrowing_notes(doubles)
 
 
-def _piece(rows: np.ndarray, variant: str, color: str, overflow: dict) -> dict:
-    """The model columns of vertex ``rows``."""
+def _piece(rows: np.ndarray, variant: str, color: str, overflow: dict, degree: int = 0) -> dict:
+    """The model columns of vertex ``rows`` (with the SH bands of ``degree``)."""
     columns = _columns(rows, variant, overflow)
+    columns.update((name, _column(rows, name, overflow)) for name in model.sh_names(degree))
     if color == "sh":
         _rgb_from_sh(columns)
     return columns
@@ -161,7 +165,7 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
     populate(rows)
     meta["color"] = _color_mode(color, variant)
     overflow = {}
-    columns = _piece(rows, variant, meta["color"], overflow)
+    columns = _piece(rows, variant, meta["color"], overflow, meta["sh_degree"])
     notes += _overflow_notes(overflow) + _dropped_sh_notes(meta["ignored_properties"], variant)
     return Scene(columns=columns, cameras=cameras, variant=variant, meta=meta, notes=notes)
 
@@ -184,7 +188,7 @@ def scan(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scan:
         overflow = {}
         for start in range(0, len(rows), SCAN_ROWS):
             part = rows[start:start + SCAN_ROWS]
-            yield _piece(part, variant, meta["color"], overflow)
+            yield _piece(part, variant, meta["color"], overflow, meta["sh_degree"])
             release(part)
         out.notes.extend(notes + _overflow_notes(overflow) + _dropped_sh_notes(meta["ignored_properties"], variant))
 
@@ -201,12 +205,25 @@ def _narrowing_notes(doubles: list) -> list:
 
 
 def _dropped_sh_notes(ignored: list, variant: str) -> list:
-    """The note that a 3DGS file's higher-order SH coefficients (among ``ignored``) were dropped."""
+    """The note that a 3DGS file's higher-order SH coefficients (among ``ignored``: they are not those of
+    one degree, 9, 24 or 45 of them) were dropped."""
     rest = [p for p in ignored if p.startswith("f_rest_")]
     if variant != model.VARIANT_3DGS or not rest:
         return []
-    return [f"{len(rest)} higher-order SH coefficients (f_rest_*) dropped: the viewer draws "
-            "view-independent colour"]
+    return [f"{len(rest)} higher-order SH coefficients (f_rest_*) dropped: not the 9, 24 or 45 of SH degree "
+            "1, 2 or 3"]
+
+
+def _sh_degree_of(vertex, variant: str) -> int:
+    """The SH degree whose bands a plain 3DGS file's vertex properties hold (0: none, or not the
+    ``f_rest_*`` of exactly one degree, which are then ignored)."""
+    if variant != model.VARIANT_3DGS:
+        return 0
+    rest = {p.name for p in vertex.properties if p.name.startswith("f_rest_") and not p.is_list}
+    for degree in (3, 2, 1):
+        if rest == set(model.sh_names(degree)):
+            return degree
+    return 0
 
 
 def _vertex_element(header, path: str):
@@ -274,23 +291,29 @@ def _cameras_from_comments(comments, path: str):
 
 #: Row type of the written lite layout.
 LITE_DTYPE = np.dtype([(name, "<f4") for name in LITE_LAYOUT])
-#: Property order of the written 3DGS layout: SH degree 0 only (the viewer draws
-#: view-independent colour), as 3DGS tools and web viewers read it.
+#: Property order of the written 3DGS layout of SH degree 0, as 3DGS tools and web viewers read it;
+#: a scene with SH bands has its ``f_rest_*`` after ``f_dc_2`` (:func:`gs_layout`).
 GS_LAYOUT = model.POSITION + NORMALS + model.COLOR + model.OPACITY + model.SCALE + model.ROTATION
-#: Row type of the written 3DGS layout.
-GS_DTYPE = np.dtype([(name, "<f4") for name in GS_LAYOUT])
+
+
+def gs_layout(degree: int = 0) -> tuple:
+    """Property order of the written 3DGS layout of SH ``degree``: 3DGS's own."""
+    at = GS_LAYOUT.index(model.COLOR[-1]) + 1
+    return GS_LAYOUT[:at] + model.sh_names(degree) + GS_LAYOUT[at:]
 #: Layouts :func:`write` produces, by ``layout=`` name.
 LAYOUTS = {"lite": LITE_LAYOUT, "3dgs": GS_LAYOUT}
 
 
-def header_bytes(count: int, cameras, layout: str = "lite") -> bytes:
-    """The PLY header of a file of ``count`` rows in ``layout`` (a :data:`LAYOUTS` name)."""
+def header_bytes(count: int, cameras, layout: str = "lite", degree: int = 0) -> bytes:
+    """The PLY header of a file of ``count`` rows in ``layout`` (a :data:`LAYOUTS` name; 3DGS with the SH
+    bands of ``degree``)."""
     lines = ["ply", "format binary_little_endian 1.0"]
     if cameras:
         text = json.dumps(cameras, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
         lines.append("comment " + CAMERA_COMMENT + text)
     lines.append(f"element vertex {count}")
-    lines.extend(f"property float {name}" for name in LAYOUTS[layout])
+    names = gs_layout(degree) if layout == "3dgs" else LAYOUTS[layout]
+    lines.extend(f"property float {name}" for name in names)
     lines.append("end_header")
     return ("\n".join(lines) + "\n").encode("ascii")
 
@@ -316,8 +339,9 @@ def write(scene: Scene, stream, *, sort: str | None = None, layout: str | None =
         default keeps the input order.
     layout : {None, "lite", "3dgs"}
         ``lite``: the Spacetime Gaussians lite layout (normals 0, RGB in
-        f_dc_0..2). ``3dgs``: the plain 3DGS layout (colour as the degree-0 SH
-        coefficient (rgb - 0.5) / SH_C0, no f_rest, log scales, logit opacity),
+        f_dc_0..2; SH bands dropped, noted). ``3dgs``: the plain 3DGS layout (colour
+        as the degree-0 SH coefficient (rgb - 0.5) / SH_C0, the scene's SH bands as
+        f_rest_*, log scales, logit opacity),
         refused for a scene that moves or fades (see
         :func:`splatconv.formats.base.refuse_time_varying`). None: 3DGS for a
         scene read as plain 3DGS, lite otherwise (:func:`default_layout`).
@@ -332,7 +356,7 @@ def write(scene: Scene, stream, *, sort: str | None = None, layout: str | None =
     if layout == "3dgs":
         return _write_3dgs(scene, stream, sort, progress)
     n = scene.count
-    report = WriteReport(count=n)
+    report = WriteReport(count=n, notes=model.sh_dropped_note(scene.sh_degree, "a Spacetime Gaussians lite PLY"))
     order = _order(scene, sort)
     stream.write(header_bytes(n, scene.cameras))
     rows = _lite_rows_of(scene)
@@ -374,14 +398,15 @@ def _write_3dgs(scene: Scene, stream, sort: str | None, progress) -> WriteReport
         report.notes.append("trbf: temporal basis dropped (every splat is within half an alpha step of full "
                             "opacity over the whole clip)")
     order = _order(scene, sort)
-    stream.write(header_bytes(n, scene.cameras, "3dgs"))
-    block = np.zeros(min(BLOCK, max(n, 1)), dtype=GS_DTYPE)  # normals stay 0
+    degree = scene.sh_degree
+    stream.write(header_bytes(n, scene.cameras, "3dgs", degree))
+    block = np.zeros(min(BLOCK, max(n, 1)), dtype=[(name, "<f4") for name in gs_layout(degree)])  # normals stay 0
     with progress.stage("writing", n, "splat") as advance:
         for start in range(0, n, BLOCK):
             stop = min(start + BLOCK, n)
             rows = slice(start, stop) if order is None else order[start:stop]
             out = block[: stop - start]
-            for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION:
+            for name in model.POSITION + model.OPACITY + model.SCALE + model.ROTATION + model.sh_names(degree):
                 out[name] = np.asarray(cols[name])[rows]
             for name in model.COLOR:
                 rgb = wide(np.asarray(cols[name])[rows])
@@ -428,7 +453,7 @@ def storage(scene: Scene) -> dict:
     Float32 as the model holds it; colour read as spherical harmonics goes through
     one float32 conversion each way; a plain 3DGS PLY holds no time or motion.
     """
-    kinds = dict.fromkeys(GROUPS, "exact")
+    kinds = dict.fromkeys(GROUPS, "exact")  # SH bands too, as float32 (verify judges the groups only)
     if scene.meta.get("color") == "sh":
         kinds["color"] = "float32"
     if scene.variant == model.VARIANT_3DGS:
@@ -442,6 +467,7 @@ def info_fields(meta: dict) -> dict:
         "ply_format": meta.get("format"),
         "color": meta.get("color"),
         "ignored_properties": meta.get("ignored_properties", []),
+        "sh_degree": meta.get("sh_degree", 0),
         "extra_elements": meta.get("extra_elements", []),
     }
 
@@ -453,7 +479,7 @@ FORMAT = Format(
     holds_empty=True,  # a PLY may hold zero rows
     dynamic=True,
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
-    write=write, layouts=tuple(LAYOUTS),
+    write=write, layouts=tuple(LAYOUTS), holds_sh=True,
     info_fields=info_fields, storage=storage,
     # Attributes, not the viewer's texture.
 )

@@ -20,7 +20,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
 
-from ..model import COLUMNS, Scene, lite_rows, row_fields
+from ..model import COLUMNS, Scene, lite_rows, row_fields, with_sh
 
 #: Rows a block: 8,192 lite rows are 1 MB.
 CHUNK = 1 << 13
@@ -75,7 +75,8 @@ def copy_rows(columns: dict, index: np.ndarray | None = None, each=None) -> tupl
     Returns
     -------
     (dict, int or float)
-        The new columns and the sum of what ``each`` returned (0 without it).
+        The new columns and the sum of what ``each`` returned (0 without it). SH bands
+        (:data:`splatconv.model.SH_REST`) come along, gathered as they are.
     """
     m = len(columns["x"]) if index is None else len(index)
     found = row_fields([columns[name] for name in COLUMNS])
@@ -98,7 +99,9 @@ def copy_rows(columns: dict, index: np.ndarray | None = None, each=None) -> tupl
                 out[name][part] = sources[name][source]
         return 0 if each is None else each({name: out[name][part] for name in COLUMNS})
 
-    return out, sum(run_blocks(m, job))
+    total = sum(run_blocks(m, job))
+    # SH bands, when the scene has them, come along: no edit that keeps or moves rows drops them.
+    return with_sh(out, columns, index), total
 
 
 def compact(columns: dict, index: np.ndarray, each=None) -> tuple:
@@ -121,7 +124,7 @@ def compact(columns: dict, index: np.ndarray, each=None) -> tuple:
         table[part] = table[index[part]]
         if each is not None:
             total += each({name: columns[name][part] for name in COLUMNS})
-    return {name: columns[name][:m] for name in COLUMNS}, total
+    return with_sh({name: columns[name][:m] for name in COLUMNS}, columns, index), total
 
 
 def _field_runs(columns: list):

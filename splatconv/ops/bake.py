@@ -178,6 +178,13 @@ def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Sc
         notes.append(f"left out {n - m:,} splats the viewer does not draw at t={t:g} ({left_out}): "
                      "the viewer draws none of them then, so no pixel is lost")
     notes.extend(_stand_in_notes(counts))
+    if scene.sh_degree:
+        # A splat's SH bands hold in its rest frame's directions as long as it does not turn: kept then.
+        turning = sum(int(np.count_nonzero(np.asarray(part[name]) != 0)) for name in model.OMEGA)
+        if turning:
+            notes.extend(model.sh_dropped_note(scene.sh_degree, "a bake of splats that turn over time"))
+        else:
+            out = model.with_sh(out, cols, index)
     baked = Scene(columns=out, cameras=scene.cameras, variant=model.VARIANT_3DGS, meta={"baked_time": t})
     if drop_nonfinite:
         baked, dropped = filters.drop_nonfinite(baked)

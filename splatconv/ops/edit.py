@@ -25,13 +25,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..model import Scene
+from ..model import Scene, sh_degree
 from . import filters
 from . import time as time_ops
 from ._table import compact, copy_rows, derive, run_blocks
 from .report import OpReport
 from .step import Rows
-from .transform import Transform, block_transformer, transform_cameras, transform_columns, transform_report
+from .transform import (Transform, block_transformer, rotate_sh, transform_cameras, transform_columns,
+                        transform_report)
 
 #: The order the edits apply in, named as their options.
 ORDER = ("drop-undrawable", "drop-nonfinite", "trim", "crop", "min-opacity", "max-splats", "transform")
@@ -129,8 +130,11 @@ def _copy_survivors(rows: Rows, transform: Transform | None, cameras, reports: l
         index = np.flatnonzero(rows.alive) if removed else None
         each = block_transformer(transform) if transform is not None else None
         columns, grown = (compact if rows.owned and removed else copy_rows)(columns, index, each=each)
+        if transform is not None:
+            rotate_sh(columns, transform)
     if transform is not None:
-        reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown))
+        reports.append(transform_report(len(columns["x"]), len(cameras or []), transform, grown,
+                                        sh_degree(columns) > 0))
     return columns, cameras
 
 

@@ -52,7 +52,8 @@ def overlay(scenes: list) -> tuple[Scene, MergeReport]:
     (Scene, MergeReport)
         The composed scene: variant plain 3DGS when every input is (a
         composition of static scenes stays static and writes as 3DGS), else
-        Spacetime Gaussians lite; the first input's cameras that has any.
+        Spacetime Gaussians lite; the first input's cameras that has any; the SH bands of
+        the lowest degree any input holds (bands above it dropped, and said so).
     """
     if not scenes:
         raise UsageError("nothing to merge: no input scenes")
@@ -64,12 +65,21 @@ def overlay(scenes: list) -> tuple[Scene, MergeReport]:
         for name in model.COLUMNS:
             out[name][start:start + n] = np.asarray(scene.columns[name])
         start += n
+    # SH bands: the degree every input holds (the lowest), so that each splat keeps a colour of one basis.
+    degrees = [s.sh_degree for s in scenes]
+    degree = min(degrees)
+    for name in model.sh_names(degree):
+        out[name] = np.concatenate([np.asarray(s.columns[name], dtype=np.float32) for s in scenes])
     with_cameras = [i for i, s in enumerate(scenes) if s.cameras]
     cameras = list(scenes[with_cameras[0]].cameras) if with_cameras else None
     static = all(s.variant == model.VARIANT_3DGS for s in scenes)
     variant = model.VARIANT_3DGS if static else model.VARIANT_LITE
     notes = [f"merged {len(scenes)} scenes on one timeline: " + " + ".join(f"{n:,}" for n in parts)
              + f" = {plural(total, 'splat')}"]
+    if max(degrees) > degree:
+        cut = [i + 1 for i, d in enumerate(degrees) if d > degree]
+        notes.append(f"SH bands: input{'s' if len(cut) > 1 else ''} {', '.join(map(str, cut))} cut to degree {degree}, "
+                     f"the lowest of the inputs ({', '.join(map(str, degrees))})")
     if with_cameras:
         kept = with_cameras[0]
         dropped = [i + 1 for i in with_cameras[1:]]

@@ -17,7 +17,9 @@ S^2 R cov R^T at every t. That holds, for every t, when
   viewer's normalisation commutes with it, and R(q (x) r) = R(q) R(r);
 * log scales -> log scales + log S.
 
-Time, opacity and colour do not change. Cameras (``cameras.json`` form:
+Time, opacity and the degree-0 colour do not change. SH bands of degrees 1 to 3, when the scene
+holds them, turn with it: each degree's coefficients by the real Wigner D matrix of R
+(:func:`splatconv.sh.rotation_matrix`), so the colour seen along R d is the one seen along d before. Cameras (``cameras.json`` form:
 centre ``position``, camera-to-world ``rotation``) move with the scene: centre
 -> R S c + T, rotation -> R rotation, so each camera sees the same image (its
 camera-space coordinates are all multiplied by S, which a perspective
@@ -36,8 +38,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .. import sh
 from ..errors import UnsupportedError, UsageError
-from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, Scene
+from ..model import MOTION, OMEGA, POSITION, ROTATION, SCALE, SH_COEFFS, Scene, sh_degree, sh_names
 from ..wording import plural
 from ._table import copy_rows, derive, run_blocks, store_fields
 from .report import OpReport
@@ -342,7 +345,39 @@ def transform_columns(columns: dict, transform: Transform) -> int:
         Values that were finite and no longer fit float32 (now infinite).
     """
     apply = block_transformer(transform)
-    return sum(run_blocks(len(columns["x"]), lambda part: apply({name: columns[name][part] for name in columns})))
+    grown = sum(run_blocks(len(columns["x"]), lambda part: apply({name: columns[name][part] for name in COLUMNS_MOVED})))
+    rotate_sh(columns, transform)
+    return grown
+
+
+#: The columns :func:`block_transformer` rewrites (and reads).
+COLUMNS_MOVED = POSITION + MOTION + ROTATION + OMEGA + SCALE
+
+#: Rows of SH bands turned at a time: bounds the float64 temporaries.
+_SH_BLOCK = 1 << 15
+
+
+def rotate_sh(columns: dict, transform: Transform) -> None:
+    """Turn the SH bands of ``columns`` (when it holds any) by the transform's rotation: their columns are
+    replaced in the dict by new ones. A scale or a translation leaves them as they are."""
+    degree = sh_degree(columns)
+    if not degree or np.array_equal(np.asarray(transform.matrix), np.eye(3)):
+        return
+    k = SH_COEFFS[degree]
+    names = sh_names(degree)
+    m = sh.rotation_matrix(np.asarray(transform.matrix), degree)
+    n = len(columns["x"])
+    out = np.empty((3 * k, n), dtype=np.float32)
+    sources = [np.asarray(columns[name]) for name in names]
+
+    def job(part):
+        block = np.stack([src[part] for src in sources]).astype(np.float64).reshape(3, k, -1)
+        with np.errstate(over="ignore", invalid="ignore"):
+            out[:, part] = np.einsum("jk,ckn->cjn", m, block).reshape(3 * k, -1)
+
+    run_blocks(n, job, _SH_BLOCK)
+    for i, name in enumerate(names):
+        columns[name] = out[i]
 
 
 def block_transformer(transform: Transform):
@@ -423,17 +458,19 @@ def apply_transform(scene: Scene, transform: Transform) -> tuple[Scene, OpReport
     """
     cameras = transform_cameras(scene.cameras, transform)  # first: a camera it cannot move is refused at once
     columns, grown = copy_rows(scene.columns, each=block_transformer(transform))
-    report = transform_report(scene.count, len(cameras or []), transform, grown)
+    rotate_sh(columns, transform)
+    report = transform_report(scene.count, len(cameras or []), transform, grown, scene.sh_degree > 0)
     return derive(scene, columns, report.notes, cameras=cameras), report
 
 
-def transform_report(count: int, cameras: int, transform: Transform, grown: int) -> OpReport:
+def transform_report(count: int, cameras: int, transform: Transform, grown: int, sh_bands: bool = False) -> OpReport:
     """The report of :func:`apply_transform`."""
     report = OpReport("transform", count, count)
     moved = f" and {cameras:,} camera{'' if cameras == 1 else 's'}" if cameras else ""
     rotates = not np.array_equal(np.asarray(transform.matrix), np.eye(3))
     changed = ["positions"] + (["motion"] if rotates or transform.scale != 1.0 else []) + (
-        ["rotations", "omega"] if rotates else []) + (["scales"] if transform.scale != 1.0 else [])
+        ["rotations", "omega"] if rotates else []) + (["scales"] if transform.scale != 1.0 else []) + (
+        ["SH bands"] if rotates and sh_bands else [])
     report.notes.append(f"transform: p' = R(S p) + T with {transform.describe()} applied to {plural(count, 'splat')}"
                         f"{moved} ({', '.join(changed)})")
     if grown:
@@ -443,5 +480,5 @@ def transform_report(count: int, cameras: int, transform: Transform, grown: int)
 
 
 __all__ = ["Transform", "make_transform", "parse_rotation", "axis_rotation", "compose_rotation",
-           "quaternion_matrix", "left_product_matrix", "transform_columns", "transform_cameras",
+           "quaternion_matrix", "left_product_matrix", "transform_columns", "rotate_sh", "transform_cameras",
            "apply_transform"]
