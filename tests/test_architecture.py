@@ -12,8 +12,9 @@ from pathlib import Path
 from splatconv.formats import REGISTRY
 
 PACKAGE = Path(__file__).resolve().parent.parent / "splatconv"
-#: Imports allowed inside functions: moderngl is loaded only when something is drawn.
-LAZY_ALLOWED = {"moderngl"}
+#: Imports allowed inside functions: moderngl is loaded only when something is drawn, av (PyAV,
+#: an optional extra) only when a video is written.
+LAZY_ALLOWED = {"moderngl", "av"}
 
 
 def _module_name(path: Path) -> str:

@@ -77,8 +77,8 @@ def test_time_sweeps(tmp_path, sample_splatv, name, frames, check):
 
 
 @pytest.mark.parametrize("args,code,message", [
-    (["o.jpg"], 2, "Error: o.jpg: cannot write .jpg: use .png (or --frames N with .gif, .webp)\n"),
-    (["o.gif"], 2, "Error: o.gif: cannot write .gif: use .png (or --frames N with .gif, .webp)\n"),
+    (["o.jpg"], 2, "Error: o.jpg: cannot write .jpg: use .png (or --frames N with .gif, .webp, .mp4, .webm)\n"),
+    (["o.gif"], 2, "Error: o.gif: cannot write .gif: use .png (or --frames N with .gif, .webp, .mp4, .webm)\n"),
     (["o.png", "--camera", "7"], 2, "Error: {src}: --camera 7: the file has 3 cameras, 0..2\n"),
     (["o.png", "--camera", "0", "--view", "[]"], 2, "Error: --camera and --view cannot be used together\n"),
     (["o.png", "--view", "[1, 2]"], 2,

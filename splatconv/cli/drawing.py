@@ -8,6 +8,7 @@ from ..render.camera import MAX_DEFAULT_WIDTH
 from ..render.commands import DEFAULT_TIME, MAX_FRAMES, diff_files, render_file
 from ..render.verify import DEFAULT_CAMERAS, DEFAULT_MIN_PSNR, DEFAULT_TIMES, DIFF_TIMES, VERIFY_MAX_WIDTH
 from ..render.verify import verify as run_verify
+from ..render.video import DEFAULT_FPS
 from ..text import attributes_text, frames_text, images_text, images_verdict_text, to_json, verdict_text
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
                     progress, quiet_option)
@@ -64,8 +65,16 @@ def _finish(data: dict, as_json: bool, parts) -> None:
     click.option("--fy", type=POSITIVE, help="Focal length in pixels (default: the camera's; scaled with the "
                                              "default size)."),
     click.option("--frames", type=click.IntRange(1, MAX_FRAMES), default=1, show_default=True,
-                 help="Sweep N times over [0, 1]: an animated .gif or .webp, or a labelled "
-                      "contact sheet for .png."),
+                 help="Sweep N times over [0, 1], frame k at t = k/(N-1): an animated .gif or .webp, a video "
+                      "(.mp4: H.264, .webm: VP9), or a labelled contact sheet for .png."),
+    click.option("--fps", type=POSITIVE, help=f"Frames a second of an animation or video [default: "
+                                              f"{DEFAULT_FPS:g} for a video, 10 for .gif and .webp]."),
+    click.option("--orbit", type=FINITE, metavar="DEGREES",
+                 help="Turn the camera (--camera, default 0) by DEGREES over the sweep, about its own up axis "
+                      "through the scene's centre (the middle of the drawable splats' 2nd..98th percentile box)."),
+    click.option("--path", "camera_path", metavar="A,B",
+                 help="Move from header camera A to camera B over the sweep: position in a straight line, "
+                      "rotation at a steady rate, in A's frame size. Not with --camera."),
     click.option("--reference", is_flag=True,
                  help="Draw a PLY's attributes unquantized (float reference path) instead of as the "
                       ".splatv texture the viewer would get."),
@@ -74,24 +83,28 @@ def _finish(data: dict, as_json: bool, parts) -> None:
     quiet_option(),
 )
 @library_errors
-def render(input_path, output_path, time_, camera, view, size, fit, fx, fy, frames, reference, color, force, quiet):
+def render(input_path, output_path, time_, camera, view, size, fit, fx, fy, frames, fps, orbit, camera_path,
+           reference, color, force, quiet):
     """Render INPUT (.splatv or PLY) headlessly with the viewer's shader to OUTPUT.
 
     OUTPUT is a .png for one frame; with --frames N it is an animated .gif or
-    .webp, or a .png contact sheet. The picture is the viewer's framebuffer:
-    premultiplied colour over black.
+    .webp, a .mp4 or .webm video, or a .png contact sheet. The picture is the
+    viewer's framebuffer: premultiplied colour over black. A video is encoded a
+    frame at a time (needs PyAV: pip install 'splatconv[video]'); its width and
+    height must be even (a camera's odd size is rounded down, an odd --size refused).
 
     \b
     Example:
       splatconv render scene.splatv frame.png --time 0.25 --camera 1
       splatconv render scene.splatv clip.gif --frames 24 --size 480x270
       splatconv render scene.splatv sheet.png --frames 9 --size 320x180 --fit
+      splatconv render scene.splatv orbit.mp4 --frames 48 --size 640x360 --orbit 90
     """
     if camera is not None and view is not None:
         raise Failure("--camera and --view cannot be used together", 2)
     result = render_file(input_path, output_path, time=time_, camera=camera, view=view, size=size,
-                         fx=fx, fy=fy, fit=fit, frames=frames, reference=reference, color=color, force=force,
-                         progress=progress(quiet))
+                         fx=fx, fy=fy, fit=fit, frames=frames, fps=fps, orbit=orbit, path=camera_path,
+                         reference=reference, color=color, force=force, progress=progress(quiet))
     click.echo(result)
 
 

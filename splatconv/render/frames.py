@@ -170,7 +170,7 @@ def frame_views(cameras: list, indices, size: tuple | None = None, max_width: in
     return views
 
 
-def render_frames(data: np.ndarray, view: View, times, *, progress: Progress = SILENT):
+def render_frames(data: np.ndarray, view, times, *, progress: Progress = SILENT):
     """Draw ``data`` from ``view`` at each time, one frame at a time.
 
     Parameters
@@ -178,6 +178,8 @@ def render_frames(data: np.ndarray, view: View, times, *, progress: Progress = S
     data : ndarray
         ``(R, 16) uint32`` texture records (:meth:`Source.texture`) or float
         reference rows (:meth:`Source.reference`).
+    view : View or sequence of View
+        One view for every frame, or one per time (a camera path), all one size.
     times : sequence of float
 
     Yields
@@ -186,13 +188,16 @@ def render_frames(data: np.ndarray, view: View, times, *, progress: Progress = S
         The framebuffer, top row first: premultiplied RGB and alpha. Close the
         generator (``contextlib.closing``) when not exhausting it, to free GL.
     """
-    r = Renderer(view.width, view.height)
+    views = [view] * len(times) if isinstance(view, View) else list(view)
+    if len(views) != len(times) or len({(v.width, v.height) for v in views}) > 1:
+        raise ValueError("render_frames: one view, or one view per time, all one size")
+    r = Renderer(views[0].width, views[0].height)
     try:
         r.load(data)
         del data
         with progress.stage("drawing", len(times), "frame") as advance:
-            for t in times:
-                yield r.draw(view, float(t))
+            for v, t in zip(views, times):
+                yield r.draw(v, float(t))
                 advance()
     finally:
         r.release()

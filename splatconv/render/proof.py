@@ -23,13 +23,14 @@ import numpy as np
 
 from .. import viewer
 from ..viewer import SPLATV_FOCAL, SPLATV_VIEW, SPLATV_WINDOW
-from ..cameras import camera_for_box, framing_box
+from ..cameras import camera_for_box
 from ..model import Scene
 from ..ops import prune
 from ..progress import SILENT, Progress
 from . import camera as cam
 from . import diff as imgdiff
 from .frames import Source
+from .paths import drawn_box, orbited, stepped
 from .preview import Renderer, View
 from .sort import depth_keys
 
@@ -71,23 +72,6 @@ class Proof:
     times: tuple
 
 
-def _orbited(camera: dict, centre: np.ndarray, degrees: float) -> dict:
-    """``camera`` turned by ``degrees`` about its own up axis through ``centre``."""
-    rotation = np.asarray(camera["rotation"], np.float64)  # camera-to-world: columns are its axes
-    up = rotation[:, 1] / max(np.linalg.norm(rotation[:, 1]), 1e-12)
-    a = math.radians(degrees)
-    k = np.array([[0, -up[2], up[1]], [up[2], 0, -up[0]], [-up[1], up[0], 0]])
-    turn = np.eye(3) + math.sin(a) * k + (1 - math.cos(a)) * (k @ k)
-    position = centre + turn @ (np.asarray(camera["position"], np.float64) - centre)
-    return dict(camera, rotation=(turn @ rotation).tolist(), position=position.tolist())
-
-
-def _stepped(camera: dict, centre: np.ndarray, share: float) -> dict:
-    """``camera`` moved ``share`` of the way towards ``centre``, looking as before."""
-    position = np.asarray(camera["position"], np.float64)
-    return dict(camera, position=(position + share * (centre - position)).tolist())
-
-
 def proof_views(scene: Scene) -> list:
     """(name, View) pairs a proof draws ``scene`` from (see the module docstring).
 
@@ -98,19 +82,17 @@ def proof_views(scene: Scene) -> list:
         centre (the middle of their 2nd..98th percentile box) place the near views.
     """
     cameras = list(scene.cameras[:MAX_CAMERAS])
-    drawn = ~viewer.undrawable(scene.columns) if scene.count else np.zeros(0, bool)
-    xyz = [np.asarray(scene.columns[a])[drawn] for a in "xyz"]
-    lo, hi = framing_box(*xyz) if drawn.any() else (np.zeros(3), np.zeros(3))
-    centre = (np.asarray(lo, np.float64) + np.asarray(hi, np.float64)) / 2
+    lo, hi = drawn_box(scene)
+    centre = (lo + hi) / 2
     if not cameras:
-        cameras = [camera_for_box(np.asarray(lo, np.float64), np.asarray(hi, np.float64))]
+        cameras = [camera_for_box(lo, hi)]
     first = cameras[0]
     size = (PROOF_WIDTH, max(1, round(PROOF_WIDTH * int(first["height"]) / int(first["width"]))))
     views = []
     for i, camera in enumerate(cameras):
         for name, c in ((f"camera {i}", camera), (f"camera {i} orbited {NEAR_DEGREES:g} deg",
-                                                    _orbited(camera, centre, NEAR_DEGREES)),
-                        (f"camera {i} stepped in", _stepped(camera, centre, NEAR_STEP))):
+                                                    orbited(camera, centre, NEAR_DEGREES)),
+                        (f"camera {i} stepped in", stepped(camera, centre, NEAR_STEP))):
             w, h, fx, fy = cam.fit(c, size)
             views.append((name, View(cam.view_matrix(c), fx, fy, w, h)))
     # splaTV's window: its focal lengths are pixels of the window, whose width the frame keeps.
