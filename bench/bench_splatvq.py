@@ -161,29 +161,41 @@ REAL_SCENES = ("coffeeshort2.splatv", "yellow_clip3.splatv")
 
 
 def real_table(folder: str) -> None:
-    """Bytes a drawable splat and worst and mean PSNR per setting on the real scenes found in ``folder``."""
+    """What ``convert`` writes on the real scenes found in ``folder``, per setting: bytes a drawable splat, the
+    proof's worst and mean frame (every proof view) and camera 0's worst and mean alone; then --prune."""
     import splatconv
+    from splatconv.jobs.prove import write_proven
 
     found = [name for name in REAL_SCENES if os.path.isfile(os.path.join(folder, name))]
-    print(f"\nreal scenes in {os.path.normpath(folder)}: camera 0, 640x480; t = {', '.join(map(str, TIMES))}")
+    print(f"\nreal scenes in {os.path.normpath(folder)}: convert's proof (its views, t = 0.1..0.9), and camera 0 "
+          f"alone, 640x480, t = {', '.join(map(str, TIMES))}")
     if not found:
         print(f"  absent: none of {', '.join(REAL_SCENES)} is there; no real-scene figures")
         return
-    print(f"{'scene':<14} {'setting':<9} {'drawable':>9} {'B/splat':>8} {'worst dB':>9} {'mean dB':>8}")
+    print(f"{'scene':<14} {'run':<22} {'drawable':>9} {'B/splat':>8} {'proof worst':>12} {'mean':>6} "
+          f"{'cam0 worst':>11} {'mean':>6} {'step':>10} {'s':>6}")
     for name in found:
         scene = splatconv.read(os.path.join(folder, name))
         camera = scene.cameras[0]
         drawable = int(np.count_nonzero(~undrawable(scene.columns)))
         source = render_scene(scene, camera, TIMES, size=(640, 480), reference=False)
-        for setting in codec.SETTINGS:
-            data, _report = splatvq.encode(scene, quality=setting)
-            path = os.path.join(WORK, f"real_{setting}.splatvq")
-            with open(path, "wb") as f:
-                f.write(data)
-            frames = render_scene(splatvq.read(path), camera, TIMES, size=(640, 480), reference=False)
+        runs = [(setting, {"quality": setting}) for setting in codec.SETTINGS]
+        runs.append(("--min-psnr 40 --prune", {"quality": None, "min_psnr": 40.0, "prune": True}))
+        for label, options in runs:
+            path = os.path.join(WORK, "real.splatvq")
+            started = time.perf_counter()
+            _report, notes = write_proven(scene, path, force=True, **options)
+            seconds = time.perf_counter() - started
+            proved = next(n for n in notes if n.startswith("proved: "))
+            worst = float(proved.split("worst frame ")[1].split(" dB")[0])
+            mean = float(proved.split("mean ")[1].split(" dB")[0])
+            decoded = splatvq.read(path)
+            frames = render_scene(decoded, camera, TIMES, size=(640, 480), reference=False)
             values = [compare(x, y).psnr for x, y in zip(source, frames)]
-            print(f"{name.rsplit('.', 1)[0]:<14} {setting:<9} {drawable:>9,} {len(data) / drawable:8.2f} "
-                  f"{min(values):9.2f} {float(np.mean(values)):8.2f}")
+            print(f"{name.rsplit('.', 1)[0]:<14} {label:<22} {drawable:>9,} {os.path.getsize(path) / drawable:8.2f} "
+                  f"{worst:12.2f} {mean:6.2f} {min(values):11.2f} {float(np.mean(values)):6.2f} "
+                  f"{decoded.meta['setting']:>10} {seconds:6.1f}")
+    print("(bytes of the file over the source's drawable splats; --prune's file holds fewer)")
 
 
 def cost_table(n: int) -> None:
@@ -194,18 +206,21 @@ def cost_table(n: int) -> None:
     del scene
     print(f"\nconvert, fresh processes, {n:,} splats ({_harness.machine_line(load=True)})")
     rows = {}
-    for suffix in (".splatv", ".splatvq"):
+    for label, suffix, more in ((".splatv", ".splatv", []), (".splatvq --no-proof", ".splatvq", ["--no-proof"]),
+                                (".splatvq (proved)", ".splatvq", [])):
         out = os.path.join(WORK, "timing" + suffix)
-        enc = _harness.run_fresh([_harness.CLI, "convert", src, out, "--force", "--quiet"], check=True)
+        enc = _harness.run_fresh([_harness.CLI, "convert", src, out, "--force", "--quiet", *more], check=True)
         back = os.path.join(WORK, "back" + suffix.replace(".", "_") + ".ply")
         dec = _harness.run_fresh([_harness.CLI, "convert", out, back, "--force", "--quiet"], check=True)
-        rows[suffix] = (enc, dec, os.path.getsize(out))
-        print(f"{suffix:<9} encode {enc['wall']:6.2f} s {enc['rss_mb']:7.0f} MB   decode {dec['wall']:6.2f} s "
+        rows[label] = (enc, dec, os.path.getsize(out))
+        print(f"{label:<20} encode {enc['wall']:6.2f} s {enc['rss_mb']:7.0f} MB   decode {dec['wall']:6.2f} s "
               f"{dec['rss_mb']:7.0f} MB   {os.path.getsize(out) / 1e6:8.1f} MB file")
-    (e1, d1, _), (e2, d2, _) = rows[".splatv"], rows[".splatvq"]
-    print(f"ratios   encode {e2['wall'] / e1['wall']:.2f}x time {e2['rss_mb'] / e1['rss_mb']:.2f}x RSS   "
-          f"decode {d2['wall'] / d1['wall']:.2f}x time {d2['rss_mb'] / d1['rss_mb']:.2f}x RSS "
-          "(bounds 4x, 2x, 2x)")
+    e1, d1, _ = rows[".splatv"]
+    for label in (".splatvq --no-proof", ".splatvq (proved)"):
+        e2, d2, _ = rows[label]
+        print(f"ratios {label:<20} encode {e2['wall'] / e1['wall']:.2f}x time {e2['rss_mb'] / e1['rss_mb']:.2f}x RSS   "
+              f"decode {d2['wall'] / d1['wall']:.2f}x time {d2['rss_mb'] / d1['rss_mb']:.2f}x RSS "
+              "(bounds 20x with the proof, 2x, 2x)")
 
 
 def main(argv=None) -> int:

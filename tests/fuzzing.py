@@ -387,9 +387,12 @@ def _compress(rng, content: bytes, extra_zeros: int = 0) -> bytes:
     return b"".join(out)
 
 
-def mutant(rng: random.Random, seeds: dict) -> tuple:
-    """One mutant: ``(file name, bytes, description)``; ``seeds`` maps names to contents."""
-    name = rng.choice(sorted(seeds))
+def mutant(rng: random.Random, seeds: dict, index: int | None = None) -> tuple:
+    """One mutant: ``(file name, bytes, description)``; ``seeds`` maps names to contents.
+
+    Mutant ``index`` takes the seed files in turn (a campaign reaches each as often); without it, one at random.
+    """
+    name = sorted(seeds)[index % len(seeds)] if index is not None else rng.choice(sorted(seeds))
     data = seeds[name]
     compressed = name.endswith(".zst")
     if compressed:
@@ -540,7 +543,7 @@ def campaign(folder, seed: int, count: int, on_outcome=None) -> list:
         rng = random.Random(seed)
         outcomes = []
         for index in range(count):
-            name, data, kind = mutant(rng, seeds)
+            name, data, kind = mutant(rng, seeds, index)
             outcome = run_mutant(index, name, data, kind, work, tmp)
             if outcome.problems:
                 with open(os.path.join(folder, f"failing-{index}-{name}"), "wb") as f:

@@ -81,7 +81,7 @@ def proof_views(scene: Scene) -> list:
         Its cameras (a framing camera when it has none) and its drawable splats'
         centre (the middle of their 2nd..98th percentile box) place the near views.
     """
-    cameras = list(scene.cameras[:MAX_CAMERAS])
+    cameras = list((scene.cameras or [])[:MAX_CAMERAS])
     lo, hi = drawn_box(scene)
     centre = (lo + hi) / 2
     if not cameras:
