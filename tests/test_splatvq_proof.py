@@ -192,14 +192,16 @@ def test_splats_no_frame_shows_rank_last():
         c[k][:] = np.log(0.05)
     # 0: in front of the camera; 1: behind it; 2: far out of frame; 3: hidden at every time in [0, 1];
     # 4: behind a large opaque splat (5) straight ahead; 6: only near t = 0.5.
-    c["x"][:] = [0.3, 0.3, 40.0, 0.3, 1.3, 1.3, -0.7]
+    c["x"][:] = [0.3, 0.3, 400.0, 0.3, 1.3, 1.3, -0.7]
     c["y"][:] = -0.2
     c["z"][:] = [0.0, -12.0, 0.0, 0.0, 2.0, 0.0, 0.0]
     c["trbf_center"][3], c["trbf_scale"][3] = 3.0, np.log(0.01)
     c["trbf_center"][6], c["trbf_scale"][6] = 0.5, np.log(0.01)
     for k in ("scale_0", "scale_1"):
         c[k][5] = np.log(0.6)
-    scene = Scene(c, cameras=[dict(CAMERA)])
+    # The proof draws a camera as splaTV's window shows it (focal lengths in its pixels): this one's field of view.
+    window = dict(CAMERA, fx=CAMERA["fx"] * 1280 / CAMERA["width"], fy=CAMERA["fy"] * 1280 / CAMERA["width"])
+    scene = Scene(c, cameras=[window])
     views = _matrices(proof.proof_views(scene))
     score = prune.contributions(scene.columns, views, (0.1, 0.9))
     assert score[0] > 0 and score[5] > 0 and score[6] > 0  # 6: at its best between the times drawn
@@ -208,5 +210,5 @@ def test_splats_no_frame_shows_rank_last():
     assert 3 not in ranked and set(ranked[:2]) == {1, 2}
     hidden = prune.contributions(scene.columns, views, (0.5,))[4]
     c["opacity"][5] = -40.0
-    alone = prune.contributions(Scene(c, cameras=[dict(CAMERA)]).columns, views, (0.5,))[4]
+    alone = prune.contributions(Scene(c, cameras=[window]).columns, views, (0.5,))[4]
     assert 0 < hidden < 0.2 * alone

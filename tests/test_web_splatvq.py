@@ -280,6 +280,11 @@ def test_bad_splatvq_shows_a_message(browser, small, tmp_path, what, damage, mes
     assert message in text, text
 
 
+#: The precision step of the file the rare paths are written into: fine enough that a temporal scale's
+#: codes can pass 255 (at the default step, its lattice holds fewer codes than that).
+EVERY_PATH_PRECISION = 2
+
+
 def _every_path(tables, fields):
     """Valid codes (the default setting's) that take the codings' rare paths: escapes in every saturating
     column, up to 4 bytes wide (codes past 2**32 in motion and omega), plain columns 4 bytes
@@ -303,7 +308,7 @@ def _every_path(tables, fields):
         lattice = fields[name] >= codec.SCALE_FIRST
         fields[name] += np.where(lattice, tables[key][chunk].astype(np.int64), 0)
         tables[key] = np.zeros_like(tables[key])
-    setting = codec.SETTINGS[codec.DEFAULT_SETTING]
+    setting = codec.refined(codec.SETTINGS[codec.DEFAULT_SETTING], EVERY_PATH_PRECISION)
     # The highest code of each axis that stays in the half range, from its chunk's base.
     top = packing.HALF_INF_BITS // setting.scale_step - tables["scale_base"][chunk].astype(np.int64) + codec.SCALE_FIRST
     widest = np.argmax(fields["scale"], axis=1)
@@ -314,8 +319,10 @@ def _every_path(tables, fields):
     fields["trbf_scale"][some, 0] = top[some]
 
 
-def test_every_coding_path_decodes_to_the_words_python_decodes(browser, small, tmp_path):
-    data = damage.with_codes(small.read_bytes(), _every_path)
+def test_every_coding_path_decodes_to_the_words_python_decodes(browser, tmp_path):
+    finer = tmp_path / "finer.splatvq"
+    splatconv.write(real_scene(3000, seed=5)[0], finer, precision=EVERY_PATH_PRECISION)
+    data = damage.with_codes(finer.read_bytes(), _every_path)
     path = tmp_path / "every.splatvq"
     path.write_bytes(data)
     _, fields, _ = codec.unpack_payload(damage.payload(data), *damage.layout(data)[1][0][:2], "x", ())

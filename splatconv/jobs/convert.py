@@ -14,12 +14,17 @@ from ._steps import check_job, read_input, reading_for, silent, write_output
 #: ``.ply``, 145 to ``.splatv``, 177 to ``.splatvq``, ``bench/bench_memory.py``): what the
 #: decompression ceiling counts (:func:`splatconv.io.holding`).
 CONVERT_MEMORY_BYTES = 192
+#: The same with the proof of a compressed output (:mod:`splatconv.jobs.prove`): the source and a
+#: candidate each as a scene, a candidate being encoded, and the renderer's textures and depth keys
+#: (some 830 bytes a splat over a fixed 250 MB between generated scenes of 100,000 and 300,000
+#: splats; 1.4 kB a splat over a scene of 65,536 in ``tests/test_memory.py``).
+PROVE_MEMORY_BYTES = 1536
 
 
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
             zstd_level: int | None = None, layout: str | None = None, quality: str | None = None, progress=SILENT,
-            edit=None, tell=silent, writer=None):
+            edit=None, tell=silent, writer=None, memory: int = CONVERT_MEMORY_BYTES):
     """Read ``source`` and write it to ``output``; formats by suffix, ``.html`` a player page
     (:func:`splatconv.publish.write_page`: a file the page plays as it is, given no option that changes it,
     is embedded as its own bytes, as ``publish`` and ``view`` give it).
@@ -38,6 +43,9 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         instead of writing the output, e.g. one that proves the output's
         quality (:func:`splatconv.jobs.prove.convert_proven`); its notes are told
         after the write report's.
+    memory : int
+        Bytes a splat takes at the command's peak, which the decompression
+        ceiling counts (:data:`PROVE_MEMORY_BYTES` with a proving writer).
     progress : splatconv.progress.Progress
         Told the reading (a "reading" stage, and the bytes of a ``.zst`` input
         decompressed) and the writing (as :func:`splatconv.io.write`).
@@ -53,7 +61,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     # The output is checked before the (possibly long) read: fail fast, touch nothing.
     fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout, quality=quality)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
-    with reading_for(output, quality=quality), holding(CONVERT_MEMORY_BYTES):
+    with reading_for(output, quality=quality), holding(memory):
         scene = read_input(source, color=color, progress=progress)
     refuse_empty(fmt, scene.count, source, "holds no splats")
     changed = camera_list is not None or edit is not None

@@ -12,6 +12,7 @@ frames are drawn once); the output is then the very bytes that were measured.
 
 from __future__ import annotations
 
+import math
 import os
 import shutil
 import tempfile
@@ -26,10 +27,12 @@ from ..ops.prune import leave_out
 from ..publish import PAGE
 from ..render.proof import PROOF_TIMES, Prover, proof_plan, proof_views, ranked
 from ..wording import plural
-from .convert import convert
+from .convert import PROVE_MEMORY_BYTES, convert
 
-#: Half steps tried coarser than the first that holds, to spend fewer bytes (each costs a proof).
+#: Candidates tried coarser than the first that holds, to spend fewer bytes (each costs a proof).
 MAX_COARSER = 3
+#: About what a half step buys or costs in the worst frame: the search jumps by the dB it lacks or has.
+DB_PER_HALF_STEP = 3.0
 #: Candidates ``--prune`` proves at most, and the share of the drawable splats it stops at (1/128).
 PRUNE_PROOFS = 7
 PRUNE_RESOLUTION = 128
@@ -83,7 +86,7 @@ def convert_proven(source, output, *, min_psnr: float | None = None, max_bytes: 
         return write_proven(scene, out, min_psnr=min_psnr, max_bytes=max_bytes, best_effort=best_effort,
                             prune=prune, **write_options)
 
-    return convert(source, output, writer=writer, **options)
+    return convert(source, output, writer=writer, memory=PROVE_MEMORY_BYTES, **options)
 
 
 class _Candidates:
@@ -181,14 +184,9 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                 raise OutputError(f"even the coarsest step of the {name!r} setting takes {c.size((steps[0], 0)):,} "
                                   f"bytes, more than --max-bytes {max_bytes:,}", output)
             order = fits[::-1]  # the finest that fits first
+            chosen = next((p for p in order if floor is None or c.proof((p, 0)).worst >= floor), None)
         else:
-            order = [p for p in steps if p >= 0]
-        chosen = next((p for p in order if floor is None or c.proof((p, 0)).worst >= floor), None)
-        if chosen is not None and floor is not None and max_bytes is None:
-            for p in [q for q in steps if q < chosen][::-1][:MAX_COARSER]:
-                if c.proof((p, 0)).worst < floor:
-                    break
-                chosen = p
+            chosen = _searched(c, steps, floor)
         short = None
         if chosen is None:
             chosen = max((key for key in c.proofs), key=lambda key: c.proofs[key].worst)[0]
@@ -213,13 +211,46 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     drawn = f"{plural(len(views), 'view')} at t = {', '.join(f'{t:g}' for t in proof.times)}"
     if len(views) < every or len(times) < len(PROOF_TIMES):
         drawn += f" (of {every} views: a scene of {scene.count:,} splats is proved from fewer frames)"
-    notes.append(f"proved: worst frame {proof.worst:.2f} dB ({proof.where}), mean {proof.mean:.2f} dB, drawn "
+    worst = f"worst frame {proof.worst:.2f} dB ({proof.where}), mean {proof.mean:.2f} dB" \
+        if proof.worst < float("inf") else "every frame identical to its source's"
+    notes.append(f"proved: {worst}, drawn "
                  f"against the scene it encodes from {drawn}, at {precision_text(name, chosen)}"
                  + (f" (floor {floor:g} dB)" if floor is not None else "")
                  + f"; {plural(tried, 'candidate')} in {time.perf_counter() - started:.1f} s")
     if short is not None:
         notes.append(f"{short:.2f} dB short of the {whose} (--best-effort)")
     return report, notes
+
+
+def _searched(c: _Candidates, steps: list, floor: float) -> int | None:
+    """The coarsest step found to reach ``floor``, or None: the setting (step 0) first, then finer by the
+    half steps the dB it lacks ask for (:data:`DB_PER_HALF_STEP`, at least one), until a step holds; then
+    coarser by the dB it has to spare, at most :data:`MAX_COARSER` proofs, stepping back one where a jump
+    broke the floor."""
+    last = steps[-1]
+    p = 0
+    while True:
+        worst = c.proof((p, 0)).worst
+        if worst >= floor:
+            break
+        if p >= last:
+            return None
+        p = min(last, p + max(1, int(math.ceil((floor - worst) / DB_PER_HALF_STEP))))
+    chosen = p
+    for _ in range(MAX_COARSER):
+        spare = min(c.proof((chosen, 0)).worst - floor, 100.0)  # identical frames: inf
+        q = max(steps[0], chosen - max(1, int(spare // DB_PER_HALF_STEP)))
+        if q == chosen or ((q, 0) in c.proofs and c.proofs[(q, 0)].worst < floor):
+            q = chosen - 1
+            if q < steps[0] or (q, 0) in c.proofs:
+                break
+        if c.proof((q, 0)).worst >= floor:
+            chosen = q
+        elif chosen - q > 1 and (chosen - 1, 0) not in c.proofs:
+            continue  # the jump broke the floor: the next try is one half step
+        else:
+            break
+    return chosen
 
 
 def precision_text(name: str, step: int) -> str:

@@ -8,10 +8,18 @@ encodes, and ``verify --proof-views`` draws the same frames, so the two agree:
   stepped :data:`NEAR_STEP` of the way towards it (a user's first drag or wheel);
 * the view splaTV opens every file at (:data:`SPLATV_VIEW`, its built-in
   camera's focal lengths), which may be far from any header camera;
+* each header camera as splaTV's viewer shows it in its window
+  (:data:`~splatconv.viewer.SPLATV_WINDOW`, the camera's focal lengths in
+  pixels of the window: the middle of what it saw, at its own scale), and
+  widened (:data:`WIDENED`: what lies just out of its frame);
 
-each at :data:`PROOF_TIMES`, all :data:`PROOF_WIDTH` pixels wide with the first
-camera's aspect (another camera's whole view fits inside). Both scenes are drawn
-as the viewer draws them (the ``.splatv`` texture a conversion holds).
+each at :data:`PROOF_TIMES`, all :data:`PROOF_WIDTH` pixels wide: a camera's
+whole view (near views too) with the first camera's aspect, the viewer's window
+scaled down. Both, because a real scene pruned to 40 dB over the camera's whole
+view drew the window's centre at 39.6 dB, and one pruned over the window alone
+lost its subject, outside the window but in the camera's view (pruned over the
+camera's view, it lost a person just below the frame: hence the widened view). Both scenes are
+drawn as the viewer draws them (the ``.splatv`` texture a conversion holds).
 """
 
 from __future__ import annotations
@@ -38,13 +46,16 @@ PROOF_TIMES = (0.1, 0.3, 0.5, 0.7, 0.9)
 PROOF_WIDTH = 640
 #: Splats a proof draws at most, over one scene's frames: a larger scene is proved from fewer
 #: frames (:func:`proof_plan`), chosen first of all views and times, at least :data:`MIN_FRAMES`.
-PROOF_SPLAT_FRAMES = 6_000_000
+PROOF_SPLAT_FRAMES = 2_000_000
 MIN_FRAMES = 2
 #: The times a limited proof takes first.
 TIME_PRIORITY = (0.5, 0.1, 0.9, 0.3, 0.7)
 MAX_CAMERAS = 4
 NEAR_DEGREES = 4.0
 NEAR_STEP = 0.1
+#: A camera's whole view drawn with its focal lengths scaled by this: what lies just out of its frame,
+#: which a user sees on the first zoom out (and which ``--prune`` must not take for unseen).
+WIDENED = 0.5
 #: The most important splats :func:`ranked` puts last (one is the first record the viewer draws twice).
 KEEP_IMPORTANT = 4
 
@@ -88,6 +99,9 @@ def proof_views(scene: Scene) -> list:
         cameras = [camera_for_box(lo, hi)]
     first = cameras[0]
     size = (PROOF_WIDTH, max(1, round(PROOF_WIDTH * int(first["height"]) / int(first["width"]))))
+    # splaTV's window: focal lengths are pixels of the window, whose frame is drawn scaled.
+    window = (PROOF_WIDTH, max(1, round(PROOF_WIDTH * SPLATV_WINDOW[1] / SPLATV_WINDOW[0])))
+    scale = window[0] / SPLATV_WINDOW[0]
     views = []
     for i, camera in enumerate(cameras):
         for name, c in ((f"camera {i}", camera), (f"camera {i} orbited {NEAR_DEGREES:g} deg",
@@ -95,10 +109,12 @@ def proof_views(scene: Scene) -> list:
                         (f"camera {i} stepped in", stepped(camera, centre, NEAR_STEP))):
             w, h, fx, fy = cam.fit(c, size)
             views.append((name, View(cam.view_matrix(c), fx, fy, w, h)))
-    # splaTV's window: its focal lengths are pixels of the window, whose width the frame keeps.
-    scale = size[0] / SPLATV_WINDOW[0]
+        views.append((f"camera {i} in splaTV's window", View(cam.view_matrix(camera), float(camera["fx"]) * scale,
+                                                               float(camera["fy"]) * scale, *window)))
+        w, h, fx, fy = cam.fit(camera, size)
+        views.append((f"camera {i} widened", View(cam.view_matrix(camera), fx * WIDENED, fy * WIDENED, w, h)))
     views.append(("splaTV's opening view", View(list(SPLATV_VIEW), SPLATV_FOCAL[0] * scale,
-                                                SPLATV_FOCAL[1] * scale, *size)))
+                                                SPLATV_FOCAL[1] * scale, *window)))
     return views
 
 
@@ -109,8 +125,9 @@ def proof_plan(scene: Scene, views: list | None = None) -> tuple:
     :data:`PROOF_TIMES`, unless that draws more than :data:`PROOF_SPLAT_FRAMES`
     splats (the scene's count per frame); then as many frames as that allows
     (at least :data:`MIN_FRAMES`), about as many views as times: the first
-    camera, splaTV's opening view, then the first camera's near views and the
-    other cameras; the times of :data:`TIME_PRIORITY`, in time order.
+    camera's whole view and splaTV's window of it, splaTV's opening view, then
+    the first camera's near views and the other cameras; the times of
+    :data:`TIME_PRIORITY`, in time order.
     """
     views = proof_views(scene) if views is None else views
     times = list(PROOF_TIMES)
@@ -118,7 +135,8 @@ def proof_plan(scene: Scene, views: list | None = None) -> tuple:
     if len(views) * len(times) <= allowed:
         return views, tuple(times)
     per_time = max(1, min(len(times), math.isqrt(allowed)))
-    firsts = sorted(range(len(views)), key=lambda i: (i != 0, i != len(views) - 1, i))
+    # The first camera, as the viewer's window shows it, the opening view, then the rest in order.
+    firsts = sorted(range(len(views)), key=lambda i: (i != 0, i != 3, i != len(views) - 1, i))
     chosen = sorted(firsts[:max(1, min(len(views), allowed // per_time))])
     prior = [t for t in TIME_PRIORITY if t in times] + [t for t in times if t not in TIME_PRIORITY]
     return [views[i] for i in chosen], tuple(sorted(prior[:per_time]))
