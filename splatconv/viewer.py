@@ -194,10 +194,10 @@ def depth_extremes(x: np.ndarray, y: np.ndarray, z: np.ndarray, directions: np.n
     if not n:
         return out
     ends = min(DEPTH_ENDS, n - 1)
+    x, y, z = (np.asarray(v, np.float64) for v in (x, y, z))
     with np.errstate(invalid="ignore", over="ignore"):
         for d in np.asarray(directions, np.float64) * DEPTH_KEY_SCALE:
-            key = js_int32(np.asarray(x, np.float64) * d[0] + np.asarray(y, np.float64) * d[1]
-                           + np.asarray(z, np.float64) * d[2])
+            key = js_int32(x * d[0] + y * d[1] + z * d[2])
             out |= (key == key.min()) | (key == key.max())
             if ends:
                 out[np.argpartition(key, ends)[:ends]] = True

@@ -14,7 +14,7 @@ from splatconv.formats import REGISTRY
 PACKAGE = Path(__file__).resolve().parent.parent / "splatconv"
 #: Imports allowed inside functions: moderngl is loaded only when something is drawn, av (PyAV,
 #: an optional extra) only when a video is written.
-LAZY_ALLOWED = {"moderngl", "av"}
+LAZY_ALLOWED = {"moderngl", "av", "PIL"}  # PIL: image files only, off convert's path
 
 
 def _module_name(path: Path) -> str:

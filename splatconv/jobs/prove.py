@@ -42,7 +42,7 @@ def _precisions(output) -> tuple:
     """The precision steps of ``output``'s format (none for a page or a format without them)."""
     try:
         return check_write_options(output, also=(PAGE,)).precisions
-    except (UsageError, AttributeError):
+    except UsageError:
         return ()
 
 
@@ -171,8 +171,8 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
         return report, [f"not proved again: {precision_text(name, kept)} keeps every value of the source, "
                         "a file of that setting"]
     started = time.perf_counter()
-    views, times = proof_plan(scene)
-    every = len(proof_views(scene))
+    every = proof_views(scene)
+    views, times = proof_plan(scene, every)
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
             progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0), "candidate") as advance, \
             Prover(scene, views, times) as prover:
@@ -209,8 +209,8 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                      f"pruned no splat of {len(c.ranked):,} drawable: leaving out the least would break "
                      f"the floor" if short is None else "pruned no splat: the floor is not reached")
     drawn = f"{plural(len(views), 'view')} at t = {', '.join(f'{t:g}' for t in proof.times)}"
-    if len(views) < every or len(times) < len(PROOF_TIMES):
-        drawn += f" (of {every} views: a scene of {scene.count:,} splats is proved from fewer frames)"
+    if len(views) < len(every) or len(times) < len(PROOF_TIMES):
+        drawn += f" (of {len(every)} views: a scene of {scene.count:,} splats is proved from fewer frames)"
     worst = f"worst frame {proof.worst:.2f} dB ({proof.where}), mean {proof.mean:.2f} dB" \
         if proof.worst < float("inf") else "every frame identical to its source's"
     notes.append(f"proved: {worst}, drawn "

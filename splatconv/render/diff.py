@@ -8,7 +8,6 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from PIL import Image, UnidentifiedImageError
 
 from ..errors import FormatError, UnsupportedError
 
@@ -87,6 +86,7 @@ def is_image(path) -> bool:
 
 def load_image(path) -> np.ndarray:
     """An image file as ``(H, W, 3) uint8`` RGB (alpha dropped, palette expanded)."""
+    from PIL import Image, UnidentifiedImageError  # Pillow for files only: convert's proof compares arrays
 
     path = os.fspath(path)
     too_big = f"more than the {MAX_IMAGE_PIXELS:,} pixels an image may have"
@@ -111,5 +111,7 @@ def load_image(path) -> np.ndarray:
 
 def save_png(img: np.ndarray, stream) -> None:
     """Write ``(H, W, 3+) uint8`` RGB to an open binary stream as PNG (use an atomic writer)."""
+
+    from PIL import Image
 
     Image.fromarray(np.ascontiguousarray(img[..., :3]), "RGB").save(stream, format="PNG")
