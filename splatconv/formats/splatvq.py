@@ -455,8 +455,8 @@ FORMAT = Format(
     name="splatvq",
     suffixes=(".splatvq",),
     default_sort="importance",  # blocks in importance order: the page draws the most important splats first
-    holds_empty=False,  # a file holds drawable splats only, at least one
-    drawable_only=True,  # undrawable splats are left out (and counted in a note)
+    holds_empty=False,  # a file holds at least one drawable splat
+    drawable_only=True,  # undrawable splats are left out but for those the depth sort needs (a note counts them)
     dynamic=True,  # motion and a temporal basis, quantized
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats,
     write=write,
