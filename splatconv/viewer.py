@@ -194,8 +194,8 @@ def depth_extremes(x: np.ndarray, y: np.ndarray, z: np.ndarray, directions: np.n
     if not n:
         return out
     ends = min(DEPTH_ENDS, n - 1)
-    x, y, z = (np.asarray(v, np.float64) for v in (x, y, z))
-    with np.errstate(invalid="ignore", over="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # a signalling NaN warns when widened
+        x, y, z = (np.asarray(v, np.float64) for v in (x, y, z))
         for d in np.asarray(directions, np.float64) * DEPTH_KEY_SCALE:
             key = js_int32(x * d[0] + y * d[1] + z * d[2])
             out |= (key == key.min()) | (key == key.max())
