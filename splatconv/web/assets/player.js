@@ -1007,6 +1007,11 @@
 
   // ---------------------------------------------------------------- start
 
+  // The hash first, so that without WebGL too the poster is laid out (or dropped) as it asks.
+  state.view = cameraView({rotation: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], position: [0, 0, -4]});
+  setPlaying(true);
+  setFit(state.fit);
+  readHash();
   if (!gl) {
     showMessage("This browser cannot show the scene: WebGL 2 is not available (it may be turned off in " +
                 "the browser's settings, or the graphics driver is not supported).");
@@ -1019,10 +1024,6 @@
     return;
   }
   canvas.addEventListener("webglcontextlost", () => showMessage("The graphics context was lost; reload the page."));
-  state.view = cameraView({rotation: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], position: [0, 0, -4]});
-  setPlaying(true);
-  setFit(state.fit);
-  readHash();
   requestAnimationFrame(frame);
   const sources = config.scenes.map((s, i) => {
     if (s.embedded !== undefined) {
