@@ -8,12 +8,19 @@ no scene format (it is written, never read): ``convert OUT.html``, ``bake``,
 ``merge`` and ``view`` all come here (:func:`write_page`, :func:`publish`,
 :func:`page_bytes`), so every page chooses its bytes by one rule: a file's own bytes when the page
 plays it as it is and nothing changes it, else :func:`scene_bytes`.
+
+A page carries a poster unless told not to (``poster=False``): its first frame
+(clip time 0, the first segment's camera 0), drawn by the headless renderer from
+the very bytes the page plays (:func:`splatconv.render.poster.draw_poster`),
+shown until WebGL draws and given to sharers where a file can hold it.
 """
 
 from __future__ import annotations
 
+import base64
 import io
 import os
+import tempfile
 from dataclasses import dataclass, field
 from urllib.parse import quote
 
@@ -27,10 +34,13 @@ from .io import read as read_scene
 from .model import Scene
 from .progress import SILENT
 from .zstd import DEFAULT_LEVEL, inner_name, is_compressed, output_stream, plain_input
-from .web.page import SceneRef, build_page, parse_durations
+from .web.page import Picture, SceneRef, build_page, parse_durations
 
 #: The suffix of a player page (``.zst`` after it: the same page, compressed).
 PAGE_SUFFIX = ".html"
+#: What a page's poster file is called beside it, after the page's name without ``.html``
+#: (``--external``: ``OUT.poster.jpg``, which ``og:image`` names).
+POSTER_SUFFIX = ".poster.jpg"
 
 
 @dataclass(frozen=True)
@@ -62,6 +72,32 @@ class PageOutput:
     precisions: tuple = ()
     holds_empty: bool = False
     drawable_only: bool = False
+
+
+@dataclass(frozen=True)
+class PageOptions:
+    """What a page output takes beyond a scene file's options (``--fit``, ``--no-poster``).
+
+    Attributes
+    ----------
+    fit : bool
+        The page opens fitting the camera's whole view to the window.
+    poster : bool
+        The page carries its first frame as a poster (drawn: it costs a render).
+    """
+
+    fit: bool = False
+    poster: bool = True
+
+    def check(self, output) -> None:
+        """Refuse options other than the defaults for an ``output`` that is no page.
+
+        Raises
+        ------
+        UsageError
+        """
+        if self != PageOptions() and not is_page(output):
+            raise UsageError(f"--fit and --no-poster apply to {PAGE_SUFFIX} output only", output)
 
 
 #: The player page as an output.
@@ -144,7 +180,7 @@ def scene_bytes(scene: Scene, *, compat: str | None = None, sort: str | None = N
     if quality is not None and compat is not None:
         raise UsageError(f"compat {compat!r} and quality {quality!r} exclude each other: a quality embeds "
                          "a quantized scene, compat the texture's bytes")
-    played = playable_format(quality) if quality is not None else _kept_format(scene, compat)
+    played = _scene_format(scene, compat, quality)
     buffer = io.BytesIO()
     if played is None:
         texture = texture_format()
@@ -157,6 +193,11 @@ def scene_bytes(scene: Scene, *, compat: str | None = None, sort: str | None = N
         report.notes.append(f"the source's {played.suffixes[0]} setting {setting!r} is not one this version "
                             f"writes; embedded with the {played.qualities[0]!r} setting")
     return buffer.getvalue(), report
+
+
+def _scene_format(scene: Scene, compat: str | None, quality: str | None):
+    """The format :func:`scene_bytes` packs ``scene`` as, or None for the texture format."""
+    return playable_format(quality) if quality is not None else _kept_format(scene, compat)
 
 
 def _kept_format(scene: Scene, compat: str | None):
@@ -196,7 +237,8 @@ def page_bytes(path: str | os.PathLike, quality: str | None = None) -> tuple[byt
 
 def write_page(scene: Scene, output: str | os.PathLike, *, source=None, compat: str | None = None,
                sort: str | None = None, quality: str | None = None, force: bool = False, inputs=(),
-               zstd_level: int | None = None, progress=SILENT) -> WriteReport:
+               zstd_level: int | None = None, fit: bool = False, poster: bool = True,
+               progress=SILENT) -> WriteReport:
     """Write ``output``, the player page with ``scene`` embedded, atomically (``.html.zst``: compressed).
 
     Parameters
@@ -212,26 +254,38 @@ def write_page(scene: Scene, output: str | os.PathLike, *, source=None, compat: 
         As for :func:`scene_bytes`.
     force, inputs, zstd_level, progress
         As for :func:`splatconv.io.write`.
+    fit : bool
+        The page opens fitting the camera's whole view to the window (:func:`splatconv.web.page.build_page`).
+    poster : bool
+        Draw the page's first frame and embed it as a ``data:`` JPEG, shown until WebGL draws
+        (:func:`_poster`; a single file gives sharers no picture: ``og:image`` needs a file).
 
     Returns
     -------
     WriteReport
-        The splats embedded and the notes of packing them.
+        The splats embedded and the notes of packing them (and of a poster that could not be drawn).
     """
     output = os.fspath(output)
     check_output(output, inputs, force)
     try:
         if source is not None and compat is None and sort is None and _plays_as_is(source, quality):
             data, _ = page_bytes(source)
+            suffix = page_suffix(source)
             report = WriteReport(count=scene.count)
         else:
             data, report = scene_bytes(scene, compat=compat, sort=sort, quality=quality, progress=progress)
+            suffix = (_scene_format(scene, compat, quality) or texture_format()).suffixes[0]
     except SplatconvError as e:
         if e.path is not None:
             raise
         raise type(e)(e.message, output, e.where) from None  # a writer does not know the page's name
+    picture = None
+    if poster:
+        drawn, notes = _poster(data, suffix)
+        report.notes.extend(notes)
+        picture = None if drawn is None else _picture(drawn, _data_uri(drawn.jpeg))
     stem = _stem(output)
-    page = _page([SceneRef(name=stem or "scene", data=data)], stem)
+    page = _page([SceneRef(name=stem or "scene", data=data)], stem, fit=fit, picture=picture)
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     with atomic_writer(output, replace=force) as stream, \
             output_stream(stream, output, level, progress, size_hint=len(page)) as out:
@@ -244,9 +298,49 @@ def _stem(output: str) -> str:
     return os.path.basename(inner_name(output))[: -len(PAGE_SUFFIX)]
 
 
-def _page(refs: list, stem: str) -> bytes:
-    """The page playing ``refs``, titled ``stem`` (when its name has one)."""
-    return build_page(refs, title=stem) if stem else build_page(refs)
+def _page(refs: list, stem: str, **options) -> bytes:
+    """The page playing ``refs``, titled ``stem`` (when its name has one); ``options``: :func:`build_page`'s."""
+    return build_page(refs, title=stem, **options) if stem else build_page(refs, **options)
+
+
+def _poster(data: bytes, suffix: str):
+    """The page's poster, drawn from ``data``, the bytes its first segment plays (a ``suffix`` file).
+
+    Returns
+    -------
+    (Poster or None, list of str)
+        None, with a note saying why, when the scene has no camera (the page's first view then
+        depends on the window) or no OpenGL context can be made.
+    """
+    with tempfile.TemporaryDirectory(prefix="splatconv-poster-") as folder:
+        path = os.path.join(folder, "page" + suffix)
+        with open(path, "wb") as f:
+            f.write(data)
+        return _file_poster(path)
+
+
+def _file_poster(path: str):
+    """:func:`_poster` of a file the page plays as it is."""
+    # Declared lazy (tests/test_architecture.py): the renderer loads only when a page is written.
+    from .render.gl import RenderUnavailable
+    from .render.poster import draw_poster
+
+    try:
+        drawn = draw_poster(path)
+    except RenderUnavailable as e:
+        return None, [f"no poster: {e.message}"]
+    if drawn is None:
+        return None, ["no poster: the scene has no camera, so the page's first view depends on the window"]
+    return drawn, []
+
+
+def _picture(drawn, src: str, share: str | None = None) -> Picture:
+    return Picture(src=src, width=drawn.camera_width, height=drawn.camera_height,
+                   pixels=(drawn.width, drawn.height), share=share)
+
+
+def _data_uri(jpeg: bytes) -> str:
+    return "data:image/jpeg;base64," + base64.b64encode(jpeg).decode("ascii")
 
 
 @dataclass
@@ -258,7 +352,8 @@ class PublishReport:
 
 
 def publish(inputs, output, *, external: bool = False, force: bool = False,
-            durations: str | None = None, quality: str | None = None) -> PublishReport:
+            durations: str | None = None, quality: str | None = None, fit: bool = False,
+            poster: bool = True) -> PublishReport:
     """Write ``output`` (``.html``): the player with ``inputs`` as one clip.
 
     Parameters
@@ -286,6 +381,12 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
         Give the page every scene as a ``.splatvq`` at this setting (:func:`page_bytes`),
         embedded or, with ``external``, written beside it (``OUT.splatvq``); an input
         is then never played where it is.
+    fit : bool
+        The page opens fitting the camera's whole view to the window.
+    poster : bool
+        Draw the clip's first frame (the first input's camera 0 at time 0) as the page's
+        poster: with ``external`` written beside the page (``OUT.poster.jpg``, named by its
+        ``og:image`` and ``twitter:image`` for sharers), else embedded as a ``data:`` JPEG.
 
     Returns
     -------
@@ -305,23 +406,30 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
     # An input that is already the file the page would fetch stays where it is.
     kept = [external and quality is None and is_plain_playable(path) and _same_file(path, name)
             for path, name in zip(inputs, names)]
+    poster_name = f"{stem}{POSTER_SUFFIX}"
     outputs = [output] + ([name for name, keep in zip(names, kept) if not keep] if external else [])
+    outputs += [poster_name] if external and poster else []
     for path in outputs:
         check_output(path, inputs, force)
     if len(set(map(os.path.abspath, outputs))) != len(outputs):  # pragma: no cover (names are distinct)
         raise UsageError("output names collide", output)
     report = PublishReport()
     refs = []
+    picture = None
     # All files or none: a page never points at a scene file that was not written.
     with atomic_group(replace=force) as group:
         for path, name, share, keep in zip(inputs, names, shares, kept):
             if keep:
                 check_playable(path)
+                if poster and not refs:
+                    made = _file_poster(path)
                 report.notes.append(f"{name}: the page plays this input where it is")
                 refs.append(SceneRef(name=os.path.basename(name), url=quote(os.path.basename(name)), duration=share))
                 continue
             data, notes = page_bytes(path, quality)
             report.notes.extend(f"{path}: {n}" for n in notes)
+            if poster and not refs:  # the clip's first frame: the first segment's
+                made = _poster(data, page_suffix(path, quality))
             if external:
                 with group.open(name) as stream:
                     stream.write(data)
@@ -330,11 +438,29 @@ def publish(inputs, output, *, external: bool = False, force: bool = False,
                 refs.append(SceneRef(name=os.path.basename(name), url=quote(os.path.basename(name)), duration=share))
             else:
                 refs.append(SceneRef(name=os.path.basename(path), data=data, duration=share))
-        page = _page(refs, _stem(output))
+        if poster:
+            picture = _published_picture(group, report, made, external, poster_name)
+        page = _page(refs, _stem(output), fit=fit, picture=picture)
         with group.open(output) as stream:
             stream.write(page)
     report.written.insert(0, (output, len(page)))
     return report
+
+
+def _published_picture(group, report: PublishReport, made: tuple, external: bool, name: str):
+    """A published page's picture of the poster ``made`` (:func:`_poster`'s answer): a file ``name``
+    beside an ``external`` page (written in ``group``, named for sharers), else a ``data:`` URI."""
+    drawn, notes = made
+    report.notes.extend(notes)
+    if drawn is None:
+        return None
+    if not external:
+        return _picture(drawn, _data_uri(drawn.jpeg))
+    with group.open(name) as stream:
+        stream.write(drawn.jpeg)
+    report.written.append((name, len(drawn.jpeg)))
+    url = quote(os.path.basename(name))
+    return _picture(drawn, url, share=url)
 
 
 def _same_file(a: str, b: str) -> bool:

@@ -236,7 +236,7 @@ def test_pages_of_several_scenes_and_external_pages_take_it(tmp_path, source):
     site.mkdir()
     r = run("convert", source, site / "scene.html", "--external", "--quality", quality)
     assert r.exit_code == 0, r.output
-    assert sorted(p.name for p in site.iterdir()) == ["scene.html", "scene.splatvq"]
+    assert sorted(p.name for p in site.iterdir()) == ["scene.html", "scene.poster.jpg", "scene.splatvq"]
     assert io.read(site / "scene.splatvq").meta["setting"] == quality
     size = (site / "scene.splatvq").stat().st_size
     assert r.stdout.splitlines()[1] == f"wrote {site / 'scene.splatvq'}: {size:,} bytes"

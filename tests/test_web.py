@@ -112,7 +112,7 @@ def test_external_html_from_a_static_host(browser, sample, tmp_path):
     site = tmp_path / "site"
     site.mkdir()
     report = publish([sample], site / "my scene.html", external=True)
-    assert [Path(p).name for p, _ in report.written] == ["my scene.html", "my scene.splatv"]
+    assert [Path(p).name for p, _ in report.written] == ["my scene.html", "my scene.splatv", "my scene.poster.jpg"]
     assert (site / "my scene.splatv").read_bytes() == sample.read_bytes()
     handler = partial(_QuietHandler, directory=str(site))
     httpd = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
@@ -509,7 +509,7 @@ def test_controls_fit_the_window_without_overlapping(browser, sample, width, hei
             .map((e) => { const r = e.getBoundingClientRect(); return [e.id || e.textContent.trim().slice(0, 8),
                                                                     r.left, r.top, r.right, r.bottom]; })""")
         page.close()
-    assert len(boxes) == 8
+    assert len(boxes) == 9
     for name, left, top, right, bottom in boxes:
         assert 0 <= left < right <= width and 0 <= top < bottom <= height, (name, left, top, right, bottom)
     for i, a in enumerate(boxes):

@@ -341,7 +341,7 @@ def test_convert_external_and_segments(sample, tmp_path):
     out = tmp_path / "clip.html"
     r = run("convert", sample, SAMPLE, out, "--external")
     assert r.exit_code == 0, r.output
-    parts = [tmp_path / "clip.0.splatv", tmp_path / "clip.1.splatv"]
+    parts = [tmp_path / "clip.0.splatv", tmp_path / "clip.1.splatv", tmp_path / "clip.poster.jpg"]
     assert r.stdout.splitlines() == [f"wrote {p}: {p.stat().st_size:,} bytes" for p in [out] + parts]
     assert (tmp_path / "clip.0.splatv").read_bytes() == sample.read_bytes()
     page = out.read_text()
@@ -357,7 +357,7 @@ def test_convert_external_plays_a_splatv_input_where_it_is(sample, tmp_path):
     scene = tmp_path / "scene.splatv"
     scene.write_bytes(sample.read_bytes())
     before = scene.stat()
-    r = run("convert", scene, tmp_path / "scene.html", "--external")
+    r = run("convert", scene, tmp_path / "scene.html", "--external", "--no-poster")
     assert r.exit_code == 0, r.output
     assert r.stdout == f"wrote {tmp_path / 'scene.html'}: {(tmp_path / 'scene.html').stat().st_size:,} bytes\n"
     assert r.stderr == f"note: {scene}: the page plays this input where it is\n"
@@ -370,7 +370,8 @@ def test_convert_external_plays_a_splatv_input_where_it_is(sample, tmp_path):
             "--external")
     assert r.exit_code == 0, r.output
     assert [line.split(":")[0] for line in r.stdout.splitlines()] == [
-        f"wrote {tmp_path / 'clip.html'}", f"wrote {tmp_path / 'clip.1.splatv'}"]
+        f"wrote {tmp_path / 'clip.html'}", f"wrote {tmp_path / 'clip.1.splatv'}",
+        f"wrote {tmp_path / 'clip.poster.jpg'}"]
     # A damaged .splatv input is refused, not published.
     (tmp_path / "bad.splatv").write_bytes(b"nope, not a scene")
     r = run("convert", tmp_path / "bad.splatv", tmp_path / "bad.html", "--external")

@@ -144,7 +144,7 @@ def test_published_page_plays_the_embedded_splatvq_from_disk(browser, small, tmp
 def test_external_page_fetches_the_splatvq(browser, large, tmp_path):
     site = tmp_path / "site"
     site.mkdir()
-    report = publish([large], site / "clip.html", external=True)
+    report = publish([large], site / "clip.html", external=True, poster=False)
     assert [Path(p).name for p, _ in report.written] == ["clip.html", "clip.splatvq"]
     assert (site / "clip.splatvq").read_bytes() == large.read_bytes()
     handler = partial(_QuietHandler, directory=str(site))

@@ -145,6 +145,20 @@ def quiet_option():
                         help="No progress bar (there is none either when stderr is not a terminal).")
 
 
+def page_options():
+    """An .html OUTPUT's options: ``--fit`` and ``--no-poster`` (:class:`splatconv.publish.PageOptions`)."""
+    return (
+        click.option("--fit", is_flag=True,
+                     help="For an .html OUTPUT: the page opens fitting the camera's whole view to the window "
+                          "(fx and fy scaled as render --fit scales them) instead of keeping the camera's focal "
+                          "lengths at any window size (splaTV's way). F, the fit button or #fit=1 switch it."),
+        click.option("--no-poster", is_flag=True,
+                     help="For an .html OUTPUT: no poster. By default the page's first frame is drawn headlessly "
+                          "and shown until WebGL draws (embedded; with --external written beside the page as "
+                          "OUT.poster.jpg and named for sharers by og:image)."),
+    )
+
+
 def force_option(what: str = "OUTPUT"):
     return click.option("--force", is_flag=True, help=f"Replace {what} if it exists (never an input).")
 

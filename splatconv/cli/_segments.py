@@ -65,7 +65,7 @@ def given(options: dict) -> bool:
 
 
 def run(inputs, output_path, *, layout, sort, quality, color, force, quiet, durations, leak, budget, check_every,
-        no_check, camera, as_json) -> None:
+        no_check, camera, as_json, page=None) -> None:
     """The body of ``merge --segments``."""
     if durations is not None and len(durations) != len(inputs):
         raise Failure(f"--durations gives {plural(len(durations), 'value')} for {plural(len(inputs), 'segment')}", 2)
@@ -74,6 +74,6 @@ def run(inputs, output_path, *, layout, sort, quality, color, force, quiet, dura
     _merged, report, written, checked = merge_segments(
         inputs, output_path, durations=durations, leak=leak, budget=budget, sort=sort, layout=layout,
         quality=quality, color=color, force=force, check=not no_check, check_every=check_every, camera=camera,
-        progress=progress(quiet), tell=notes)
+        page=page, progress=progress(quiet), tell=notes)
     data = segments_findings(report, written, output_path, checked)
     click.echo(to_json(data) if as_json else segments_text(data))

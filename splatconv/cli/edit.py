@@ -11,9 +11,10 @@ from ..jobs.bake import bake_frames
 from ..jobs.merge import merge as merge_job
 from ..ops import make_transform
 from ..ops.bake import MAX_FRAMES
+from ..publish import PageOptions
 from ..wording import plural
-from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, progress,
-                    quality_option, quiet_option, wrote)
+from ._base import (FINITE, Failure, color_option, force_option, library_errors, main, notes, options, page_options,
+                    progress, quality_option, quiet_option, wrote)
 from ._edit import FloatList, Rotation
 from ._segments import given as segments_given
 from ._segments import run as run_segments
@@ -110,12 +111,13 @@ def _sort_option():
     click.option("--drop-nonfinite", is_flag=True,
                  help="Also remove baked splats left with a NaN or infinite position, scale or colour, so that every "
                       "value written is finite (rotations and opacities always are; flat splats are kept)."),
+    *page_options(),
     force_option("OUTPUT (or existing frame files)"),
     quiet_option(),
 )
 @library_errors
-def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, quality, color, drop_nonfinite, force,
-         quiet):
+def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, quality, color, drop_nonfinite, fit,
+         no_poster, force, quiet):
     """Write the scene as the viewer shows it at one time, as a static scene.
 
     Positions and rotations at that time, opacity times the temporal opacity,
@@ -133,12 +135,14 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, qual
     """
     if (time is None) == (frames is None):
         raise Failure("give either --time T (one moment) or --frames N (a folder of moments)", 2)
+    page = PageOptions(fit=fit, poster=not no_poster)
     if frames is None:
         _report, written = bake_job(input_path, output_path, time=time, sort=sort, layout=layout, quality=quality,
-                                    color=color, drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet),
-                                    tell=notes)
+                                    color=color, drop_nonfinite=drop_nonfinite, force=force, page=page,
+                                    progress=progress(quiet), tell=notes)
         wrote(output_path, written)
         return
+    page.check(output_path)
     names, moments, reports = bake_frames(input_path, output_path, frames=frames, suffix=frame_suffix, sort=sort,
                                           layout=layout, quality=quality, color=color,
                                           drop_nonfinite=drop_nonfinite, force=force, progress=progress(quiet),
@@ -164,12 +168,13 @@ def bake(input_path, output_path, time, frames, frame_suffix, layout, sort, qual
     color_option(),
     _drop_option("every INPUT"),
     *segment_options(),
+    *page_options(),
     force_option(),
     quiet_option(),
 )
 @library_errors
-def merge(paths, translate, rotate, scale, layout, sort, quality, color, drop_nonfinite, force, quiet, segments,
-          **segment):
+def merge(paths, translate, rotate, scale, layout, sort, quality, color, drop_nonfinite, fit, no_poster, force, quiet,
+          segments, **segment):
     """Put several scenes in one file on the same timeline.
 
     A static 3DGS background under a dynamic actor, two actors side by side:
@@ -196,17 +201,18 @@ def merge(paths, translate, rotate, scale, layout, sort, quality, color, drop_no
     if len(paths) < 3:
         raise Failure("merge needs at least two INPUT files and an OUTPUT", 2)
     inputs, output_path = list(paths[:-1]), paths[-1]
+    page = PageOptions(fit=fit, poster=not no_poster)
     if segments:
         if translate or rotate or scale or drop_nonfinite:
             raise Failure("--translate, --rotate, --scale and --drop-nonfinite apply to merges on one timeline, "
                           "not to --segments", 2)
         return run_segments(inputs, output_path, layout=layout, sort=sort, quality=quality, color=color,
-                            force=force, quiet=quiet, **segment)
+                            force=force, quiet=quiet, page=page, **segment)
     if segments_given(segment):
         raise Failure("--durations, --leak, --budget, --check-every, --no-check, --camera and --json apply to "
                       "--segments only", 2)
     placements = _placements(len(inputs), {"translate": translate, "rotate": rotate, "scale": scale})
     _report, written = merge_job(inputs, output_path, placements=placements, sort=sort, layout=layout,
                                  quality=quality, color=color, drop_nonfinite=drop_nonfinite, force=force,
-                                 progress=progress(quiet), tell=notes)
+                                 page=page, progress=progress(quiet), tell=notes)
     wrote(output_path, written)

@@ -8,10 +8,10 @@ from .. import io
 from ..jobs.frames import convert_frames, is_sequence
 from ..jobs.prove import convert_proven
 from ..ops.sequence import SAME_SPLATS_MODES
-from ..publish import is_page, publish
+from ..publish import PageOptions, is_page, publish
 from ..text import sequence_text
 from ._base import (FINITE, POSITIVE, Failure, color_option, force_option, library_errors, main, notes, options,
-                    progress, proof_options, quality_option, quiet_option, wrote, zstd_option)
+                    page_options, progress, proof_options, quality_option, quiet_option, wrote, zstd_option)
 from ._edit import edit_options, scene_editor
 
 
@@ -78,14 +78,15 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
     color_option(),
     zstd_option("a .zst OUTPUT, e.g. scene.splatv.zst"),
     *sequence_options(),
+    *page_options(),
     force_option(),
     quiet_option(),
 )
 @edit_options()
 @library_errors
 def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, quality, min_psnr,
-            max_bytes, best_effort, prune, no_proof, color, zstd_level, frame_times, same_splats, max_error, force,
-            quiet, **edits):
+            max_bytes, best_effort, prune, no_proof, color, zstd_level, frame_times, same_splats, max_error, fit,
+            no_poster, force, quiet, **edits):
     """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
@@ -107,16 +108,17 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
     the scene it encodes and reaches its setting's floor (or --min-psnr), or
     the command fails; the note says what it reached.
     """
+    page = PageOptions(fit=fit, poster=not no_poster)
     proving = min_psnr is not None or max_bytes is not None or best_effort or prune or no_proof
     # Player pages of several segments or with --external: splatconv.publish.
     if external or durations or (len(input_paths) > 1 and is_page(output_path)):
         # A page's segments are played as they are read, not fitted as frames: nothing else applies.
         if (compat or sort or cameras or layout or zstd_level or proving or scene_editor(edits) or color != "auto"
                 or frame_times is not None or same_splats != "auto" or max_error is not None):
-            raise Failure("--external and several inputs take no other options but --durations, --quality and "
-                          "--force", 2)
+            raise Failure("--external and several inputs take no other options but --durations, --quality, "
+                          "--fit, --no-poster and --force", 2)
         report = publish(input_paths, output_path, external=external, force=force, durations=durations,
-                         quality=quality)
+                         quality=quality, fit=fit, poster=not no_poster)
         notes(report.notes)
         for path, size in report.written:
             click.echo(f"wrote {path}: {size:,} bytes")
@@ -127,7 +129,8 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
                           "(convert a frame sequence first)", 2)
         _convert_frames(input_paths, output_path, compat=compat, sort=sort, cameras=cameras, layout=layout,
                         quality=quality, color=color, zstd_level=zstd_level, frame_times=frame_times,
-                        same_splats=same_splats, max_error=max_error, force=force, quiet=quiet, edits=edits)
+                        same_splats=same_splats, max_error=max_error, page=page, force=force, quiet=quiet,
+                        edits=edits)
         return
     if frame_times is not None or same_splats != "auto" or max_error is not None:
         raise Failure("--frame-times, --same-splats and --max-error apply to frame sequences only", 2)
@@ -136,6 +139,6 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
                                     best_effort=best_effort, prune=prune, proof=not no_proof, compat=compat,
                                     sort=sort, cameras=cameras, color=color, force=force, zstd_level=zstd_level,
                                     layout=layout, quality=quality, progress=progress(quiet),
-                                    edit=scene_editor(edits), tell=notes)
+                                    edit=scene_editor(edits), page=page, tell=notes)
     wrote(output_path, report)
 

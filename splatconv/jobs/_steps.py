@@ -14,7 +14,7 @@ from ..files.output import check_output
 from ..formats import format_for
 from ..io import check_write_options, noting_undrawable, read, write
 from ..progress import SILENT
-from ..publish import PAGE, is_page, leaves_out_undrawable, write_page
+from ..publish import PAGE, PageOptions, is_page, leaves_out_undrawable, write_page
 
 
 def silent(lines) -> None:
@@ -22,7 +22,7 @@ def silent(lines) -> None:
 
 
 def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: str | None = None,
-              layout: str | None = None, quality: str | None = None):
+              layout: str | None = None, quality: str | None = None, page: PageOptions | None = None):
     """Refuse a job before anything is read: an input of no readable format, an option the output's format
     does not take, an output that would clobber an input or (without ``force``) an existing file.
 
@@ -33,6 +33,8 @@ def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: s
     force : bool
     compat, sort, layout, quality
         As for :func:`splatconv.io.write`.
+    page : PageOptions, optional
+        A page output's options (refused, but for the defaults, for a scene file).
 
     Returns
     -------
@@ -47,6 +49,7 @@ def check_job(inputs, output, *, force: bool, compat: str | None = None, sort: s
     for path in inputs:
         format_for(path, purpose="read")
     fmt = check_write_options(output, compat=compat, sort=sort, layout=layout, quality=quality, also=(PAGE,))
+    (page or PageOptions()).check(output)
     check_output(output, inputs, force)
     return fmt
 
@@ -64,18 +67,20 @@ def reading_for(output, *, quality: str | None = None):
 
 def write_output(scene, output, *, source=None, compat: str | None = None, sort: str | None = None,
                  layout: str | None = None, quality: str | None = None, force: bool = False, inputs=(),
-                 zstd_level: int | None = None, progress=SILENT):
+                 zstd_level: int | None = None, page: PageOptions | None = None, progress=SILENT):
     """Write ``scene`` to ``output``: a scene file (:func:`splatconv.io.write`) or a player page
     (:func:`splatconv.publish.write_page`, which may embed ``source``, the file the scene was read from
-    unchanged, as it is). The options are :func:`splatconv.io.write`'s.
+    unchanged, as it is, and takes ``page``'s options: fit, poster). The options are
+    :func:`splatconv.io.write`'s.
 
     Returns
     -------
     WriteReport
     """
     if is_page(output):
+        page = page or PageOptions()
         return write_page(scene, output, source=source, compat=compat, sort=sort, quality=quality, force=force,
-                          inputs=inputs, zstd_level=zstd_level, progress=progress)
+                          inputs=inputs, zstd_level=zstd_level, fit=page.fit, poster=page.poster, progress=progress)
     return write(scene, output, compat=compat, sort=sort, layout=layout, quality=quality, force=force,
                  inputs=inputs, zstd_level=zstd_level, progress=progress)
 

@@ -17,7 +17,7 @@ BAKE_MEMORY_BYTES = 528
 
 
 def bake(source, output, *, time: float, sort=None, layout=None, quality=None, color: str = "auto",
-         drop_nonfinite: bool = False, force: bool = False, progress=SILENT, tell=silent):
+         drop_nonfinite: bool = False, force: bool = False, page=None, progress=SILENT, tell=silent):
     """Bake ``source`` at ``time`` (:func:`splatconv.ops.bake.bake`) and write it to ``output``.
 
     Parameters
@@ -27,6 +27,8 @@ def bake(source, output, *, time: float, sort=None, layout=None, quality=None, c
         In the viewer's [0, 1].
     sort, layout, quality, force
         As for :func:`splatconv.io.write`.
+    page : splatconv.publish.PageOptions, optional
+        An ``.html`` output's options (fit, poster).
     drop_nonfinite : bool
         Also remove baked splats left with a non-finite value.
     tell : callable
@@ -36,14 +38,14 @@ def bake(source, output, *, time: float, sort=None, layout=None, quality=None, c
     -------
     (BakeReport, WriteReport)
     """
-    check_job([source], output, force=force, sort=sort, layout=layout, quality=quality)
+    check_job([source], output, force=force, sort=sort, layout=layout, quality=quality, page=page)
     with holding(BAKE_MEMORY_BYTES):
         scene = read_input(source, color=color, progress=progress)
     tell(scene.notes)
     baked, report = bake_ops.bake(scene, time, drop_nonfinite=drop_nonfinite)
     tell(report.notes)
     written = write_output(baked, output, sort=sort, layout=layout, quality=quality, force=force, inputs=[source],
-                           progress=progress)
+                           page=page, progress=progress)
     tell(written.notes)
     return report, written
 

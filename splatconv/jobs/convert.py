@@ -24,7 +24,7 @@ PROVE_MEMORY_BYTES = 1536
 def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str | None = None,
             sort: str | None = None, cameras=None, color: str = "auto", force: bool = False,
             zstd_level: int | None = None, layout: str | None = None, quality: str | None = None, progress=SILENT,
-            edit=None, tell=silent, writer=None, memory: int = CONVERT_MEMORY_BYTES):
+            edit=None, tell=silent, writer=None, memory: int = CONVERT_MEMORY_BYTES, page=None):
     """Read ``source`` and write it to ``output``; formats by suffix, ``.html`` a player page
     (:func:`splatconv.publish.write_page`: a file the page plays as it is, given no option that changes it,
     is embedded as its own bytes, as ``publish`` and ``view`` give it).
@@ -43,6 +43,8 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         instead of writing the output, e.g. one that proves the output's
         quality (:func:`splatconv.jobs.prove.convert_proven`); its notes are told
         after the write report's.
+    page : splatconv.publish.PageOptions, optional
+        An ``.html`` output's options (fit, poster).
     memory : int
         Bytes a splat takes at the command's peak, which the decompression
         ceiling counts (:data:`PROVE_MEMORY_BYTES` with a proving writer).
@@ -59,7 +61,8 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
         ``edit`` did when it says so) and the write report.
     """
     # The output is checked before the (possibly long) read: fail fast, touch nothing.
-    fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout, quality=quality)
+    fmt = check_job([source], output, force=force, compat=compat, sort=sort, layout=layout, quality=quality,
+                    page=page)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     with reading_for(output, quality=quality), holding(memory):
         scene = read_input(source, color=color, progress=progress)
@@ -79,7 +82,7 @@ def convert(source: str | os.PathLike, output: str | os.PathLike, *, compat: str
     if writer is None:
         report = write_output(scene, output, source=None if changed else source, compat=compat, sort=sort,
                               force=force, inputs=[source], zstd_level=zstd_level, layout=layout, quality=quality,
-                              progress=progress)
+                              page=page, progress=progress)
     else:
         report, proved = writer(scene, output, quality=quality, sort=sort, zstd_level=zstd_level, force=force,
                                 progress=progress)

@@ -85,7 +85,7 @@ def frame_paths(inputs) -> list:
 
 def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto", max_error=None,
                    compat=None, sort=None, cameras=None, color: str = "auto", force: bool = False,
-                   zstd_level=None, layout=None, quality=None, progress=SILENT, tell=silent):
+                   zstd_level=None, layout=None, quality=None, page=None, progress=SILENT, tell=silent):
     """Read a frame sequence and write it as one 4D scene (see :func:`splatconv.ops.sequence.fit_sequence`).
 
     Parameters
@@ -105,7 +105,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
         The scene written, what the fit did, what the writer did, the frame paths in order.
     """
     paths = frame_paths(inputs)
-    fmt = check_job(paths, output, force=force, compat=compat, sort=sort, layout=layout, quality=quality)
+    fmt = check_job(paths, output, force=force, compat=compat, sort=sort, layout=layout, quality=quality, page=page)
     camera_list = load_cameras(cameras) if isinstance(cameras, (str, os.PathLike)) else cameras
     found = {}
 
@@ -127,7 +127,7 @@ def convert_frames(inputs, output, *, frame_times=None, same_splats: str = "auto
     refuse_empty(fmt, scene.count, paths[0], "the frames hold no splats")
     scene.cameras = camera_list if camera_list is not None else found.get("cameras")
     report = write_output(scene, output, compat=compat, sort=sort, force=force, inputs=paths, zstd_level=zstd_level,
-                          layout=layout, quality=quality, progress=progress)
+                          layout=layout, quality=quality, page=page, progress=progress)
     tell(scene.notes)
     tell(fit.notes)
     tell(report.notes)

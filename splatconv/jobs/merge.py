@@ -17,7 +17,7 @@ MERGE_MEMORY_BYTES = 320
 
 
 def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=None, color: str = "auto",
-          drop_nonfinite: bool = False, force: bool = False, progress=SILENT, tell=silent):
+          drop_nonfinite: bool = False, force: bool = False, page=None, progress=SILENT, tell=silent):
     """Read ``inputs``, place each (:func:`splatconv.ops.apply_transform`), overlay them
     (:func:`splatconv.ops.merge.overlay`) and write the result to ``output``.
 
@@ -31,6 +31,8 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=No
         Remove every input's non-finite splats first (:func:`splatconv.ops.drop_nonfinite`).
     sort, layout, quality, force
         As for :func:`splatconv.io.write`.
+    page : splatconv.publish.PageOptions, optional
+        An ``.html`` output's options (fit, poster).
     tell : callable
         ``tell(lines)``: each input's notes once read and placed (``input N (PATH): ...``), the merge's, then
         the writer's once written.
@@ -41,7 +43,7 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=No
     """
     inputs = list(inputs)
     placements = placements or {}
-    check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality)
+    check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality, page=page)
     scenes = []
     with holding(MERGE_MEMORY_BYTES):  # the inputs together
         for number, path in enumerate(inputs, 1):
@@ -59,6 +61,6 @@ def merge(inputs, output, *, placements=None, sort=None, layout=None, quality=No
     merged, report = overlay(scenes)
     tell(report.notes)
     written = write_output(merged, output, sort=sort, layout=layout, quality=quality, force=force, inputs=inputs,
-                           progress=progress)
+                           page=page, progress=progress)
     tell(written.notes)
     return report, written

@@ -23,7 +23,7 @@ SEGMENTS_SCHEMA = "splatconv.merge-segments/3"
 def merge_segments(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, budget: float = DEFAULT_BUDGET,
                    sort=None, layout=None, quality=None, color: str = "auto", force: bool = False, zstd_level=None,
                    check: bool = True, check_every: int | None = None, camera: int = DEFAULT_CAMERA,
-                   progress=SILENT, tell=silent):
+                   page=None, progress=SILENT, tell=silent):
     """Read segment files, lay them end to end (:func:`splatconv.ops.segments.merge_segments`) and write.
 
     Parameters
@@ -52,14 +52,14 @@ def merge_segments(inputs, output, *, durations=None, leak: int = DEFAULT_LEAK, 
         check_durations(durations)
     else:
         check_segment_count(len(inputs))
-    check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality)
+    check_job(inputs, output, force=force, sort=sort, layout=layout, quality=quality, page=page)
     with reading_for(output, quality=quality):
         scenes = [read(p, color=color) for p in inputs]
     merged, report = merge_scenes(scenes, durations, leak=leak, budget=budget, progress=progress)
     frames = checked_frames(report, check_every) if check else []
     rows = fidelity(merged, scenes, report, camera=camera, frames=frames, progress=progress) if check else []
     written = write_output(merged, output, sort=sort, force=force, inputs=inputs, zstd_level=zstd_level,
-                           layout=layout, quality=quality, progress=progress)
+                           layout=layout, quality=quality, page=page, progress=progress)
     tell(merged.notes)
     tell(report.notes)
     tell(written.notes)

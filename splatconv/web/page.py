@@ -42,6 +42,26 @@ class SceneRef:
     duration: float | None = None
 
 
+@dataclass(frozen=True)
+class Picture:
+    """The page's poster: shown under the canvas until the first WebGL frame is drawn.
+
+    ``src`` is its URL in the page (a ``data:`` URI, or a file relative to the
+    page); ``share``, when given, the URL sharers are pointed at
+    (``og:image``, ``twitter:image``: a file beside the page, since most refuse a
+    ``data:`` URI). ``width`` and ``height`` are the camera's size: the picture is
+    laid out at that many CSS pixels, where the camera's focal lengths put the
+    first frame (or scaled to the window, when the page fits the view);
+    ``pixels`` the image's own (width, height), told to sharers.
+    """
+
+    src: str
+    width: int
+    height: int
+    pixels: tuple
+    share: str | None = None
+
+
 def parse_durations(text: str | None, count: int) -> list:
     """``--durations D0,D1,...``: one positive finite number per segment; None gives ``[None] * count``.
 
@@ -101,7 +121,8 @@ def _text_block(name: str, text: str, kind: str = "text/plain") -> str:
     return f'<script type="{kind}" data-asset="{html.escape(name)}">{_checked(name, text)}</script>'
 
 
-def build_page(scenes: list, title: str = "splatconv player") -> bytes:
+def build_page(scenes: list, title: str = "splatconv player", *, fit: bool = False,
+               picture: Picture | None = None) -> bytes:
     """The player page for ``scenes``, as UTF-8 HTML bytes.
 
     Parameters
@@ -110,6 +131,12 @@ def build_page(scenes: list, title: str = "splatconv player") -> bytes:
         The clip's segments in playing order (one for a single scene).
     title : str
         Shown in the page's title and panel.
+    fit : bool
+        Open fitting the camera's whole view to the window (its focal lengths
+        scaled by the smaller of the window's and the camera's size ratios), instead
+        of keeping the camera's focal lengths at any window size (splaTV's way).
+    picture : Picture, optional
+        The poster shown until the first frame is drawn (and given to sharers).
 
     Returns
     -------
@@ -132,13 +159,37 @@ def build_page(scenes: list, title: str = "splatconv player") -> bytes:
         else:
             entry["url"] = scene.url
         entries.append(entry)
-    config = json.dumps({"scenes": entries}, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
+    settings = {"scenes": entries, **({"fit": True} if fit else {})}
+    config = json.dumps(settings, separators=(",", ":"), ensure_ascii=True, allow_nan=False)
     fields = {
         "TITLE": html.escape(title),
         "CSS": _asset("player.css"),
         "CONFIG": _json_text(config),
         "ASSETS": "\n".join(blocks),
         "PLAYER": _checked("player.js", _asset("player.js")),
+        "BODY": ' class="fit"' if fit else "",
+        "META": _share_meta(title, picture),
+        "POSTER": _poster_element(picture),
     }
     page = _TEMPLATE_FIELD.sub(lambda m: fields[m.group(1)], _asset("player.html"))
     return page.encode("utf-8")
+
+
+def _share_meta(title: str, picture: Picture | None) -> str:
+    """Open Graph and Twitter card tags: the title, and the poster where sharers can fetch it."""
+    tags = [f'<meta property="og:title" content="{html.escape(title)}">']
+    if picture is not None and picture.share is not None:
+        url = html.escape(picture.share)
+        tags += [f'<meta property="og:image" content="{url}">',
+                 f'<meta property="og:image:width" content="{picture.pixels[0]}">',
+                 f'<meta property="og:image:height" content="{picture.pixels[1]}">',
+                 '<meta name="twitter:card" content="summary_large_image">',
+                 f'<meta name="twitter:image" content="{url}">']
+    return "\n".join(tags)
+
+
+def _poster_element(picture: Picture | None) -> str:
+    if picture is None:
+        return ""
+    return (f'<img id="poster" alt="" src="{html.escape(picture.src)}" '
+            f'style="width: {picture.width}px; height: {picture.height}px">')

@@ -72,7 +72,9 @@
   const canvas = $("canvas");
   const state = {
     view: null,         // column-major world -> camera matrix (doubles)
-    fx: 1000, fy: 1000, // the file's camera focal lengths, kept at any window size
+    fx: 1000, fy: 1000, // the file's camera focal lengths, kept at any window size (unless fitting)
+    cameraWidth: 0, cameraHeight: 0, // that camera's size, which fitting scales the focal lengths by
+    fit: !!config.fit,  // fit the camera's whole view to the window (render --fit), else splaTV's way
     pivot: 4,           // distance to the point orbiting turns about, along the view axis
     cameras: [],
     time: 0,            // clip time over [0, 1] (all segments)
@@ -94,6 +96,29 @@
     sortMs: null,
     userMoved: false,
   };
+
+  // Focal lengths in canvas pixels: the camera's (times the device pixel ratio) or, fitting, the
+  // camera's scaled by min(W / width, H / height) of the canvas and the camera, as render --fit --size WxH.
+  function focal() {
+    if (state.fit && state.cameraWidth > 0 && state.cameraHeight > 0) {
+      const s = Math.min(canvas.width / state.cameraWidth, canvas.height / state.cameraHeight);
+      return [state.fx * s, state.fy * s];
+    }
+    const ratio = window.devicePixelRatio || 1;
+    return [state.fx * ratio, state.fy * ratio];
+  }
+
+  function setFit(fit) {
+    state.fit = fit;
+    document.body.classList.toggle("fit", fit);
+    $("fit").setAttribute("aria-pressed", String(fit));
+  }
+
+  // The poster stands in for the first frame until WebGL draws one (or shows another view).
+  function dropPoster() {
+    const poster = $("poster");
+    if (poster) poster.remove();
+  }
 
   function showMessage(text) {
     state.error = text;
@@ -551,6 +576,8 @@
 
   function setFocal(camera) {
     if (Number(camera.fx) > 0 && Number(camera.fy) > 0) { state.fx = Number(camera.fx); state.fy = Number(camera.fy); }
+    const w = Number(camera.width), h = Number(camera.height);
+    [state.cameraWidth, state.cameraHeight] = w > 0 && h > 0 ? [w, h] : [0, 0];
   }
 
   function useCamera(i, fromUser) {
@@ -591,13 +618,14 @@
     }
     if (params.view !== undefined) {
       const m = parseMatrix(params.view);
-      if (m) { state.view = m; state.viewFromHash = true; }
+      if (m) { state.view = m; state.viewFromHash = true; dropPoster(); }
     }
     if (params.t !== undefined && params.t !== "") {
       const t = Number(decoded(params.t));
       if (Number.isFinite(t)) { state.time = Math.min(1, Math.max(0, t)); setPlaying(false); }
     }
     if (params.ui !== undefined) document.body.classList.toggle("noui", params.ui === "0");
+    if (params.fit === "1" || params.fit === "0") setFit(params.fit === "1");
   }
 
   let hashTimer = null;
@@ -607,6 +635,7 @@
       let hash = "view=" + JSON.stringify(state.view);
       if (!state.playing) hash += "&t=" + state.time;
       if (document.body.classList.contains("noui")) hash += "&ui=0";
+      if (state.fit !== !!config.fit) hash += "&fit=" + (state.fit ? 1 : 0);
       history.replaceState(null, "", "#" + hash);
     }, 150);
   }
@@ -646,8 +675,8 @@
   }
 
   function pan(dxPixels, dyPixels) {
-    const scale = state.pivot / (state.fx * (window.devicePixelRatio || 1));
-    move(translation(dxPixels * scale, dyPixels * (state.fx / state.fy) * scale, 0));
+    const [fx, fy] = focal(), scale = state.pivot / fx;
+    move(translation(dxPixels * scale, dyPixels * (fx / fy) * scale, 0));
   }
 
   function zoom(factor) {
@@ -713,12 +742,14 @@
       "[": () => useCamera((Number($("camera").value) + state.cameras.length - 1) % state.cameras.length, true),
       "]": () => useCamera((Number($("camera").value) + 1) % state.cameras.length, true),
       h: () => { document.body.classList.toggle("noui"); },
+      f: () => { setFit(!state.fit); writeHash(); },
     };
     const action = actions[e.key.length === 1 ? e.key.toLowerCase() : e.key] || actions[e.key];
     if (action) { e.preventDefault(); action(); }
   });
 
   $("play").addEventListener("click", () => { setPlaying(!state.playing); writeHash(); });
+  $("fit").addEventListener("click", () => { setFit(!state.fit); writeHash(); });
   $("time").addEventListener("input", () => {
     state.time = Number($("time").value);
     setPlaying(false);
@@ -740,6 +771,7 @@
     files.sort((a, b) => a.name.localeCompare(b.name, undefined, {numeric: true}));
     state.viewFromHash = false;
     state.userMoved = false;
+    dropPoster();
     loadAll(files.map((file) => ({file, name: file.name})));
   });
 
@@ -754,8 +786,7 @@
 
   function draw() {
     resize();
-    const ratio = window.devicePixelRatio || 1;
-    const w = canvas.width, h = canvas.height, fx = state.fx * ratio, fy = state.fy * ratio;
+    const w = canvas.width, h = canvas.height, [fx, fy] = focal();
     const projection = projectionMatrix(fx, fy, w, h);
     const vp = multiply(projection, state.view);
     const vpKey = vp.join(",");
@@ -790,12 +821,13 @@
       complete: !!(seg && seg.done && drawn === seg.total && seg.sorted.vp === vpKey),
     };
     if (drawn && state.firstFrameAt === null) state.firstFrameAt = performance.now();
+    if (drawn) dropPoster();
     return {seg, vp, vpKey, where};
   }
 
   function geometry() {
-    const ratio = window.devicePixelRatio || 1;
-    const vp = multiply(projectionMatrix(state.fx * ratio, state.fy * ratio, canvas.width, canvas.height), state.view);
+    const [fx, fy] = focal();
+    const vp = multiply(projectionMatrix(fx, fy, canvas.width, canvas.height), state.view);
     const where = locate(state.time);
     return {seg: state.segments[where.index], vp, vpKey: vp.join(","), where};
   }
@@ -806,7 +838,7 @@
     for (const seg of state.segments) pump(seg);
     if (state.view) {
       // Redraw only when something visible changed: a paused, settled page costs nothing.
-      const key = JSON.stringify([state.view, state.fx, state.fy, canvas.clientWidth, canvas.clientHeight,
+      const key = JSON.stringify([state.view, state.fx, state.fy, state.fit, canvas.clientWidth, canvas.clientHeight,
                                   window.devicePixelRatio, state.time, state.version]);
       if (key !== state.lastDrawKey) {
         draw();
@@ -870,8 +902,8 @@
 
   function status() {
     const d = state.drawnKey;
-    const vpNow = state.view ? multiply(projectionMatrix(state.fx * (window.devicePixelRatio || 1),
-      state.fy * (window.devicePixelRatio || 1), canvas.width, canvas.height), state.view).join(",") : null;
+    const [fx, fy] = focal();
+    const vpNow = state.view ? multiply(projectionMatrix(fx, fy, canvas.width, canvas.height), state.view).join(",") : null;
     return {
       // The last frame showed the whole scene sorted for the current view, at the current time.
       settled: !!(d && d.complete && d.vp === vpNow && (state.playing || d.clipTime === state.time)),
@@ -879,6 +911,7 @@
       loaded: state.segments.length > 0 && state.segments.every((s) => s.done),
       drawn: state.drawnKey,
       time: state.time, playing: state.playing, view: state.view, fx: state.fx, fy: state.fy,
+      fit: state.fit, focal: [fx, fy], poster: !!$("poster"),
       width: canvas.width, height: canvas.height, hash: location.hash,
       segments: state.segments.map((s) => ({name: s.name, total: s.total, received: s.received, done: s.done,
                                             count: s.done ? s.count : null, note: s.note || null,
@@ -974,6 +1007,11 @@
 
   // ---------------------------------------------------------------- start
 
+  // The hash first, so that without WebGL too the poster is laid out (or dropped) as it asks.
+  state.view = cameraView({rotation: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], position: [0, 0, -4]});
+  setPlaying(true);
+  setFit(state.fit);
+  readHash();
   if (!gl) {
     showMessage("This browser cannot show the scene: WebGL 2 is not available (it may be turned off in " +
                 "the browser's settings, or the graphics driver is not supported).");
@@ -986,9 +1024,6 @@
     return;
   }
   canvas.addEventListener("webglcontextlost", () => showMessage("The graphics context was lost; reload the page."));
-  state.view = cameraView({rotation: [[1, 0, 0], [0, 1, 0], [0, 0, 1]], position: [0, 0, -4]});
-  setPlaying(true);
-  readHash();
   requestAnimationFrame(frame);
   const sources = config.scenes.map((s, i) => {
     if (s.embedded !== undefined) {
