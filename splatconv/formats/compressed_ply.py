@@ -427,7 +427,8 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_
         chunks, vertex, sh, counts = encode(scene)
         stream.write(header_bytes(n, scene.sh_degree))
         for block in (chunks, vertex, sh):
-            stream.write(memoryview(np.ascontiguousarray(block)).cast("B"))
+            if block.size:  # a view of nothing cannot be cast to bytes
+                stream.write(memoryview(np.ascontiguousarray(block)).cast("B"))
         advance(n)
     report.notes.extend(_notes(scene.sh_degree, counts, sort))
     return report
