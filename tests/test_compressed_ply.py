@@ -131,8 +131,8 @@ def test_a_compressed_ply_named_ply_is_read_as_such(tmp_path):
 
 
 def test_suffix_chooses_the_format():
-    assert format_for("a/x.compressed.ply").name == "compressed ply"
-    assert format_for("X.COMPRESSED.PLY.zst").name == "compressed ply"
+    assert format_for("a/x.compressed.ply").name == "compressed_ply"
+    assert format_for("X.COMPRESSED.PLY.zst").name == "compressed_ply"
     assert format_for("x.ply").name == "ply" and format_for("compressed.ply").name == "ply"
 
 
@@ -281,7 +281,7 @@ def test_bake_convert_info_take_it(baked):
     n = io.read(plain).count
     assert io.read(packed).count == n == 4400  # the sample's splats shown at t = 0.5
     r = run("info", packed)
-    assert r.exit_code == 0 and "format:    compressed ply" in r.output and "chunk_count: 18" in r.output
+    assert r.exit_code == 0 and "format:    compressed_ply" in r.output and "chunk_count: 18" in r.output
     written = []
     for name in ("again.compressed.ply", "twice.compressed.ply"):
         r = run("convert", plain, folder / name, "--force")

@@ -162,53 +162,59 @@ class _Layout:
     def piece(self, start: int, stop: int) -> dict:
         """The model columns of splats ``start`` to ``stop`` (``start`` a multiple of :data:`CHUNK_SPLATS`)."""
         v = self.vertex[start:stop]
-        at = np.arange(start, stop) // CHUNK_SPLATS
-        b = self.bounds
+        first, last = start // CHUNK_SPLATS, -(-stop // CHUNK_SPLATS)
 
-        def field(word, shift: int, bits: int) -> np.ndarray:
-            return ((word >> np.uint32(shift)) & np.uint32((1 << bits) - 1)).astype(np.float64) / ((1 << bits) - 1)
+        def bound(name: str) -> np.ndarray:  # each splat's chunk's bound
+            return np.repeat(self.bounds[name][first:last], CHUNK_SPLATS)[:stop - start]
 
-        def lerp(lo: str, hi: str, t: np.ndarray) -> np.ndarray:
-            a, z = b[lo][at], b[hi][at]
-            return (a * (1.0 - t) + z * t).astype(np.float32)
+        def lerp(lo: str, hi: str, word, shift: int, bits: int) -> np.ndarray:
+            t = ((word >> np.uint32(shift)) & np.uint32((1 << bits) - 1)) / float((1 << bits) - 1)
+            return (bound(lo) * (1.0 - t) + bound(hi) * t).astype(np.float32)
 
         cols = {}
         word = np.asarray(v["packed_position"], dtype=np.uint32)
         for name, axis, (shift, bits) in zip(model.POSITION, "xyz", WORD_111011):
-            cols[name] = lerp(f"min_{axis}", f"max_{axis}", field(word, shift, bits))
+            cols[name] = lerp(f"min_{axis}", f"max_{axis}", word, shift, bits)
         word = np.asarray(v["packed_scale"], dtype=np.uint32)
         for name, axis, (shift, bits) in zip(model.SCALE, "xyz", WORD_111011):
-            cols[name] = lerp(f"min_scale_{axis}", f"max_scale_{axis}", field(word, shift, bits))
+            cols[name] = lerp(f"min_scale_{axis}", f"max_scale_{axis}", word, shift, bits)
         word = np.asarray(v["packed_color"], dtype=np.uint32)
         for name, axis, (shift, bits) in zip(model.COLOR, "rgb", WORD_8888):
-            t = field(word, shift, bits)
-            cols[name] = lerp(f"min_{axis}", f"max_{axis}", t) if self.has_color else t.astype(np.float32)
-        alpha = np.clip(field(word, *WORD_8888[3]), 1e-6, 1 - 1e-6)  # off 0 and 1: a finite logit
-        cols["opacity"] = logit(alpha).astype(np.float32)
+            if self.has_color:
+                cols[name] = lerp(f"min_{axis}", f"max_{axis}", word, shift, bits)
+            else:
+                cols[name] = _UNIT_BYTE[(word >> np.uint32(shift)) & np.uint32(255)]
+        cols["opacity"] = _OPACITY_BYTE[word & np.uint32(255)]
         cols.update(zip(model.ROTATION, _unpack_rotation(np.asarray(v["packed_rotation"], dtype=np.uint32))))
         cols.update(model.static_columns(stop - start))
         if self.sh is not None:
             for name in model.sh_names(self.degree):
-                byte = np.asarray(self.sh[name][start:stop], dtype=np.float32)
-                unit = np.where(byte == 0, 0.0, np.where(byte == 255, 1.0, (byte + 0.5) / 256.0))
-                cols[name] = ((unit - 0.5) * SH_RANGE).astype(np.float32)
+                cols[name] = _SH_BYTE[self.sh[name][start:stop]]
         return cols
+
+
+#: What a byte reads as, by table: colour without chunk bounds (b / 255), opacity (the logit of b / 255,
+#: kept off 0 and 1 so that it is finite), an SH coefficient (0: -4, 255: +4, else (b + 1/2) / 256 * 8 - 4).
+_BYTES = np.arange(256, dtype=np.float64)
+_UNIT_BYTE = (_BYTES / 255).astype(np.float32)
+_OPACITY_BYTE = logit(np.clip(_BYTES / 255, 1e-6, 1 - 1e-6)).astype(np.float32)
+_SH_BYTE = ((np.where(_BYTES == 0, 0.0, np.where(_BYTES == 255, 1.0, (_BYTES + 0.5) / 256)) - 0.5)
+            * SH_RANGE).astype(np.float32)
 
 
 def _unpack_rotation(word: np.ndarray) -> list:
     """The ``rot_0..3`` columns (``(N,) float32`` each) of smallest-three words ``(N,) uint32``."""
-    n = len(word)
     mask = np.uint32((1 << ROTATION_BITS) - 1)
-    three = [((word >> np.uint32(shift)) & mask).astype(np.float64) / float(mask) for shift in (20, 10, 0)]
-    three = [(t - 0.5) / ROTATION_NORM for t in three]
-    largest = (word >> np.uint32(3 * ROTATION_BITS)).astype(np.intp)
-    q = np.empty((n, 4))
-    rows = np.arange(n)
-    others = np.array([[j for j in range(4) if j != i] for i in range(4)])[largest]  # (n, 3), index order
-    for k in range(3):
-        q[rows, others[:, k]] = three[k]
-    q[rows, largest] = np.sqrt(np.maximum(0.0, 1.0 - sum(t * t for t in three)))
-    return [q[:, i].astype(np.float32) for i in range(4)]
+    three = [((word >> np.uint32(shift)) & mask) * np.float32(1 / (float(mask) * ROTATION_NORM))
+             - np.float32(0.5 / ROTATION_NORM) for shift in (20, 10, 0)]
+    largest = word >> np.uint32(3 * ROTATION_BITS)
+    rest = np.sqrt(np.maximum(np.float32(0), np.float32(1) - (three[0] ** 2 + three[1] ** 2 + three[2] ** 2)))
+    # Component i is the largest, or the i-th of the three when the largest comes after it, else the (i-1)-th.
+    out = []
+    for i in range(4):
+        after, before = three[min(i, 2)], three[max(i - 1, 0)]
+        out.append(np.where(largest == i, rest, np.where(largest > i, after, before)).astype(np.float32))
+    return out
 
 
 def scene_from(parsed, path: str) -> Scene:
@@ -287,61 +293,72 @@ def _spread(v: np.ndarray) -> np.ndarray:
 
 
 def morton_order(xyz: np.ndarray) -> np.ndarray:
-    """Indices that put positions ``(N, 3)`` (finite) in Morton (Z) order, 21 bits an axis within their bounds:
-    ``(N,) intp``, equal codes in input order."""
-    if not len(xyz):
+    """Indices that put positions ``(N, 3)`` (finite) in Morton (Z) order within their bounds: ``(N,) intp``,
+    equal codes in input order.
+
+    Each axis gets as many bits (at most 21) as leave room, in one 64-bit key, for the index below the
+    code: sorting the keys (unique) is a stable sort of the codes, and quicker than sorting indices.
+    """
+    n = len(xyz)
+    if not n:
         return np.zeros(0, np.intp)
+    index_bits = max(1, (n - 1).bit_length())
+    bits = min(21, (64 - index_bits) // 3)
     lo = xyz.min(axis=0)
     span = xyz.max(axis=0) - lo
     with np.errstate(invalid="ignore", divide="ignore"):
-        cell = np.where(span > 0, (xyz - lo) / np.where(span > 0, span, 1.0) * (1 << 21), 0.0)
-    cell = np.clip(cell, 0, (1 << 21) - 1).astype(np.uint64)
+        cell = np.where(span > 0, (xyz - lo) / np.where(span > 0, span, 1.0) * (1 << bits), 0.0)
+    cell = np.clip(cell, 0, (1 << bits) - 1).astype(np.uint64)
     code = _spread(cell[:, 0]) | (_spread(cell[:, 1]) << np.uint64(1)) | (_spread(cell[:, 2]) << np.uint64(2))
-    return np.argsort(code, kind="stable")
+    key = np.sort((code << np.uint64(index_bits)) | np.arange(n, dtype=np.uint64))
+    return (key & np.uint64((1 << index_bits) - 1)).astype(np.intp)
 
 
 def _unorm(t: np.ndarray, bits: int) -> np.ndarray:
     """``t`` in [0, 1] as the nearest of 0 .. 2^bits - 1 (NaN as 0): ``uint32``."""
     top = (1 << bits) - 1
-    return np.clip(np.nan_to_num(np.floor(t * top + 0.5), nan=0.0), 0, top).astype(np.uint32)
+    q = t * np.float32(top)
+    q += np.float32(0.5)
+    np.floor(q, out=q)
+    return np.minimum(np.fmax(q, 0, out=q), top, out=q).astype(np.uint32)  # fmax: NaN -> 0
 
 
 def _normalized(values: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> np.ndarray:
-    """``values`` ``(C, 256)`` placed between their chunk's ``lo`` and ``hi`` ``(C, 1)``, as the reference does:
-    0 at or below ``lo``, 1 at or above ``hi``, 0 in a range under :data:`MIN_RANGE`."""
+    """``values`` ``(C, 256)`` float32 placed between their chunk's ``lo`` and ``hi`` ``(C, 1)``, as the reference
+    does: 0 at or below ``lo``, 1 at or above ``hi``, 0 in a range under :data:`MIN_RANGE`."""
     span = hi - lo
-    with np.errstate(invalid="ignore", divide="ignore"):
-        t = np.where(span < MIN_RANGE, 0.0, (values - lo) / np.where(span < MIN_RANGE, 1.0, span))
-    return np.where(values <= lo, 0.0, np.where(values >= hi, 1.0, t))
+    narrow = span < MIN_RANGE
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        t = (values - lo) / np.where(narrow, np.float32(1), span)
+    t[np.broadcast_to(narrow, t.shape) | (values <= lo)] = 0
+    t[values >= hi] = 1
+    return t
 
 
 def _bounds(values: np.ndarray, limit: float | None = None) -> tuple:
     """Each chunk's least and greatest of ``values`` ``(C, 256)``, NaN left out (0 for a chunk of NaN),
-    clamped to +-``limit``: two ``(C, 1)`` float64."""
-    finite = ~np.isnan(values)
-    lo = np.where(finite, values, np.inf).min(axis=1, keepdims=True)
-    hi = np.where(finite, values, -np.inf).max(axis=1, keepdims=True)
-    empty = ~finite.any(axis=1, keepdims=True)
-    lo, hi = np.where(empty, 0.0, lo), np.where(empty, 0.0, hi)
+    clamped to +-``limit``: two ``(C, 1)`` float32."""
+    lo = np.nan_to_num(np.fmin.reduce(values, axis=1, keepdims=True), nan=0.0)  # fmin, fmax: NaN only if all are
+    hi = np.nan_to_num(np.fmax.reduce(values, axis=1, keepdims=True), nan=0.0)
     if limit is not None:
         lo, hi = np.clip(lo, -limit, limit), np.clip(hi, -limit, limit)
-    return lo.astype(np.float32).astype(np.float64), hi.astype(np.float32).astype(np.float64)
+    return lo.astype(np.float32), hi.astype(np.float32)
 
 
 def _pack_rotation(q: np.ndarray) -> tuple:
     """Quaternions ``(M, 4)`` (rot_0..3) as smallest-three words ``(M,) uint32``, and how many had no direction
     (zero or not finite: written as the identity)."""
-    length = np.sqrt((q * q).sum(axis=1, keepdims=True))
-    with np.errstate(invalid="ignore", divide="ignore"):
-        u = q / length
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        u = q / np.sqrt(np.einsum("ij,ij->i", q, q))[:, None]
     lost = ~np.isfinite(u).all(axis=1)
-    u[lost] = (1.0, 0.0, 0.0, 0.0)
-    rows = np.arange(len(u))
+    if lost.any():
+        u[lost] = (1.0, 0.0, 0.0, 0.0)
     largest = np.argmax(np.abs(u), axis=1)
-    u = np.where(u[rows, largest][:, None] < 0, -u, u)
+    # The sign that makes the largest component positive, folded into the scale of the other three.
+    scale = np.where(np.take_along_axis(u, largest[:, None], axis=1)[:, 0] < 0, -ROTATION_NORM, ROTATION_NORM)
     word = largest.astype(np.uint32)
     for i in range(4):
-        part = _unorm(u[:, i] * ROTATION_NORM + 0.5, ROTATION_BITS)
+        part = _unorm(u[:, i] * scale + 0.5, ROTATION_BITS)
         word = np.where(largest != i, (word << np.uint32(ROTATION_BITS)) | part, word)
     return word, int(np.count_nonzero(lost))
 
@@ -362,7 +379,7 @@ def encode(scene: Scene) -> tuple:
     take = order[np.minimum(np.arange(c * CHUNK_SPLATS), n - 1)]
 
     def chunked(name: str) -> np.ndarray:
-        return wide(np.asarray(cols[name])[take]).reshape(c, CHUNK_SPLATS)
+        return np.asarray(cols[name], dtype=np.float32)[take].reshape(c, CHUNK_SPLATS)
 
     chunks = np.zeros(c, CHUNK_DTYPE)
     words = {}
@@ -377,29 +394,33 @@ def encode(scene: Scene) -> tuple:
             values = chunked(name)
             lo, hi = _bounds(values, limit)
             chunks[f"min_{prefix}{axis}"], chunks[f"max_{prefix}{axis}"] = lo[:, 0], hi[:, 0]
-            counts["nan"] += int(np.count_nonzero(np.isnan(values[:, :])))
+            written = values.reshape(-1)[:n]  # not the last chunk's repeats
+            counts["nan"] += int(np.count_nonzero(np.isnan(written)))
             if limit is not None:
-                counts["scale_clamped"] += int(np.count_nonzero(np.abs(values) > limit))
+                counts["scale_clamped"] += int(np.count_nonzero(np.abs(written) > limit))
             word |= _unorm(_normalized(values, lo, hi), bits) << np.uint32(shift)
         words[key] = word
     with np.errstate(over="ignore", invalid="ignore"):
         alpha = sigmoid(chunked("opacity"))
-    counts["nan"] += int(np.count_nonzero(np.isnan(alpha)))
+    counts["nan"] += int(np.count_nonzero(np.isnan(alpha.reshape(-1)[:n])))
     words["packed_color"] |= _unorm(alpha, 8)
-    q = np.stack([wide(np.asarray(cols[name])[order]) for name in model.ROTATION], axis=1)
+    q = np.stack([np.asarray(cols[name], dtype=np.float32)[order] for name in model.ROTATION], axis=1)
     rotation, counts["no_direction"] = _pack_rotation(q)
     vertex = np.zeros(n, VERTEX_DTYPE)
     for key in ("packed_position", "packed_scale", "packed_color"):
         vertex[key] = words[key].reshape(-1)[:n]
     vertex["packed_rotation"] = rotation
+    # SH: each column quantized in the scene's order (sequential), then whole rows of bytes put in Morton order.
     names = model.sh_names(scene.sh_degree)
-    sh = np.zeros((n, len(names)), np.uint8)
+    sh = np.empty((n, len(names)), np.uint8)
     counts["sh_clamped"] = 0
     for j, name in enumerate(names):
-        stored = (wide(np.asarray(cols[name])[order]) / SH_RANGE + 0.5) * 256.0
-        counts["sh_clamped"] += int(np.count_nonzero((stored < 0) | (stored >= 256)))
-        sh[:, j] = np.clip(np.nan_to_num(np.trunc(stored), nan=0.0), 0, 255).astype(np.uint8)
-    return chunks, vertex, sh, counts
+        stored = np.asarray(cols[name], dtype=np.float32) * np.float32(256 / SH_RANGE)  # (v / 8 + 1/2) * 256
+        stored += np.float32(128)
+        counts["sh_clamped"] += int(np.count_nonzero(stored < 0) + np.count_nonzero(stored >= 256))
+        np.trunc(stored, out=stored)
+        sh[:, j] = np.minimum(np.fmax(stored, 0, out=stored), 255, out=stored)  # fmax: NaN -> 0
+    return chunks, vertex, np.take(sh, order, axis=0), counts
 
 
 def header_bytes(n: int, degree: int) -> bytes:
@@ -465,7 +486,7 @@ def info_fields(meta: dict) -> dict:
 
 
 FORMAT = Format(
-    name="compressed ply",
+    name="compressed_ply",
     suffixes=(".compressed.ply",),
     default_sort="none",  # the writer orders splats itself (Morton)
     holds_empty=False,
