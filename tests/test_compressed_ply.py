@@ -237,6 +237,15 @@ def _hostile(kind: str) -> bytes:
         return hand_file(records, chunks=chunks, sh=[HAND_SH[0]] * n, sh_type="float")
     if kind == "sh_not_a_degree":
         return hand_file(records, chunks=chunks, sh=[HAND_SH[0][:7]] * n)
+    if kind == "ascii":
+        head = ["ply", "format ascii 1.0", "element chunk 1", *(f"property float {p}" for p in CHUNK_PROPS),
+                "element vertex 1", *(f"property uint {p}" for p in VERTEX_PROPS), "end_header"]
+        return "\n".join(head + [" ".join(map(str, HAND_CHUNK)), "1 2 3 4", ""]).encode()
+    if kind == "lists_before_sh":  # an element of lists of varying length (1, then 2 values) before sh
+        head, body = hand_file(records, chunks=chunks).split(b"end_header\n")
+        head += b"element extra 2\nproperty list uchar uchar v\nelement sh 300\n"
+        head += b"".join(f"property uchar f_rest_{i}\n".encode() for i in range(9))
+        return head + b"end_header\n" + body + b"\x01\x07\x02\x07\x07" + bytes(9 * 300)
     raise ValueError(kind)
 
 
@@ -247,6 +256,8 @@ def _hostile(kind: str) -> bytes:
     ("float_packed", "element 'vertex': property 'packed_position': float32, not the uint32"),
     ("float_sh", "element 'sh': property 'f_rest_0': float32, not the uint8"),
     ("sh_not_a_degree", "element 'sh': 7 properties"),
+    ("ascii", "an ASCII compressed PLY"),
+    ("lists_before_sh", "element 'sh' after an element of lists of varying length"),
 ])
 @pytest.mark.parametrize("suffix", [".compressed.ply", ".ply"])
 def test_hostile_files_give_one_error_line_and_no_output(tmp_path, kind, where, suffix):
@@ -301,3 +312,9 @@ def test_render_before_and_after_a_round_trip(baked):
         pictures.append(np.asarray(Image.open(out).convert("RGB")))
     assert pictures[0].std() > 5  # something is drawn
     assert compare(*pictures).psnr >= 40
+
+
+def test_a_plain_ply_named_compressed_is_refused_plainly(tmp_path, gs_ply):
+    path = tmp_path / "plain.compressed.ply"
+    path.write_bytes(Path(gs_ply).read_bytes())
+    assert error_line(run("info", path), 1).startswith(f"Error: {path}: not a compressed PLY")

@@ -1,4 +1,6 @@
-"""PlayCanvas / SuperSplat ``compressed.ply``: a static scene quantized in chunks of 256 splats (specs/compressed_ply.md).
+"""PlayCanvas / SuperSplat ``compressed.ply``: a static scene quantized in chunks of 256 splats.
+
+The layout is written down in specs/compressed_ply.md.
 
 A binary PLY of three elements, in this order::
 
@@ -132,6 +134,9 @@ class _Layout:
         sh = _element(header, "sh", None, path, optional=True)
         self.degree = _sh_degree(sh, path)
         rows = parsed.elements
+        for element in ("chunk", "vertex") + (("sh",) if sh is not None else ()):
+            if element not in rows:  # after an element of lists of varying length, left unread
+                raise UnsupportedError(f"element '{element}' after an element of lists of varying length", path)
         self.vertex = rows["vertex"]
         n = len(self.vertex)
         if sh is not None and sh.count != n:
@@ -183,13 +188,15 @@ class _Layout:
             if self.has_color:
                 cols[name] = lerp(f"min_{axis}", f"max_{axis}", word, shift, bits)
             else:
-                cols[name] = _UNIT_BYTE[(word >> np.uint32(shift)) & np.uint32(255)]
-        cols["opacity"] = _OPACITY_BYTE[word & np.uint32(255)]
+                cols[name] = _UNIT_BYTE[((word >> np.uint32(shift)) & np.uint32(255)).astype(np.intp)]
+        cols["opacity"] = _OPACITY_BYTE[(word & np.uint32(255)).astype(np.intp)]
         cols.update(zip(model.ROTATION, _unpack_rotation(np.asarray(v["packed_rotation"], dtype=np.uint32))))
         cols.update(model.static_columns(stop - start))
         if self.sh is not None:
+            block = self.sh[start:stop]
             for name in model.sh_names(self.degree):
-                cols[name] = _SH_BYTE[self.sh[name][start:stop]]
+                # A table indexed by intp: numpy's gather by a uint8 index is many times slower.
+                cols[name] = _SH_BYTE[np.asarray(block[name]).astype(np.intp)]
         return cols
 
 
@@ -240,11 +247,11 @@ def read(path: str | os.PathLike, **_options) -> Scene:
     """Read a compressed PLY as a static :class:`Scene`, with its SH bands."""
     path = os.fspath(path)
     parsed = container.read_rows(path)
-    _layout_of_header(parsed, path)
+    _refuse_plain(parsed, path)
     return scene_from(parsed, path)
 
 
-def _layout_of_header(parsed, path: str) -> None:
+def _refuse_plain(parsed, path: str) -> None:
     if not is_compressed(parsed.header):
         raise FormatError(f"not a compressed PLY: element 'vertex' has no '{MARKER}' (a plain PLY reads as .ply)",
                           path)
@@ -257,7 +264,7 @@ def scan(path: str | os.PathLike, **_options) -> Scan:
 
     def pieces():
         parsed = container.read_rows(path)
-        _layout_of_header(parsed, path)
+        _refuse_plain(parsed, path)
         yield from pieces_from(parsed, path, out)
 
     out.pieces = pieces()
@@ -467,7 +474,8 @@ def _notes(degree: int, counts: dict, sort: str | None) -> list:
     if counts["sh_clamped"]:
         notes.append(f"sh: {plural(counts['sh_clamped'], 'coefficient')} outside [-4, 4) clamped")
     if counts["nan"]:
-        notes.append(f"{plural(counts['nan'], 'NaN value')} of scale, colour or opacity written as the chunk's least (opacity as 0)")
+        notes.append(f"{plural(counts['nan'], 'NaN value')} of scale, colour or opacity written as the chunk's least "
+                     "(opacity as 0)")
     if counts["no_direction"]:
         notes.append(f"rotation: {plural(counts['no_direction'], 'quaternion')} with no direction (zero or not "
                      "finite) written as the identity; `convert --drop-undrawable` leaves such splats out")
@@ -481,8 +489,8 @@ def storage(scene: Scene) -> dict:
 
 def info_fields(meta: dict) -> dict:
     """What ``info`` shows of a compressed PLY (its ``meta``): the PLY encoding, the layout, its chunks, SH degree."""
-    return {"ply_format": meta.get("format"), "layout": meta.get("layout"), "chunk_count": meta.get("chunk_count"), "chunk_color": meta.get("chunk_color"),
-            "sh_degree": meta.get("sh_degree")}
+    return {"ply_format": meta.get("format"), "layout": meta.get("layout"), "chunk_count": meta.get("chunk_count"),
+            "chunk_color": meta.get("chunk_color"), "sh_degree": meta.get("sh_degree")}
 
 
 FORMAT = Format(
