@@ -17,11 +17,12 @@ import os
 
 from ..errors import UsageError
 from ..zstd import inner_name
-from . import ply, splat, splatv, splatvq, spz
+from . import compressed_ply, ply, splat, splatv, splatvq, spz
 from .base import Format
 
-#: Every format, in the order suffixes are tried.
-FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT)
+#: Every format; a path's longest matching suffix chooses one (`_lookup`).
+FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT,
+                               compressed_ply.FORMAT)
 REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
 #: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
 FRAME_SUFFIX = ply.FORMAT.suffixes[0]
@@ -32,12 +33,11 @@ if len(_TEXTURE) != 1:  # pragma: no cover (a registry mistake, caught on import
 
 
 def _lookup(path: str) -> Format | None:
-    """The format whose suffix ``path`` ends in (case-insensitive, after any ``.zst``), or None."""
+    """The format whose suffix ``path`` ends in (case-insensitive, after any ``.zst``), or None; the longest
+    suffix wins (``x.compressed.ply`` before ``x.ply``)."""
     lower = inner_name(path).lower()
-    for suffix, fmt in REGISTRY.items():
-        if lower.endswith(suffix):
-            return fmt
-    return None
+    found = [suffix for suffix in REGISTRY if lower.endswith(suffix)]
+    return REGISTRY[max(found, key=len)] if found else None
 
 
 def format_for(path: str | os.PathLike, *, purpose: str | None = None, also: tuple = ()) -> Format:

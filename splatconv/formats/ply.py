@@ -26,6 +26,7 @@ from ..jsonutil import loads_strict
 from ..model import COLUMNS, GROUPS, Scene
 from ..progress import SILENT
 from ..viewer import importance, importance_order, wide
+from . import compressed_ply
 from . import ply_container as container
 from .base import Format, Scan, WriteReport, refuse_time_varying
 
@@ -112,10 +113,9 @@ def _overflow_notes(overflow: dict) -> list:
             "infinite" for name, count in overflow.items() if count]
 
 
-def _opened(path: str):
-    """The PLY at ``path`` read as far as its vertex rows (not paged in): rows, variant, colour mode, meta, notes
-    (those a read knows before its columns)."""
-    parsed = container.read_rows(path)
+def _opened(parsed, path: str):
+    """The PLY at ``path`` read as far as its vertex rows (``parsed``, not paged in): rows, variant, colour mode,
+    meta, notes (those a read knows before its columns)."""
     vertex = _vertex_element(parsed.header, path)
     variant = _variant_of(vertex, path)
     degree = _sh_degree_of(vertex, variant)
@@ -159,9 +159,15 @@ def read(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scene:
         How to read ``f_dc_0..2``: as RGB (Spacetime Gaussians lite) or as the
         degree-0 spherical-harmonic coefficient (plain 3DGS). ``auto`` picks by
         the variant.
+
+    A PLY of PlayCanvas's compressed layout (:mod:`splatconv.formats.compressed_ply`) is read as such,
+    whatever its name.
     """
     path = os.fspath(path)
-    rows, variant, meta, cameras, notes = _opened(path)
+    parsed = container.read_rows(path)
+    if compressed_ply.is_compressed(parsed.header):
+        return compressed_ply.scene_from(parsed, path)
+    rows, variant, meta, cameras, notes = _opened(parsed, path)
     populate(rows)
     meta["color"] = _color_mode(color, variant)
     overflow = {}
@@ -181,7 +187,11 @@ def scan(path: str | os.PathLike, *, color: str = "auto", **_options) -> Scan:
     out = Scan()
 
     def pieces():
-        rows, variant, meta, cameras, notes = _opened(path)
+        parsed = container.read_rows(path)
+        if compressed_ply.is_compressed(parsed.header):
+            yield from compressed_ply.pieces_from(parsed, path, out)
+            return
+        rows, variant, meta, cameras, notes = _opened(parsed, path)
         meta["color"] = _color_mode(color, variant)
         out.variant, out.cameras = variant, cameras
         out.meta.update(meta)
@@ -453,6 +463,8 @@ def storage(scene: Scene) -> dict:
     Float32 as the model holds it; colour read as spherical harmonics goes through
     one float32 conversion each way; a plain 3DGS PLY holds no time or motion.
     """
+    if scene.meta.get("layout") == compressed_ply.LAYOUT:
+        return compressed_ply.storage(scene)
     kinds = dict.fromkeys(GROUPS, "exact")  # SH bands too, as float32 (verify judges the groups only)
     if scene.meta.get("color") == "sh":
         kinds["color"] = "float32"
@@ -463,6 +475,8 @@ def storage(scene: Scene) -> dict:
 
 def info_fields(meta: dict) -> dict:
     """What ``info`` shows of a scene read from a PLY (its ``meta``): encoding, colour reading, what was ignored."""
+    if meta.get("layout") == compressed_ply.LAYOUT:
+        return compressed_ply.info_fields(meta)
     return {
         "ply_format": meta.get("format"),
         "color": meta.get("color"),

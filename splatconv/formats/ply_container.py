@@ -625,6 +625,7 @@ def _read_binary(f, path: str, header: Header) -> Rows:
     offset = header.header_bytes
     notes = []
     vertex = None
+    found = {}
     for element in header.elements:
         count = element.count
         after = vertex is not None
@@ -633,9 +634,10 @@ def _read_binary(f, path: str, header: Header) -> Rows:
         if nbytes is None:
             # Rows after the vertex element, not needed, whose lists vary: their extent
             # would cost a walk, only to check for bytes after them. Stop here.
-            return Rows(header, vertex, notes)
+            return Rows(header, vertex, notes, found)
         if element.name == "vertex" and vertex is None:  # the first, as ply["vertex"] is
             vertex = rows
+        found.setdefault(element.name, rows)
         offset += nbytes
     extra = len(buf) - offset
     if extra > 0:
@@ -644,7 +646,7 @@ def _read_binary(f, path: str, header: Header) -> Rows:
         rows_more = f" ({extra // row_bytes} more rows of '{last.name}' than its header declares?)" if (
             row_bytes and extra % row_bytes == 0) else ""
         notes.append(f"{extra} bytes after the last element ignored{rows_more}")
-    return Rows(header, vertex, notes)
+    return Rows(header, vertex, notes, found)
 
 
 def _read_ascii(f, path: str, header: Header) -> Rows:
@@ -718,11 +720,15 @@ class Rows:
 
     ``vertex`` is a structured array (a view of the mapped file where the
     rows are fixed-size), one field a property that is not a list.
+    ``elements``: a binary file's rows of every element read, by name, alike
+    (those up to the vertex element and after it, but for lists of varying
+    length after it); empty for an ASCII file.
     """
 
     header: Header
     vertex: np.ndarray | None
     notes: list
+    elements: dict = field(default_factory=dict)
 
 
 def read_rows(path: str) -> Rows:
