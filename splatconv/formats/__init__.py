@@ -17,11 +17,12 @@ import os
 
 from ..errors import UsageError
 from ..zstd import inner_name
-from . import ply, splat, splatv, splatvq, spz
+from . import ply, sog, splat, splatv, splatvq, spz
 from .base import Format
 
 #: Every format, in the order suffixes are tried.
-FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT)
+FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT,
+                                 sog.FORMAT)
 REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
 #: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
 FRAME_SUFFIX = ply.FORMAT.suffixes[0]
