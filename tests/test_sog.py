@@ -308,7 +308,7 @@ def test_spec_states_the_codes_constants():
                         sog.SPARE_PIXELS == 65536), ("252 + the index of the largest (`QUAT_MODE`)",
                         sog.QUAT_MODE == 252), ("1,024 bins (`HISTOGRAM_BINS`", sog.HISTOGRAM_BINS == 1024),
                         ("count^0.5 (`BIN_WEIGHT_POWER`)", sog.BIN_WEIGHT_POWER == 0.5),
-                        ("`BRANCH` = 256", sog.BRANCH == 256), ("6 Lloyd iterations", sog.KMEANS_ITERATIONS == 6),
+                        ("`BRANCH` = 64", sog.BRANCH == 64), ("6 Lloyd iterations", sog.KMEANS_ITERATIONS == 6),
                         ("8 points a centre", sog.FIT_POINTS_PER_CENTRE == 8), ("at most 16 MiB",
                         sog.MAX_META_BYTES == 16 << 20)):
         assert text in SPEC and value, text

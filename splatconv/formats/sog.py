@@ -70,7 +70,7 @@ WEBP_QUALITY, WEBP_METHOD = 75, 4
 HISTOGRAM_BINS = 1024
 BIN_WEIGHT_POWER = 0.5
 #: The palette's k-means tree: centres a node splits into, points fitted a centre, Lloyd iterations.
-BRANCH = 256
+BRANCH = 64
 FIT_POINTS_PER_CENTRE = 8
 KMEANS_ITERATIONS = 6
 SQRT2 = math.sqrt(2.0)
@@ -146,7 +146,9 @@ def fit_codebook(values: np.ndarray, size: int = CODEBOOK_SIZE) -> np.ndarray:
         out[len(distinct):] = distinct[-1]
         return out.astype(np.float32)
     half = HISTOGRAM_BINS // 2
-    edges = np.concatenate([np.linspace(v[0], v[-1], half + 1), v[np.linspace(0, len(v) - 1, half + 1).astype(np.intp)]])
+    by_value = np.linspace(v[0], v[-1], half + 1)
+    by_count = v[np.linspace(0, len(v) - 1, half + 1).astype(np.intp)]
+    edges = np.concatenate([by_value, by_count])
     bounds = np.unique(np.searchsorted(v, np.unique(edges), side="left"))
     bounds = np.unique(np.concatenate([[0], bounds, [len(v)]]))
     counts = np.diff(bounds).astype(np.float64)
@@ -237,9 +239,10 @@ def fit_palette(vectors: np.ndarray, size: int, seed: int = 0) -> tuple:
     """A palette of at most ``size`` entries for ``vectors`` ``(N, D)`` and each vector's entry.
 
     Every vector is its own entry when N <= ``size``. Otherwise a tree of k-means: a node with a
-    budget of more than :data:`BRANCH` entries splits its points among :data:`BRANCH` centres and
-    shares its budget among them by their counts; a node of at most :data:`BRANCH` is a leaf whose
-    k-means centres are entries. A vector's entry is the nearest leaf centre of its branch.
+    budget of more than :data:`BRANCH` entries splits its points among budget / :data:`BRANCH`
+    centres (2 to :data:`BRANCH`) and shares its budget among them by their counts; a node of at
+    most :data:`BRANCH` is a leaf whose k-means centres are entries. A vector's entry is the
+    nearest centre of its leaf (not always the nearest of the palette: the price of the speed).
 
     Returns
     -------
@@ -263,7 +266,8 @@ def fit_palette(vectors: np.ndarray, size: int, seed: int = 0) -> tuple:
             labels[index] = used + np.arange(len(index))
             used += len(index)
             continue
-        k = min(budget, BRANCH)
+        # a leaf fits its budget; an inner node splits into about budget / BRANCH leaves' worth
+        k = budget if budget <= BRANCH else min(BRANCH, max(2, -(-budget // BRANCH)))
         centres = _kmeans(members, k, rng)
         nearest = _nearest(members, centres)
         if budget <= BRANCH:
@@ -497,7 +501,7 @@ def _notes(degree: int, facts: dict) -> list:
         bands = "1" if degree == 1 else f"1\u2013{degree}"
         notes.append(f"SH degree {bands} bands: a palette of {plural(facts['palette'], 'entry', 'entries')} "
                      f"(k-means) over a 256-entry codebook, largest coefficient error {facts['sh']:.3g}")
-    notes.append("splats stored in Morton (spatial) order, whatever the sort: the images compress by it")
+    notes.append("splats stored in Morton (spatial) order, which lets the images compress (--sort does not apply)")
     for key, what in (("scale_nan", "scale"), ("color_nan", "color"), ("opacity_nan", "opacity"),
                       ("sh_nan", "SH")):
         if facts.get(key):
