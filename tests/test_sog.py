@@ -287,8 +287,8 @@ def test_bake_convert_info_render_take_sog(tmp_path, lite_ply, gs_ply):
     assert png.stat().st_size > 0
 
 
-#: Worst PSNR (dB) a static scene's pictures keep through a .sog round trip (measured: about 43 dB).
-ROUND_TRIP_PSNR = 38.0
+#: Worst PSNR (dB) a static scene's pictures keep through a .sog round trip (measured: 52.1 dB, dancers at t = 0.5).
+ROUND_TRIP_PSNR = 45.0
 
 
 def test_pictures_survive_a_round_trip(tmp_path):

@@ -179,14 +179,16 @@ def _optimal_1d(x: np.ndarray, w: np.ndarray, k: int) -> np.ndarray:
         cost = (pwxx[last + 1] - pwxx[first]) - swx * swx / sw
     cost = np.where(last >= first, np.maximum(cost, 0.0), np.inf).astype(np.float32)
     best = cost[0].copy()  # the error of one centre for points 0..j
+    # after[j, s]: one centre for points s+1..j; rows contiguous, so that each j's minimum is a row's
+    after = np.ascontiguousarray(cost[1:, :].T)
     splits = np.zeros((k, h), np.int32)
-    total = np.empty((h - 1, h), np.float32)
-    columns = np.arange(h)
+    total = np.empty((h, h - 1), np.float32)
+    rows = np.arange(h)
     for m in range(1, k):
         # m + 1 centres for points 0..j: the best m for 0..s, and one for s+1..j
-        np.add(best[:-1, None], cost[1:, :], out=total)
-        s = np.argmin(total, axis=0)
-        best = total[s, columns]
+        np.add(best[None, :-1], after, out=total)
+        s = np.argmin(total, axis=1)
+        best = total[rows, s]
         splits[m] = s
     centres, j = [], h - 1
     for m in range(k - 1, -1, -1):
