@@ -17,12 +17,13 @@ import os
 
 from ..errors import UsageError
 from ..zstd import inner_name
-from . import compressed_ply, ply, splat, splatv, splatvq, spz
+from . import compressed_ply, ply, sog, splat, splatv, splatvq, spz
 from .base import Format
 
 #: Every format; a path's longest matching suffix chooses one (`_lookup`).
 FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT,
-                               compressed_ply.FORMAT)
+                               compressed_ply.FORMAT,
+                               sog.FORMAT)
 REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
 #: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
 FRAME_SUFFIX = ply.FORMAT.suffixes[0]
