@@ -17,11 +17,12 @@ import os
 
 from ..errors import UsageError
 from ..zstd import inner_name
-from . import ply, splat, splatv, splatvq, spz
+from . import gltf, ply, splat, splatv, splatvq, spz
 from .base import Format
 
 #: Every format, in the order suffixes are tried.
-FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT)
+FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT,
+                               gltf.FORMAT)
 REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
 #: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
 FRAME_SUFFIX = ply.FORMAT.suffixes[0]
@@ -62,6 +63,9 @@ def format_for(path: str | os.PathLike, *, purpose: str | None = None, also: tup
     if fmt is None:
         known = ", ".join(sorted({*REGISTRY, *also}))
         raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)
+    if fmt.companions is not None and fmt.companions(inner_name(path)) and inner_name(path) != path:
+        raise UsageError(f"a file with files beside it ({', '.join(fmt.companions(inner_name(path)))}) cannot be "
+                         "zstd-compressed", path)
     if purpose == "read" and not fmt.can_read:
         raise UsageError(f"{fmt.name} files can be written, not read", path)
     if purpose == "write" and not fmt.can_write:
