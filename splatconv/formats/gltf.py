@@ -108,7 +108,11 @@ OPACITY_EDGE = 1e-12
 
 #: How each attribute group is stored (see :data:`splatconv.compare.STORAGE_KINDS`).
 STORAGE = {"position": "exact", "scale": "float32", "color": "float32", "opacity": "float32",
-           "rotation": "float32", "motion": "none", "omega": "none", "trbf": "none"}
+           "rotation": "unit_quaternion", "motion": "none", "omega": "none", "trbf": "none"}
+
+#: A quaternion whose length is within this of 1 is written as it is: a float32 unit quaternion's length
+#: (four components, each rounded by at most 2^-24 relative) misses 1 by less than 2^-22.
+UNIT_TOLERANCE = 2.0**-22
 
 #: Rows converted at a time when writing, and rows a piece of :func:`scan`.
 BLOCK = 1 << 16
@@ -625,7 +629,10 @@ def _color(block: dict, tally: dict) -> np.ndarray:
 def _rotation(block: dict, tally: dict) -> np.ndarray:
     q = np.stack([wide(block[name]) for name in model.ROTATION], axis=1)  # w, x, y, z
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
-        unit = q / np.sqrt((q * q).sum(axis=1, keepdims=True))
+        length = np.sqrt((q * q).sum(axis=1, keepdims=True))
+        unit = q / length
+    # A quaternion of unit length to float32 rounding (one read from a glTF) is kept as it is.
+    unit = np.where(np.abs(length - 1.0) <= UNIT_TOLERANCE, q, unit)
     bad = ~np.isfinite(unit).all(axis=1)
     unit[bad] = (1.0, 0.0, 0.0, 0.0)
     unit = unit.astype(np.float32)
@@ -800,6 +807,8 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, nam
             data.write(b"\0" * (_padded(length) - length))
     report = WriteReport(count=n)
     report.notes.extend(_write_notes(tally, n))
+    if companions:
+        report.notes.append(f"buffer: {total:,} bytes in {urllib.parse.unquote(uri)} beside it")
     return report
 
 
