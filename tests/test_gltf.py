@@ -260,6 +260,7 @@ def _hostile():
         "half a degree": glb_bytes(*hand_gltf(drop="KHR_gaussian_splatting:SH_DEGREE_1_COEF_2")),
         "required extension": glb_bytes(*hand_gltf(doc={"extensionsRequired": ["EXT_meshopt_compression"]})),
         "node transform": glb_bytes(*hand_gltf(doc={"nodes": [{"mesh": 0, "translation": [1, 0, 0]}]})),
+        "node cycle": glb_bytes(*hand_gltf(doc={"nodes": [{"mesh": 0, "children": [1]}, {"children": [0]}]})),
         "nan": glb_bytes(*hand_gltf()).replace(b'"min": [-0.5', b'"min": [NaN ', 1),
         "json garbage": good[:20] + b"x" + good[21:],
         "no splats": glb_bytes(dict(doc, meshes=[]), data),
@@ -279,6 +280,37 @@ def test_hostile_file_gives_one_error_line_and_no_output(tmp_path, name):
     out = tmp_path / "out.ply"
     assert error_line(run("convert", path, out), 1).startswith("Error: ")
     assert not out.exists() and sorted(p.name for p in tmp_path.iterdir()) == ["bad.glb"]
+
+
+def test_blocks_change_nothing_and_info_reads_pieces(tmp_path, monkeypatch, scene, glb):
+    """Written and scanned a few rows at a time: the same bytes, and the pieces are the scene read whole."""
+    monkeypatch.setattr(gltf, "BLOCK", 7)
+    small = tmp_path / "small.glb"
+    io.write(scene, small)
+    assert small.read_bytes() == glb.read_bytes()
+    whole = io.read(glb)
+    with io.scanning(glb) as scan:
+        pieces = list(scan.pieces)
+    assert len(pieces) == -(-scene.count // 7) and scan.meta["sh_degree"] == 3 and len(scan.cameras) == 1
+    for name in model.attribute_names(whole.columns):
+        assert np.array_equal(np.concatenate([p[name] for p in pieces]), whole.columns[name]), name
+
+
+def test_frames_as_gltf_each_with_its_bin(tmp_path, lite_ply):
+    out = tmp_path / "frames"
+    r = run("bake", lite_ply, out, "--frames", "2", "--frame-suffix", ".gltf")
+    assert r.exit_code == 0, r.output
+    assert sorted(p.name for p in out.iterdir()) == ["frame_0000.bin", "frame_0000.gltf", "frame_0001.bin",
+                                                     "frame_0001.gltf"]
+    assert io.read(out / "frame_0001.gltf").count > 0
+
+
+def test_importance_order_is_kept_and_read_back(tmp_path, glb):
+    out = tmp_path / "sorted.glb"
+    assert run("convert", glb, out, "--sort", "importance").exit_code == 0
+    a, b = io.read(glb), io.read(out)
+    key = viewer.importance(b.columns)
+    assert (np.diff(key) <= 0).all() and sorted(a.columns["x"]) == sorted(b.columns["x"])
 
 
 def test_missing_bin_and_bad_data_uri_give_one_error_line(tmp_path):

@@ -459,16 +459,19 @@ def _world_matrices(doc: dict, path: str) -> list:
         local = [_local_matrix(n) for n in nodes]
     except (ValueError, TypeError):
         raise FormatError("a node's matrix, translation, rotation or scale is malformed", path) from None
-    worlds = []
-    for i in range(len(nodes)):
-        m, at, steps = local[i], i, 0
-        while at in parent:
-            at = parent[at]
-            m = local[at] @ m
-            steps += 1
-            if steps > len(nodes):
-                raise FormatError("nodes form a cycle", path)
-        worlds.append(m)
+    worlds = [None] * len(nodes)
+    with np.errstate(all="ignore"):  # a hostile matrix may overflow: its NaN or inf is refused by the caller
+        for i in range(len(nodes)):
+            chain = [i]  # up to the first node whose world is known (or the root): each node is done once
+            while worlds[chain[-1]] is None and chain[-1] in parent:
+                chain.append(parent[chain[-1]])
+                if len(chain) > len(nodes):
+                    raise FormatError("nodes form a cycle", path)
+            top = chain.pop()
+            if worlds[top] is None:
+                worlds[top] = local[top]
+            for node in reversed(chain):
+                worlds[node] = worlds[parent[node]] @ local[node]
     return worlds
 
 
@@ -528,7 +531,8 @@ def _cameras(doc: dict, path: str) -> list | None:
             width = max(1, round(height * aspect))
             fy = fx = height / (2 * math.tan(yfov / 2))
         world = worlds[i]
-        axes = world[:3, :3] / np.linalg.norm(world[:3, :3], axis=0)
+        with np.errstate(all="ignore"):  # a degenerate node (zero scale) gives NaN, which validation refuses
+            axes = world[:3, :3] / np.linalg.norm(world[:3, :3], axis=0)
         rotation = TURN @ axes @ CAMERA_AXES
         position = TURN @ world[:3, 3]
         out.append({"id": len(out), "img_name": cam["name"] if isinstance(cam.get("name"), str) else f"camera_{index}",
