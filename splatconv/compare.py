@@ -57,7 +57,8 @@ RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np
 #: quantized past a value-by-value check (a ``.splatvq``'s positions, rotations, scales, motion,
 #: omega and time). Neither is checked value by value (:data:`UNCHECKED`): the frames drawn at
 #: several times check what the viewer shows.
-STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "unit_quaternion", "none", "quantized")
+STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "unit_quaternion", "none",
+                 "quantized")
 #: Storage kinds whose values are never ``unexplained``.
 UNCHECKED = ("none", "quantized")
 

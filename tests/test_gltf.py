@@ -150,11 +150,10 @@ def hand_gltf(**changes) -> tuple:
             accessors[int(key[9:])].update(patch)
     if "drop" in changes:
         del attributes[changes["drop"]]
+    ext = {"KHR_gaussian_splatting": {"kernel": "ellipse", "colorSpace": "srgb_rec709_display"}}
     doc = {"asset": {"version": "2.0"}, "extensionsUsed": ["KHR_gaussian_splatting"],
            "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-           "meshes": [{"primitives": [{"attributes": attributes, "mode": changes.get("mode", 0),
-                                       "extensions": {"KHR_gaussian_splatting": {"kernel": "ellipse",
-                                                                                 "colorSpace": "srgb_rec709_display"}}}]}],
+           "meshes": [{"primitives": [{"attributes": attributes, "mode": changes.get("mode", 0), "extensions": ext}]}],
            "buffers": [{"byteLength": len(data)}], "bufferViews": views, "accessors": accessors}
     doc.update(changes.get("doc", {}))
     return doc, data
@@ -211,6 +210,20 @@ def test_hand_made_gltf_with_a_bin_file_and_with_a_data_uri(tmp_path):
     assert_hand_values(io.read(tmp_path / "b.gltf"))
 
 
+def test_a_foreign_camera_gets_a_size_from_its_field_of_view(tmp_path):
+    doc, data = hand_gltf(doc={"cameras": [{"type": "perspective", "perspective": {"yfov": 1.0, "aspectRatio": 2.0,
+                                                                                  "znear": 0.1}}],
+                               "nodes": [{"mesh": 0}, {"camera": 0, "translation": [1, 2, 3]}]})
+    path = tmp_path / "cam.glb"
+    path.write_bytes(glb_bytes(doc, data))
+    (cam,) = io.read(path).cameras
+    assert (cam["width"], cam["height"]) == (1440, 720)
+    assert cam["fx"] == cam["fy"] == pytest.approx(360 / np.tan(0.5))
+    assert cam["position"] == [-1.0, -2.0, 3.0]
+    # glTF's camera looks along its -z with y up; the scene's looks along its third axis with y down.
+    assert np.allclose(cam["rotation"], np.diag([-1.0, 1.0, -1.0]))
+
+
 def test_sh_signs_are_the_turns_rotation_of_the_sh():
     m = sh.rotation_matrix(gltf.TURN, 3)
     assert np.allclose(m, np.diag(gltf.SH_SIGNS), atol=1e-9)
@@ -256,6 +269,7 @@ def _hostile():
         "missing attribute": glb_bytes(*hand_gltf(drop="KHR_gaussian_splatting:SCALE")),
         "wrong component type": glb_bytes(*hand_gltf(accessor_3={"componentType": 5125})),
         "wrong type": glb_bytes(*hand_gltf(accessor_1={"type": "VEC3"})),
+        "component type a list": glb_bytes(*hand_gltf(accessor_2={"componentType": [5126]})),
         "not points": glb_bytes(*hand_gltf(mode=4)),
         "half a degree": glb_bytes(*hand_gltf(drop="KHR_gaussian_splatting:SH_DEGREE_1_COEF_2")),
         "required extension": glb_bytes(*hand_gltf(doc={"extensionsRequired": ["EXT_meshopt_compression"]})),

@@ -35,10 +35,10 @@ import urllib.parse
 import numpy as np
 
 from .. import model, sh
-from ..cameras import validate_cameras
+from ..cameras import MAX_CAMERA_PIXELS, validate_cameras
 from ..errors import FormatError, UnsupportedError
 from ..files.inputs import open_input
-from ..jsonutil import loads_strict
+from ..jsonutil import is_finite_number, loads_strict
 from ..model import Scene
 from ..progress import SILENT
 from ..viewer import importance, importance_order, logit, sigmoid, wide
@@ -88,7 +88,7 @@ READ_TYPES = {
     ROTATION: ("VEC4", {(FLOAT, False), (BYTE, True), (SHORT, True)}),
     SCALE: ("VEC3", {(FLOAT, False), (BYTE, False), (BYTE, True), (SHORT, False), (SHORT, True)}),
     OPACITY: ("SCALAR", {(FLOAT, False), (UNSIGNED_BYTE, True), (UNSIGNED_SHORT, True)}),
-    COLOR_0: ("VEC4", {(FLOAT, False), (UNSIGNED_BYTE, True), (UNSIGNED_SHORT, True)}),  # not read: the SH are
+    COLOR_0: ("VEC4", {(FLOAT, False), (UNSIGNED_BYTE, True), (UNSIGNED_SHORT, True)}),  # the fallback: not read
 }
 SH_TYPE = ("VEC3", {(FLOAT, False)})
 REQUIRED = (POSITION, ROTATION, SCALE, OPACITY, sh_attribute(0, 0))
@@ -148,7 +148,7 @@ class _Source:
             raise FormatError(f"type {_shown(acc.get('type'))}, expected {want_type}", self.path, where)
         component = acc.get("componentType")
         normalized = acc.get("normalized", False)
-        if (component, normalized) not in allowed:
+        if not (isinstance(component, int) and isinstance(normalized, bool)) or (component, normalized) not in allowed:
             raise FormatError(f"componentType {_shown(component)}{' normalized' if normalized is True else ''} is "
                               "not one the spec allows for it", self.path, where)
         count = _int(acc, "count", self.path, where)
@@ -321,6 +321,8 @@ def _external(uri: str, path: str, where: tuple) -> np.ndarray:
     if parts.scheme or parts.netloc or uri.startswith("/"):
         raise UnsupportedError(f"uri {_shown(uri)}: read are files beside the .gltf and data: URIs", path, where)
     target = os.path.join(os.path.dirname(os.path.abspath(path)), urllib.parse.unquote(parts.path))
+    if "\0" in target:
+        raise FormatError(f"uri {_shown(uri)} holds a NUL character", path, where)
     try:
         with open_input(target) as f:
             size = os.fstat(f.fileno()).st_size
@@ -522,7 +524,7 @@ def _cameras(doc: dict, path: str) -> list | None:
         where = (f"camera {index}",)
         if not (isinstance(yfov, (int, float)) and 0 < yfov < math.pi):
             raise FormatError(f"yfov must be in (0, pi), got {_shown(yfov)}", path, where)
-        if all(k in extras for k in ("width", "height", "fx", "fy")):
+        if _pixel_sizes(extras):
             width, height, fx, fy = extras["width"], extras["height"], extras["fx"], extras["fy"]
         else:
             if not (isinstance(aspect, (int, float)) and 0 < aspect < 1e6):
@@ -540,6 +542,14 @@ def _cameras(doc: dict, path: str) -> list | None:
                     "rotation": [[float(v) for v in row] for row in rotation], "fy": fy, "fx": fx})
     validate_cameras(out, path)
     return out or None
+
+
+def _pixel_sizes(extras: dict) -> bool:
+    """Whether a camera's ``extras`` hold the size and focal lengths splatconv writes there, valid."""
+    sizes = [extras.get(k) for k in ("width", "height")]
+    focal = [extras.get(k) for k in ("fx", "fy")]
+    return (all(isinstance(v, int) and not isinstance(v, bool) and 0 < v <= MAX_CAMERA_PIXELS for v in sizes)
+            and all(is_finite_number(v) and v > 0 for v in focal))
 
 
 def _load(path: str) -> _Source:
