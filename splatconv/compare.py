@@ -40,7 +40,8 @@ F32_MAX = float(np.finfo(np.float32).max)
 #: measured against the step: relative error = |error| / max(|source|, floor).
 #: ``exact``, ``none`` and ``quantized`` keep no floor (any error there is real; a source 0 is left out).
 RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np.float32).tiny), "byte": BYTE,
-                    "unit_quaternion_byte": QUATERNION_STEP, "none": 0.0, "quantized": 0.0}
+                    "unit_quaternion_byte": QUATERNION_STEP, "unit_quaternion": float(np.finfo(np.float32).tiny),
+                    "none": 0.0, "quantized": 0.0}
 
 #: How a format stores an attribute group (each format module's ``STORAGE`` maps every
 #: group to one), and so the error a faithful conversion may bring:
@@ -51,11 +52,13 @@ RESOLUTION_FLOOR = {"exact": 0.0, "half": 2.0**-14, "float32": float(np.finfo(np
 #: (one step; NaN cannot be held and is stored as a number); ``unit_quaternion_byte``:
 #: normalised, each component in :data:`QUATERNION_STEP` steps, compared normalised
 #: (the viewer normalises) with two steps of room (rounding, then the length's change);
+#: ``unit_quaternion``: normalised, then float32, compared normalised (a glTF's rotation);
 #: ``none``: not stored at all (a static format's time and motion); ``quantized``: stored, but
 #: quantized past a value-by-value check (a ``.splatvq``'s positions, rotations, scales, motion,
 #: omega and time). Neither is checked value by value (:data:`UNCHECKED`): the frames drawn at
 #: several times check what the viewer shows.
-STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "none", "quantized")
+STORAGE_KINDS = ("exact", "half", "float32", "byte", "unit_quaternion_byte", "unit_quaternion", "none",
+                 "quantized")
 #: Storage kinds whose values are never ``unexplained``.
 UNCHECKED = ("none", "quantized")
 
@@ -71,7 +74,7 @@ def quantization_bound(group: str, values: np.ndarray, kind: str) -> np.ndarray:
     if kind in UNCHECKED:
         return np.full_like(values, np.inf)
     with np.errstate(invalid="ignore"):
-        if kind == "float32":
+        if kind in ("float32", "unit_quaternion"):
             return np.maximum(np.abs(values) * FLOAT32_REL, np.finfo(np.float32).smallest_subnormal)
         return np.maximum(np.abs(values) * HALF_REL, HALF_ABS)
 
@@ -481,7 +484,7 @@ def value_errors(a: np.ndarray, b: np.ndarray, group: str, kind: str) -> GroupEr
     Differences and ratios are taken only where both values are finite (``where=``
     masks): computing inf - inf and masking it afterwards would warn.
     """
-    if kind == "unit_quaternion_byte":
+    if kind in ("unit_quaternion_byte", "unit_quaternion"):
         a, b = _unit_rows(a), _unit_rows(b)
     both = np.isfinite(a) & np.isfinite(b)
     err = np.zeros(a.shape, dtype=np.float64)

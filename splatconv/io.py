@@ -15,7 +15,7 @@ import numpy as np
 
 from . import viewer
 from .errors import FormatError, OutputError, SplatconvError, UnsupportedError, UsageError
-from .files.output import atomic_group, atomic_writer, check_output
+from .files.output import atomic_group, check_output
 from .formats import REGISTRY, compat_modes, format_for, layouts, qualities
 from .model import COLUMNS, LITE_ROW, Scene, sh_dropped_note
 from .progress import SILENT
@@ -400,9 +400,20 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     if precision is not None and precision not in fmt.precisions:
         raise UsageError(f"precision steps apply to {', '.join(s for s, f in REGISTRY.items() if f.precisions)} "
                          "output only", path)
-    with atomic_writer(path, replace=force) as stream:
+    beside = _companions(fmt, path, inputs, force)
+    with atomic_group(replace=force) as group, group.open(path) as stream, contextlib.ExitStack() as stack:
+        streams = [stack.enter_context(group.open(other)) for other in beside]
         return _write_file(stream, fmt, scene, path, compat=compat, sort=sort, layout=layout, quality=quality,
-                           precision=precision, zstd_level=zstd_level, progress=progress)
+                           precision=precision, zstd_level=zstd_level, progress=progress, companions=streams)
+
+
+def _companions(fmt, path, inputs, force: bool) -> tuple:
+    """The files ``fmt`` writes beside ``path`` (:attr:`~splatconv.formats.base.Format.companions`), each
+    checked as an output."""
+    beside = fmt.companions(os.fspath(path)) if fmt.companions is not None else ()
+    for other in beside:
+        check_output(other, inputs, force)
+    return beside
 
 
 #: Bytes a splat in memory (the model's float32 columns): more than any format's file takes a splat
@@ -419,13 +430,14 @@ def _size_hint(scene: Scene) -> int:
 
 def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, sort: str | None = None,
                 layout: str | None = None, quality: str | None = None, precision: int | None = None,
-                zstd_level: int | None = None, progress=SILENT):
+                zstd_level: int | None = None, progress=SILENT, companions=()):
     """Write ``scene`` in format ``fmt`` to the binary ``stream`` that becomes ``path`` (``.zst``: compressed
-    as it is written): what :func:`write` and :func:`write_each` do for each file. Errors name ``path``."""
+    as it is written), and to the ``companions`` streams of the files beside it: what :func:`write` and
+    :func:`write_each` do for each file. Errors name ``path``."""
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     # Only the options given: a writer that offers none takes none.
-    extra = {key: value for key, value in (("layout", layout), ("quality", quality), ("precision", precision))
-             if value is not None}
+    extra = {key: value for key, value in (("layout", layout), ("quality", quality), ("precision", precision),
+                                           ("companions", tuple(companions) or None)) if value is not None}
     try:
         with output_stream(stream, path, level, progress, size_hint=_size_hint(scene)) as out:
             report = fmt.write(scene, out, compat=compat, sort=sort or fmt.default_sort, progress=progress,
@@ -465,13 +477,15 @@ def write_each(scenes, paths, *, sort: str | None = None, layout: str | None = N
     formats = [check_write_options(p, sort=sort, layout=layout, quality=quality) for p in paths]
     for path in paths:
         check_output(path, inputs, force)
+    beside = [_companions(fmt, path, inputs, force) for fmt, path in zip(formats, paths)]
     reports = []
     with atomic_group(replace=force) as group, progress.stage("files", len(paths), "file") as advance:
-        for fmt, path, scene in zip(formats, paths, scenes):
+        for fmt, path, others, scene in zip(formats, paths, beside, scenes):
             refuse_empty(fmt, scene.count, path)
-            with group.open(path) as stream:
+            with group.open(path) as stream, contextlib.ExitStack() as stack:
+                streams = [stack.enter_context(group.open(other)) for other in others]
                 reports.append(_write_file(stream, fmt, scene, path, sort=sort, layout=layout, quality=quality,
-                                           zstd_level=zstd_level))
+                                           zstd_level=zstd_level, companions=streams))
             advance()
         if len(reports) != len(paths):
             raise ValueError(f"{len(reports)} scenes for {len(paths)} paths")

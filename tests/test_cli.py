@@ -174,7 +174,7 @@ def test_never_writes_onto_the_input(tmp_path, lite_ply, how):
 def test_usage_errors_exit_2(tmp_path, lite_ply):
     r = run("convert", lite_ply, tmp_path / "x.obj")
     assert r.exit_code == 2
-    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .compressed.ply, .html, .ply, .sog, .splat, .splatv, .splatvq, .spz, optionally + .zst)\n"
+    assert r.stderr == f"Error: {tmp_path / 'x.obj'}: unknown file type (expected one of .compressed.ply, .glb, .gltf, .html, .ply, .sog, .splat, .splatv, .splatvq, .spz, optionally + .zst)\n"
     r = run("convert", lite_ply, tmp_path / "x.ply", "--compat", "splatv-js")
     assert r.exit_code == 2
     assert r.stderr == f"Error: {tmp_path / 'x.ply'}: --compat splatv-js applies to .splatv, .html output only\n"

@@ -390,7 +390,7 @@ def test_convert_html_refusals(sample, tmp_path):
     assert not (tmp_path / "taken.html").exists() and (tmp_path / "taken.splatv").read_bytes() == b"keep"
     r = run("convert", tmp_path / "x.html", tmp_path / "x.splatv")
     # A page is written, never read: not a file type any command reads.
-    assert error_line(r, 2).startswith(f"Error: {tmp_path / 'x.html'}: unknown file type (expected one of .ply,")
+    assert error_line(r, 2).startswith(f"Error: {tmp_path / 'x.html'}: unknown file type (expected one of .compressed.ply, .glb,")
     r = run("convert", sample, sample, tmp_path / "c.html", "--sort", "none")
     assert r.exit_code == 2 and not (tmp_path / "c.html").exists()
     # Segments are not frames, and are read as they are: options that would change them were once ignored.

@@ -17,13 +17,12 @@ import os
 
 from ..errors import UsageError
 from ..zstd import inner_name
-from . import compressed_ply, ply, sog, splat, splatv, splatvq, spz
+from . import compressed_ply, gltf, ply, sog, splat, splatv, splatvq, spz
 from .base import Format
 
 #: Every format; a path's longest matching suffix chooses one (`_lookup`).
 FORMATS: tuple[Format, ...] = (ply.FORMAT, splatv.FORMAT, splatvq.FORMAT, splat.FORMAT, spz.FORMAT,
-                               compressed_ply.FORMAT,
-                               sog.FORMAT)
+                               compressed_ply.FORMAT, sog.FORMAT, gltf.FORMAT)
 REGISTRY: dict[str, Format] = {suffix: fmt for fmt in FORMATS for suffix in fmt.suffixes}
 #: The suffix of baked frames unless asked (``bake --frames``): PLY, what 3DGS tools and web viewers open.
 FRAME_SUFFIX = ply.FORMAT.suffixes[0]
@@ -63,6 +62,9 @@ def format_for(path: str | os.PathLike, *, purpose: str | None = None, also: tup
     if fmt is None:
         known = ", ".join(sorted({*REGISTRY, *also}))
         raise UsageError(f"unknown file type (expected one of {known}, optionally + .zst)", path)
+    if fmt.companions is not None and fmt.companions(inner_name(path)) and inner_name(path) != path:
+        raise UsageError(f"a file with files beside it ({', '.join(fmt.companions(inner_name(path)))}) cannot be "
+                         "zstd-compressed", path)
     if purpose == "read" and not fmt.can_read:
         raise UsageError(f"{fmt.name} files can be written, not read", path)
     if purpose == "write" and not fmt.can_write:

@@ -176,6 +176,11 @@ class Format:
     drawable_only : bool
         A write leaves out the splats the viewer can never draw
         (:func:`splatconv.viewer.undrawable`) by itself, and its report says how many.
+    companions : callable or None
+        ``companions(path) -> tuple of str``: the files a write of ``path`` writes beside it (a
+        ``.gltf``'s ``.bin``), checked as outputs and put in place with it, all or nothing; the
+        writer gets their streams as ``companions=``, in that order. Such a file is never
+        zstd-compressed (its companions would not be).
     """
 
     name: str
@@ -202,6 +207,7 @@ class Format:
     expands: bool = False
     drawable_only: bool = False
     holds_sh: bool = False
+    companions: Callable | None = None
 
     def __post_init__(self):
         readers = (self.read, self.scan, self.splat_count, self.most_splats)
