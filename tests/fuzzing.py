@@ -57,6 +57,10 @@ def _camera(i: int) -> dict:
             "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]], "fy": 60.0, "fx": 60.0}
 
 
+#: The static formats shared with other tools, each a seed written from the 3DGS PLY seed.
+STATIC_SEEDS = ("scene.spz", "scene.compressed.ply", "scene.sog", "scene.glb")
+
+
 def make_seeds(folder) -> list:
     """Small valid files of every kind the readers take; returns their paths."""
     folder = os.fspath(folder)
@@ -95,11 +99,13 @@ def make_seeds(folder) -> list:
     for args in (["convert", paths[0], sv, "--cameras", cams], ["convert", paths[3], splat],
                  ["convert", paths[0], vq, "--cameras", cams], ["convert", paths[0], vq + ".zst", "--zstd-level", "3"],
                  ["convert", paths[0], sv + ".zst", "--zstd-level", "3"],
-                 ["convert", paths[3], os.path.join(folder, "gs.ply.zst"), "--zstd-level", "3"]):
+                 ["convert", paths[3], os.path.join(folder, "gs.ply.zst"), "--zstd-level", "3"],
+                 *(["convert", paths[3], os.path.join(folder, static)] for static in STATIC_SEEDS)):
         result = runner.invoke(main, [str(a) for a in args])
         assert result.exit_code == 0, result.output
     os.unlink(cams)
-    paths += [sv, sv + ".zst", os.path.join(folder, "gs.ply.zst"), splat, vq, vq + ".zst"]
+    paths += [sv, sv + ".zst", os.path.join(folder, "gs.ply.zst"), splat, vq, vq + ".zst",
+              *(os.path.join(folder, static) for static in STATIC_SEEDS)]
     return [os.fspath(p) for p in paths]
 
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 
 from collections import Counter
 
-from .fuzzing import MUTATORS, campaign
+from .fuzzing import MUTATORS, STATIC_SEEDS, campaign
 
 #: Mutants in CI: every mutator and every seed file (each format, compressed or not) at least twice, and a zstd
 #: bomb, in a few seconds; the long campaign (``bench/bench_fuzz.py``, 2,000 by default) is where numbers tell.
-CI_MUTANTS = 40
+CI_MUTANTS = 42
 CI_SEED = 20261123
 
 
@@ -30,6 +30,6 @@ def test_fuzz_campaign(tmp_path):
     assert set(MUTATORS) <= set(kinds)
     seeds = Counter(o.name for o in outcomes)
     names = {p.name for p in (tmp_path / "seeds").iterdir()}  # the campaign's seed files (fuzzing.make_seeds)
-    assert {"scene.splatvq", "scene.splatvq.zst", "scene.splatv", "scene.splat", "lite.ply"} <= names
+    assert {"scene.splatvq", "scene.splatvq.zst", "scene.splatv", "scene.splat", "lite.ply", *STATIC_SEEDS} <= names
     assert set(seeds) == names and min(seeds.values()) >= 2, seeds
     assert any(o.kind.startswith("zstd bomb") for o in outcomes)
