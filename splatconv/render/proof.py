@@ -230,10 +230,11 @@ def load_candidate(renderer: Renderer, path) -> None:
     nor the whole texture in memory; else the scene read and packed.
     """
     fmt = format_for(path)
-    if fmt.converted_texture is None:
+    count = fmt.splat_count(path) if fmt.converted_texture is not None else None
+    if count is None:  # no records to decode, or a header the reader refuses (and says why)
         renderer.load(Source(str(path), read(path)).texture())
         return
-    renderer.load_pieces(fmt.splat_count(path), lambda put: fmt.converted_texture(path, put))
+    renderer.load_pieces(count, lambda put: fmt.converted_texture(path, put))
 
 
 def ranked(scene: Scene, views: list, times=None) -> np.ndarray:
