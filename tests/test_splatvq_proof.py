@@ -3,21 +3,25 @@
 from __future__ import annotations
 
 import json
+import re
 
 import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from splatconv import io, viewer
+from splatconv import formats, io, viewer
 from splatconv.cli import main
+from splatconv.formats import splatvq
 from splatconv.formats import splatvq_codec as codec
 from splatconv.model import COLUMNS, Scene
 from splatconv.ops import prune
 from splatconv.render import camera as cam
 from splatconv.render import proof
+from splatconv.render.frames import Source
+from splatconv.render.preview import Renderer
 
 from .cli_checks import error_line
-from .scenes import CAMERA, moving_scene
+from .scenes import CAMERA, moving_scene, overlapping_scene
 
 
 @pytest.fixture(autouse=True)
@@ -212,3 +216,60 @@ def test_splats_no_frame_shows_rank_last():
     c["opacity"][5] = -40.0
     alone = prune.contributions(Scene(c, cameras=[window]).columns, views, (0.5,))[4]
     assert 0 < hidden < 0.2 * alone
+
+
+def _awkward() -> Scene:
+    """:func:`overlapping_scene` (tied importance keys, spinning zero rotations) with what real scenes hold:
+    a NaN position, an infinite temporal scale, a flat splat, and one far out (raw records)."""
+    c = {k: np.array(v) for k, v in overlapping_scene(2500, seed=4).columns.items()}
+    c["x"][5], c["trbf_scale"][7], c["scale_2"][9], c["y"][11] = np.nan, np.inf, -np.inf, 3e30
+    return Scene(c, cameras=[dict(CAMERA)])
+
+
+@pytest.mark.parametrize("step", [-2, 0, 3])
+def test_a_candidate_is_drawn_as_a_conversion_of_it_holds(tmp_path, step):
+    """The proof draws a .splatvq from its decoded records, never decoding the scene: the very texture a
+    .splatv conversion of what it reads holds, and the same frames, pieces of any size."""
+    out = tmp_path / "o.splatvq"
+    io.write(_awkward(), out, precision=step)
+    fmt = formats.format_for(out)
+    pieces = []
+    order = fmt.converted_texture(out, pieces.append)
+    records = np.concatenate(pieces)
+    converted = Source("", io.read(out)).texture()
+    assert len(records) == fmt.splat_count(out) and not converted[len(records):].any()
+    assert np.array_equal(records[order], converted[:len(records)])
+    # Drawn in pieces that cut rows anywhere, the records in file order mapped through `order`.
+    view = proof.proof_views(_awkward())[0][1]
+    whole = Renderer(view.width, view.height)
+    parts = Renderer(view.width, view.height, whole.ctx)
+    try:
+        whole.load(converted)
+        cuts = [0, 700, 1700, 1701, len(records)]
+        parts.load_pieces(len(records), lambda put: [put(records[a:b]) for a, b in zip(cuts, cuts[1:])] and order)
+        for t in proof.PROOF_TIMES:
+            assert np.array_equal(parts.draw(view, t), whole.draw(view, t))
+        proof.load_candidate(parts, out)
+        assert np.array_equal(parts.draw(view, 0.5), whole.draw(view, 0.5))
+    finally:
+        parts.release()
+        whole.release()
+
+
+def test_a_proof_prepares_once_what_each_candidate_shares(tmp_path, monkeypatch):
+    """The undrawable kinds and the sort's ends are computed once however many candidates are written, and
+    the file is the bytes a write of the step it holds gives without them."""
+    scene = _awkward()
+    src, out, again = tmp_path / "s.ply", tmp_path / "o.splatvq", tmp_path / "again.splatvq"
+    io.write(scene, src)
+    calls = []
+    real = splatvq.sort_ends
+    monkeypatch.setattr(splatvq, "sort_ends", lambda *a, **k: calls.append(1) or real(*a, **k))
+    r = run("convert", src, out, "--min-psnr", 60, "--best-effort")
+    assert r.exit_code == 0, r.output
+    tried = int(re.search(r"; (\d+) candidates in ", r.stderr).group(1))
+    assert tried > 1 and len(calls) == 1
+    setting = io.read(out).meta["setting"]
+    step = next(p for p in codec.PRECISIONS if codec.precision_name("default", p) == setting)
+    io.write(io.read(src), again, precision=step)
+    assert again.read_bytes() == out.read_bytes()

@@ -166,6 +166,13 @@ class Format:
         ``check_playable(path)`` raises :class:`~splatconv.errors.FormatError` for a file
         the page could not play. Any other format is given to the page as the
         texture format's bytes, converted.
+    converted_texture : callable or None
+        ``converted_texture(path) -> (rows * 1024, 16) uint32``: the texture a conversion of
+        the file to the texture format holds (zero padded), decoded without the scene: given
+        by a format whose blocks decode to the texture's records (what a proof draws).
+    prepare : callable or None
+        ``prepare(scene) -> object``: what writes of ``scene`` at each of its :attr:`precisions`
+        share, computed once and given to each as ``prepared=`` (a proof writes several).
     expands : bool
         A file is compressed inside: a small one can declare a scene many times
         its size (``most_splats``), so a read is held to the decompression ceiling
@@ -204,6 +211,8 @@ class Format:
     declared_size: Callable | None = None
     texture: Texture | None = None
     check_playable: Callable | None = None
+    converted_texture: Callable | None = None
+    prepare: Callable | None = None
     expands: bool = False
     drawable_only: bool = False
     holds_sh: bool = False
@@ -215,7 +224,8 @@ class Format:
             raise TypeError(f"format {self.name}: read, scan, splat_count and most_splats come together")
         if self.read is None and self.write is None:
             raise TypeError(f"format {self.name}: neither read nor write")
-        if (self.texture is not None or self.check_playable is not None or self.expands) and self.read is None:
+        if (self.texture is not None or self.check_playable is not None or self.converted_texture is not None
+                or self.expands) and self.read is None:
             raise TypeError(f"format {self.name}: a texture, a playable or an expanding file must be readable")
         if not self.suffixes or any(s != s.lower() or not s.startswith(".") for s in self.suffixes):
             raise TypeError(f"format {self.name}: suffixes must be lower-case and start with '.'")

@@ -20,6 +20,7 @@ from ..jsonutil import decode as decode_json
 from ..jsonutil import loads_strict
 from ..model import Scene, lite_rows
 from ..progress import SILENT
+from ..viewer import importance
 from ..wording import plural
 from . import splatv_engine as engine
 from .base import Format, Scan, Texture, WriteReport
@@ -34,6 +35,7 @@ STORAGE = {"position": "exact", "rotation": "half", "scale": "half", "color": "b
            "motion": "half", "omega": "half", "trbf": "half"}
 
 __all__ = ["FORMAT", "STORAGE", "read", "write", "encode", "info_fields", "read_records", "decode_records",
+           "texture_key",
            "read_texture", "scan", "decode_rows", "decode_notes", "new_tally", "header_bytes", "texture_height",
            "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW",
            "WORDS_PER_SPLAT", "RECORD_BYTES", "HALF_WORDS", "POSITION_WORDS", "COLOR_WORD", "EXP_ATTRIBUTES",
@@ -572,6 +574,29 @@ def storage(scene: Scene) -> dict:
 def info_fields(meta: dict) -> dict:
     """What ``info`` shows of a scene read from a ``.splatv`` (its ``meta``) besides the common facts: its chunks."""
     return {"chunks": meta.get("chunks", [])}
+
+
+def texture_key(records: np.ndarray) -> np.ndarray:
+    """The importance key a write sorts the scene decoded from ``records`` by: ``(N,) float64``.
+
+    A write's records decode and encode again unchanged, so :func:`encode` of the
+    scene :func:`decode_records` gives is ``records[importance_order(key)]``
+    (:func:`splatconv.viewer.importance_order`), zero padded: the key is
+    :func:`splatconv.viewer.importance` of the four columns it reads, decoded as
+    :func:`decode_rows` decodes them, and the writer sorts it so. A block at a
+    time gives the same keys: what the proof of a ``.splatvq`` draws (its records
+    in a conversion's order) without decoding the rest of the scene.
+
+    Parameters
+    ----------
+    records : (N, 16) uint32 ndarray
+    """
+    cols = {"opacity": np.take(LOGIT_OF_BYTE, np.asarray(records[:, COLOR_WORD], np.uint32) >> np.uint32(24))}
+    for w, names in HALF_WORDS.items():
+        for name, h in zip(names, packing.unpack_half2(records[:, w])):
+            if name in engine.KEY_COLUMNS:
+                cols[name] = np.take(LOG_OF_HALF, h)
+    return importance(cols)
 
 
 def read_texture(path: str | os.PathLike):

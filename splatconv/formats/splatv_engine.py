@@ -79,7 +79,7 @@ _EXPONENTS = ("opacity",) + _EXP_NAMES
 #: Colour and opacity, per row (opacity becomes alpha in place).
 _RGBA = ("f_dc_0", "f_dc_1", "f_dc_2", "opacity")
 #: What the importance key reads, per row.
-_KEY = ("opacity", "scale_0", "scale_1", "scale_2")
+KEY_COLUMNS = ("opacity", "scale_0", "scale_1", "scale_2")
 #: Names of the half attributes in slot order, as reports list them.
 HALF_NAMES = tuple(name for name in SLOT_NAMES if name is not None)
 
@@ -437,7 +437,7 @@ class Plan:
 
     def _key_of(self, rows) -> np.ndarray:
         """:func:`importance` of some rows (a slice or an index array), from the scene."""
-        return importance({name: self.source.column(name, rows) for name in _KEY})
+        return importance({name: self.source.column(name, rows) for name in KEY_COLUMNS})
 
     def block(self, start: int, out: np.ndarray) -> WriteReport:
         """Pack output records ``start:start + len(out)`` into ``out``; their counts."""

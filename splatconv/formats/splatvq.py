@@ -68,8 +68,8 @@ class Block(NamedTuple):
     offset: int
 
 
-__all__ = ["FORMAT", "read", "write", "encode", "decode", "check", "info_fields", "splat_count", "most_splats",
-           "storage", "read_records", "scan", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
+__all__ = ["FORMAT", "read", "write", "encode", "prepare", "decode", "check", "info_fields", "splat_count", "most_splats",
+           "storage", "read_records", "converted_texture", "scan", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
 
 
 # --------------------------------------------------------------------------
@@ -83,8 +83,19 @@ def _setting_name(quality: str | None) -> str:
     return name
 
 
+def prepare(scene: Scene) -> tuple:
+    """What every write of ``scene`` shares, whatever its setting and step: ``(kinds, ends)``.
+
+    Its :func:`~splatconv.viewer.undrawable_kinds` and the splats the viewer's depth
+    sort turns on (:func:`~splatconv.viewer.sort_ends`), computed once for a proof that
+    writes the scene at several steps (:attr:`~splatconv.formats.base.Format.prepare`).
+    """
+    kinds = undrawable_kinds(scene.columns)
+    return kinds, sort_ends(scene.columns, scene.cameras, kinds)
+
+
 def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, precision: int = 0,
-           level: int = 9, progress=SILENT) -> tuple:
+           level: int = 9, progress=SILENT, prepared: tuple | None = None) -> tuple:
     """A scene as ``.splatvq`` bytes, in memory.
 
     Parameters
@@ -101,6 +112,8 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         Deflate level.
     progress : splatconv.progress.Progress
         A "writing" stage of the splats written (the drawable ones), advanced as each block is encoded.
+    prepared : tuple, optional
+        :func:`prepare` of this very scene, when already computed.
 
     Returns
     -------
@@ -112,7 +125,7 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         raise UsageError(f"precision {precision} is not one of {codec.PRECISIONS[0]}..{codec.PRECISIONS[-1]}")
     setting = codec.refined(codec.SETTINGS[base], precision)
     name = codec.precision_name(base, precision)
-    kinds = undrawable_kinds(scene.columns)
+    kinds, exact = prepare(scene) if prepared is None else prepared
     drawable = kinds == -1
     if not drawable.any():
         raise UnsupportedError(f"none of the {plural(scene.count, 'splat')} can be drawn by the viewer; "
@@ -124,7 +137,6 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         report.notes.append("no cameras given; wrote one camera that frames the scene")
     # The splats the viewer's depth sort turns on (:func:`splatconv.viewer.sort_ends`) are stored
     # verbatim, undrawable or not: the frames then drop and repeat the records a .splatv's do.
-    exact = sort_ends(scene.columns, scene.cameras, kinds)
     keep = np.flatnonzero(drawable | exact)
     shaping = int(np.count_nonzero(exact & ~drawable))
     dropped = np.bincount(kinds[~drawable & ~exact].astype(np.intp), minlength=len(UNDRAWABLE_KINDS))
@@ -136,7 +148,10 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     def packed(rows):
         out = np.empty((len(rows), WORDS_PER_SPLAT), dtype="<u4")
         counts = engine.new_counts()
-        engine.pack_rows(plan.source, rows, out, False, counts, plan.scratch())
+        # The .splatv writer's block at a time: its working arrays (a thread's) stay that size.
+        for start in range(0, len(rows), engine.BLOCK):
+            engine.pack_rows(plan.source, rows[start:start + engine.BLOCK], out[start:start + engine.BLOCK], False,
+                             counts, plan.scratch())
         return out, counts
 
     starts = range(0, n, codec.BLOCK)
@@ -213,10 +228,11 @@ def kept_step(scene: Scene, quality: str | None) -> int | None:
 
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
-          quality: str | None = None, precision: int = 0, **_options) -> WriteReport:
+          quality: str | None = None, precision: int = 0, prepared: tuple | None = None, **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`): ``progress`` counts the
     splats written, not those read (undrawable splats are left out)."""
-    data, report = encode(scene, sort=sort, quality=quality, precision=precision, progress=progress)
+    data, report = encode(scene, sort=sort, quality=quality, precision=precision, progress=progress,
+                          prepared=prepared)
     stream.write(data)
     return report
 
@@ -354,6 +370,33 @@ def read_records(path: str | os.PathLike):
     return records, list(meta.get("cameras", [])), info
 
 
+def converted_texture(path: str | os.PathLike, put) -> np.ndarray:
+    """The texture a conversion of a ``.splatvq`` file to ``.splatv`` holds, given a block at a time.
+
+    ``put(records)`` is called with each block's records as :func:`read_records`
+    decodes them, in file order; the conversion's texture is then ``records[order]``, zero padded to
+    whole rows: the records in the order a ``.splatv`` write of the scene
+    :func:`read` gives stores them (:func:`splatv.texture_key`; not quite the
+    file's own, whose key is of the halves and the alpha byte, not of the decoded
+    columns). What :func:`splatconv.render.frames.Source.texture` gives for that
+    scene, bit for bit, without the scene or the texture held whole.
+
+    Returns
+    -------
+    order : (N,) intp ndarray
+    """
+    path = os.fspath(path)
+    with open_input(path) as f:
+        setting, _meta, blocks, info = _opened(f, path)
+        key = np.empty(info["records"])
+        at = 0
+        for out in _decoded(f, path, setting, blocks):
+            put(out)
+            key[at:at + len(out)] = splatv.texture_key(out)
+            at += len(out)
+    return importance_order(key)
+
+
 def decode(path: str | os.PathLike) -> np.ndarray:
     """The texture words of a ``.splatvq`` file: ``(N, 16) uint32`` (what the page decodes)."""
     return read_records(path)[0]
@@ -465,6 +508,8 @@ FORMAT = Format(
     # it in a worker, so it plays a .splatvq's bytes as they are, once every block
     # decodes as read() decodes it (a damaged file is never published).
     check_playable=check,
+    converted_texture=converted_texture,
+    prepare=prepare,
     # Its blocks inflate: a small file can declare millions of splats, so a read is held to the
     # decompression ceiling (the block table's count, before a block is decoded).
     expands=True,

@@ -14,8 +14,9 @@ from ._steps import check_job, read_input, reading_for, silent, write_output
 #: ``.ply``, 145 to ``.splatv``, 177 to ``.splatvq``, ``bench/bench_memory.py``): what the
 #: decompression ceiling counts (:func:`splatconv.io.holding`).
 CONVERT_MEMORY_BYTES = 192
-#: The same with the proof of a compressed output (:mod:`splatconv.jobs.prove`): the source and a
-#: candidate each as a scene, a candidate being encoded, and the renderer's textures and depth keys
+#: The same with the proof of a compressed output (:mod:`splatconv.jobs.prove`): the source as a
+#: scene, a candidate being encoded, and the renderer's textures and depth keys (it was measured when
+#: a candidate was read back as a scene too: a bound, not a tight one)
 #: (some 830 bytes a splat over a fixed 250 MB between generated scenes of 100,000 and 300,000
 #: splats; 1.4 kB a splat over a scene of 65,536 in ``tests/test_memory.py``).
 PROVE_MEMORY_BYTES = 1536

@@ -20,7 +20,7 @@ import time
 
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_writer
-from ..io import check_write_options, read, write
+from ..io import check_write_options, write
 from ..model import Scene
 from ..progress import SILENT
 from ..ops.prune import leave_out
@@ -96,8 +96,9 @@ class _Candidates:
     that many of ``ranked`` (drawable rows, least contributing first).
     """
 
-    def __init__(self, scene: Scene, path: str, prover: Prover, options: dict, advance):
+    def __init__(self, scene: Scene, path: str, prover: Prover, options: dict, advance, prepared=None):
         self.scene, self.path, self.prover, self.options, self.advance = scene, path, prover, options, advance
+        self.prepared = prepared  # the format's prepare() of the scene: what every unpruned candidate shares
         self.ranked = None
         self.sizes, self.proofs = {}, {}
         self.on_disk = None, None, None  # the candidate the file holds, its write report, its pruning report
@@ -106,10 +107,12 @@ class _Candidates:
         """Write candidate ``key`` (step, left out) unless the file holds it: its write and pruning reports."""
         if self.on_disk[0] != key:
             step, left_out = key
-            scene, pruned = self.scene, None
+            scene, pruned, prepared = self.scene, None, self.prepared
             if left_out:
                 scene, pruned = leave_out(self.scene, self.ranked[:left_out], of=len(self.ranked))
-            self.on_disk = key, write(scene, self.path, precision=step, force=True, **self.options), pruned
+                prepared = None
+            self.on_disk = key, write(scene, self.path, precision=step, force=True, prepared=prepared,
+                                      **self.options), pruned
             self.sizes[key] = os.path.getsize(self.path)
         return self.on_disk[1:]
 
@@ -121,7 +124,7 @@ class _Candidates:
     def proof(self, key):
         if key not in self.proofs:
             self.put(key)
-            self.proofs[key] = self.prover.prove(read(self.path))
+            self.proofs[key] = self.prover.prove(self.path)
             self.advance()
         return self.proofs[key]
 
@@ -171,13 +174,15 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
         return report, [f"not proved again: {precision_text(name, kept)} keeps every value of the source, "
                         "a file of that setting"]
     started = time.perf_counter()
+    # What every candidate's write shares, computed once (and before the renderer holds its memory).
+    prepared = fmt.prepare(scene) if fmt.prepare is not None else None
     every = proof_views(scene)
     views, times = proof_plan(scene, every)
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
             progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0), "candidate") as advance, \
             Prover(scene, views, times) as prover:
         c = _Candidates(scene, os.path.join(folder, os.path.basename(output)), prover,
-                        {"quality": quality, "sort": sort, "zstd_level": zstd_level}, advance)
+                        {"quality": quality, "sort": sort, "zstd_level": zstd_level}, advance, prepared)
         if max_bytes is not None:
             fits = [p for p in steps if c.size((p, 0)) <= max_bytes] if c.size((steps[0], 0)) <= max_bytes else []
             if not fits:

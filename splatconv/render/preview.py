@@ -86,6 +86,8 @@ class Renderer:
         self._path = None
         self._positions = None
         self._count = 0
+        #: The texture record drawn for each splat index (None: the index itself): see :meth:`load_pieces`.
+        self._record_of = None
         #: The draw order of the last frame (splat indices, front to back).
         self.last_order = None
         self.fbo = None
@@ -124,6 +126,61 @@ class Renderer:
         self._set_texture((TEXWIDTH, rows), records, "u4")
         self._positions = records[:, 0:3].view(np.float32).copy()
         self._count = len(records)
+        self._record_of = None
+        self._path = "texture"
+        return _time.perf_counter() - t0
+
+    def load_pieces(self, count: int, fill) -> float:
+        """Upload a ``.splatv`` texture of ``count`` records a piece at a time, never held whole; returns seconds.
+
+        ``fill(put)`` calls ``put(records)`` with the records in order, ``(M, 16)
+        uint32`` pieces, until all ``count`` are given, and returns None or
+        ``order``, ``(count,) intp``. The frames are then those :meth:`load_records`
+        draws of ``records`` (None) or of ``records[order]``, zero padded to whole
+        rows, either way: the depth sort reads the positions in that order, and each
+        index drawn is mapped to the record that holds it, so the copy is never made.
+        """
+        t0 = _time.perf_counter()
+        rows = max(1, -(-count // SPLATS_PER_ROW))
+        total = rows * SPLATS_PER_ROW
+        self._set_texture((TEXWIDTH, rows), None, "u4")
+        positions = np.zeros((total, 3), dtype=np.float32)  # a padding record sits at the origin
+        state = {"at": 0, "tail": np.empty((0, WORDS_PER_SPLAT), dtype="<u4")}  # records given; a partial row
+
+        def write(records: np.ndarray) -> None:  # whole rows from state["at"] - len(tail) on
+            first = (state["at"] - len(records)) // SPLATS_PER_ROW
+            self._texture.write(memoryview(records).cast("B"),
+                                viewport=(0, first, TEXWIDTH, len(records) // SPLATS_PER_ROW))
+
+        def put(records: np.ndarray) -> None:
+            records = np.asarray(records, dtype="<u4")
+            start = state["at"]
+            if start + len(records) > count:
+                raise ValueError(f"more than the {count} records of the texture given")
+            positions[start:start + len(records)] = records[:, 0:3].view(np.float32)
+            state["at"] = start + len(records)
+            joined = np.concatenate([state["tail"], records]) if len(state["tail"]) else records
+            whole = len(joined) - state["at"] % SPLATS_PER_ROW
+            if whole:
+                write(np.ascontiguousarray(joined[:whole]) if whole < len(joined) else np.ascontiguousarray(joined))
+            state["tail"] = joined[whole:].copy()
+
+        order = fill(put)
+        if state["at"] != count:
+            raise ValueError(f"{state['at']} of the {count} records of the texture given")
+        if len(state["tail"]) or count == 0:  # the last row: its padding is zero records
+            last = np.zeros((SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4")
+            last[:len(state["tail"])] = state["tail"]
+            state["at"] = total
+            write(last)
+        self._record_of = None
+        if order is not None:
+            order = np.asarray(order)
+            positions[:count] = positions[:count][order]
+            self._record_of = np.arange(total, dtype=np.int32)
+            self._record_of[:count] = order
+        self._positions = positions
+        self._count = total
         self._path = "texture"
         return _time.perf_counter() - t0
 
@@ -144,13 +201,14 @@ class Renderer:
         self._set_texture((TEXWIDTH, rows), padded, "f4")
         self._positions = np.ascontiguousarray(texels[:, 0:3], dtype=np.float32)
         self._count = n
+        self._record_of = None
         self._path = "float"
         return _time.perf_counter() - t0
 
     def _set_texture(self, size, data, dtype):
         if self._texture is not None:
             self._texture.release()
-        self._texture = self.ctx.texture(size, 4, memoryview(data).cast("B"), dtype=dtype)
+        self._texture = self.ctx.texture(size, 4, None if data is None else memoryview(data).cast("B"), dtype=dtype)
         self._texture.filter = (self._mgl.NEAREST, self._mgl.NEAREST)
         self._texture.repeat_x = self._texture.repeat_y = False
 
@@ -195,7 +253,7 @@ class Renderer:
             if self._index is not None:
                 self._index.release()
             self._index = self.ctx.buffer(reserve=max(order.nbytes, 4), dynamic=True)
-        self._index.write(order.tobytes())
+        self._index.write((order if self._record_of is None else self._record_of[order]).tobytes())
         prog = self._programs[self._path]
         vao = self.ctx.vertex_array(prog, [(self._quad, "2f", "position"), (self._index, "i/i", "index")])
         prog["projection"].write(np.array(cam.projection_matrix(view.fx, view.fy, view.width, view.height), "f4"))

@@ -32,6 +32,8 @@ import numpy as np
 from .. import viewer
 from ..viewer import SPLATV_FOCAL, SPLATV_VIEW, SPLATV_WINDOW
 from ..cameras import camera_for_box
+from ..formats import format_for
+from ..io import read
 from ..model import Scene
 from ..ops import prune
 from ..progress import SILENT, Progress
@@ -168,9 +170,16 @@ class Prover:
             self.close()
             raise
 
-    def prove(self, candidate: Scene, *, progress: Progress = SILENT) -> Proof:
-        """Draw ``candidate`` from each view at each time, as the viewer draws it, against the source."""
-        self.renderer.load(Source("<candidate>", candidate).texture())
+    def prove(self, candidate, *, progress: Progress = SILENT) -> Proof:
+        """Draw ``candidate`` from each view at each time, as the viewer draws it, against the source.
+
+        ``candidate``: a Scene, or the path of a file, read back as any reader would
+        (:func:`load_candidate`).
+        """
+        if isinstance(candidate, Scene):
+            self.renderer.load(Source("<candidate>", candidate).texture())
+        else:
+            load_candidate(self.renderer, candidate)
         psnrs, where = [], []
         with progress.stage("drawing", len(self.frames), "frame") as advance:
             frames = iter(self.frames)
@@ -210,6 +219,22 @@ def prove(source: Scene, candidate: Scene, views: list, times=None, *, progress:
     """
     with Prover(source, views, PROOF_TIMES if times is None else times, progress=progress) as prover:
         return prover.prove(candidate, progress=progress)
+
+
+def load_candidate(renderer: Renderer, path) -> None:
+    """Load into ``renderer`` what a proof draws of the file ``path``, read back as any reader would.
+
+    The texture a conversion of it to the texture format holds: where its format
+    decodes to the texture's records (:attr:`~splatconv.formats.base.Format.converted_texture`),
+    those records a block at a time, in that conversion's order, never the scene
+    nor the whole texture in memory; else the scene read and packed.
+    """
+    fmt = format_for(path)
+    count = fmt.splat_count(path) if fmt.converted_texture is not None else None
+    if count is None:  # no records to decode, or a header the reader refuses (and says why)
+        renderer.load(Source(str(path), read(path)).texture())
+        return
+    renderer.load_pieces(count, lambda put: fmt.converted_texture(path, put))
 
 
 def ranked(scene: Scene, views: list, times=None) -> np.ndarray:
