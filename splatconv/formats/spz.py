@@ -3,7 +3,8 @@
 Read: versions 2 and 3 (one gzip stream: a 16-byte header, then the attribute
 arrays) and 4 (a 32-byte plain header, a table of contents, one zstd stream an
 array). Written: version 4, what PlayCanvas splat-transform 3.7 writes by
-default (and the reference library's latest), zstd level 12 as the reference.
+default (and the reference library's latest), zstd level 12 as the reference; a version 2 stream
+(:func:`legacy_stream`) for glTF's SPZ compression extension (:mod:`splatconv.formats.gltf`).
 Arrays, N splats, in this order::
 
     positions  9 N   x, y, z as 24-bit signed fixed point (value * 2^fractional_bits)
