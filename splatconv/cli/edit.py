@@ -82,9 +82,10 @@ def _drop_option(what: str):
 
 
 def _layout_option(default: str):
-    return click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
-                        help=f"PLY output: 3dgs (plain 3DGS, SH degree 0) or lite (Spacetime Gaussians). "
-                             f"Default: {default}.")
+    return click.option("--layout", "--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
+                        help=f"PLY output: 3dgs (plain 3DGS, SH degree 0) or lite (Spacetime Gaussians); "
+                             f"default: {default}. .glb/.gltf output: spz (SPZ-compressed, the draft "
+                             f"KHR_gaussian_splatting_compression_spz_2; lossy).")
 
 
 def _sort_option():

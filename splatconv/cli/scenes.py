@@ -70,9 +70,12 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
                       "(importance for .splatv, none for .ply)."),
     click.option("--cameras", "cameras", type=click.Path(dir_okay=False),
                  help="A 3DGS / Spacetime Gaussians cameras.json to store in the output."),
-    click.option("--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
+    click.option("--layout", "--ply-layout", "layout", type=click.Choice(io.LAYOUTS),
                  help="PLY output: lite (Spacetime Gaussians, keeps motion and time) or 3dgs (plain 3DGS, "
-                      "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite."),
+                      "SH degree 0; static scenes only). Default: 3dgs for a plain 3DGS input, else lite. "
+                      ".glb/.gltf output: spz, the splats as one SPZ v2 stream (the draft "
+                      "KHR_gaussian_splatting_compression_spz_2: several times smaller, lossy, noted; viewers "
+                      "without it draw nothing). Default: float attributes."),
     quality_option(),
     *proof_options(),
     color_option(),
@@ -103,6 +106,7 @@ def convert(input_paths, output_path, external, durations, compat, sort, cameras
       splatconv convert scene.ply scene.splatvq
       splatconv convert scene.ply scene.splatvq --quality small --prune
       splatconv convert scene.ply scene.splatvq --max-bytes 5M
+      splatconv convert scene.ply scene.glb --layout spz
 
     A .splatvq OUTPUT proves its quality: the file written is drawn against
     the scene it encodes and reaches its setting's floor (or --min-psnr), or

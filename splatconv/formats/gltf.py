@@ -43,6 +43,7 @@ from ..model import Scene
 from ..progress import SILENT
 from ..viewer import importance, importance_order, logit, sigmoid, wide
 from ..wording import plural
+from . import spz
 from .base import Format, Scan, WriteReport, refuse_time_varying
 from .ply import SH_C0  # rgb = 0.5 + SH_C0 * f_dc: the model keeps RGB, glTF the coefficient
 
@@ -114,6 +115,20 @@ STORAGE = {"position": "exact", "scale": "float32", "color": "float32", "opacity
 #: (four components, each rounded by at most 2^-24 relative) misses 1 by less than 2^-22.
 UNIT_TOLERANCE = 2.0**-22
 
+#: The draft SPZ compression extension (specs/gltf.md): nested in the primitive's ``KHR_gaussian_splatting``
+#: object, its ``bufferView`` an SPZ version 2 stream. Written as ``layout="spz"``.
+SPZ_EXTENSION = "KHR_gaussian_splatting_compression_spz_2"
+#: Names it is read under: its own, and the one the draft's text also uses (``extensionsUsed``, conformance).
+SPZ_NAMES = (SPZ_EXTENSION, "KHR_gaussian_splatting_compression_spz")
+SPZ_VERSION = 2
+LAYOUT_SPZ = "spz"
+#: The stream's frame: the draft packs glTF's (left-up-front) with the SPZ library's ``LUF`` option, which
+#: stores its own right-up-back: x and z of glTF's negated. After :data:`TURN`, y and z of the scene's
+#: negated (180 degrees about x; its own inverse): what the library stores of a PLY packed as ``RDF``.
+SPZ_TURN = TURN @ np.diag([-1.0, 1.0, -1.0])
+#: Sign of each SH coefficient (degrees 1 to 3, 3DGS order) under :data:`SPZ_TURN`.
+SPZ_SH_SIGNS = np.rint(np.diag(sh.rotation_matrix(SPZ_TURN, 3))).astype(np.float32)
+
 #: Rows converted at a time when writing, and rows a piece of :func:`scan`.
 BLOCK = 1 << 16
 
@@ -136,8 +151,60 @@ class _Source:
         self.degree = _sh_degree(attributes, path)
         self.count = None
         self.views = {}
+        self.spz = None  # a compressed primitive's stream: (bytes, header fields); decoded on first use
+        self._decoded = None
+        compression = _compression(self.primitive)
+        if compression is not None:
+            self._spz_stream(*compression, attributes)
+            return
         for name in REQUIRED + _sh_rest_attributes(self.degree):
             self.views[name] = self._accessor(attributes[name], name)
+
+    def _spz_stream(self, name: str, ext, attributes: dict) -> None:
+        """Check a compressed primitive's SPZ stream (``ext``, the object named ``name``) against its
+        accessors by the stream's header; the arrays are inflated by :meth:`columns`."""
+        where = (f"{name}",)
+        if not isinstance(ext, dict) or "bufferView" not in ext:
+            raise FormatError("needs a bufferView", self.path, where)
+        raw = self._view(ext["bufferView"])
+        head = spz.legacy_header(raw)
+        if head is None or head[0] != spz.MAGIC:
+            raise FormatError("its bufferView is not an SPZ version 2 stream (gzip of the NGSP header)", self.path,
+                              where)
+        _magic, version, n, degree, _bits, _flags, _ = head
+        if version != SPZ_VERSION:
+            raise UnsupportedError(f"SPZ version {version} in its stream; the extension holds version {SPZ_VERSION}",
+                                   self.path, where)
+        acc = _item(self.doc, "accessors", attributes[POSITION], self.path)
+        count = _int(acc, "count", self.path, (f"accessor {attributes[POSITION]} ({POSITION})",))
+        if count != n:
+            raise FormatError(f"the SPZ stream holds {n:,} splats, the accessors {count:,}", self.path, where)
+        if degree != self.degree:
+            raise FormatError(f"the SPZ stream holds SH degree {degree}, the attributes declare {self.degree}",
+                              self.path, where)
+        self.count = n
+        self.spz = (raw, where)
+
+    def _view(self, index) -> np.ndarray:
+        """Buffer view ``index``'s bytes (``(byteLength,) uint8``), checked to lie inside its buffer."""
+        view = _item(self.doc, "bufferViews", index, self.path)
+        vwhere = (f"bufferView {index}",)
+        data = self._buffer(view.get("buffer"))
+        start = _int(view, "byteOffset", self.path, vwhere, 0)
+        length = _int(view, "byteLength", self.path, vwhere)
+        if start + length > len(data):
+            raise FormatError(f"bytes {start:,} to {start + length:,} lie past its buffer's {len(data):,}", self.path,
+                              vwhere)
+        return data[start:start + length]
+
+    def _spz_columns(self) -> dict:
+        """The model columns of the compressed primitive, in the scene's frame (inflated once)."""
+        if self._decoded is None:
+            raw, where = self.spz
+            version, n, degree, bits, flags, arrays = spz.unpack(raw, self.path, where)
+            self.meta["antialiased"] = bool(flags & spz.FLAG_ANTIALIASED)
+            self._decoded = _spz_frame(spz.decode(version, n, degree, bits, arrays), degree)
+        return self._decoded
 
     def _accessor(self, index, name: str):
         """Accessor ``index`` of attribute ``name``: ``(values (count, width) view, componentType, normalized)``."""
@@ -162,14 +229,10 @@ class _Source:
             raise UnsupportedError("sparse accessors are not read", self.path, where)
         if "bufferView" not in acc:
             raise UnsupportedError("an accessor without a bufferView (all zeros) is not read", self.path, where)
-        view = _item(self.doc, "bufferViews", acc["bufferView"], self.path)
+        data = self._view(acc["bufferView"])
+        view = self.doc["bufferViews"][acc["bufferView"]]
         vwhere = (f"bufferView {acc['bufferView']}",)
-        data = self._buffer(view.get("buffer"))
-        start = _int(view, "byteOffset", self.path, vwhere, 0)
-        length = _int(view, "byteLength", self.path, vwhere)
-        if start + length > len(data):
-            raise FormatError(f"bytes {start:,} to {start + length:,} lie past its buffer's {len(data):,}", self.path,
-                              vwhere)
+        length = len(data)
         dtype = np.dtype(COMPONENTS[component][0])
         width = WIDTHS[want_type]
         element = dtype.itemsize * width
@@ -180,7 +243,7 @@ class _Source:
         if offset + (count - 1) * stride + element > length:
             raise FormatError(f"{count:,} elements of {element} bytes, {stride} apart, from byte {offset:,}, run past "
                               f"its bufferView's {length:,} bytes", self.path, where)
-        values = np.ndarray((count, width), dtype, buffer=data, offset=start + offset, strides=(stride, dtype.itemsize))
+        values = np.ndarray((count, width), dtype, buffer=data, offset=offset, strides=(stride, dtype.itemsize))
         return values, component, normalized
 
     def _buffer(self, index) -> np.ndarray:
@@ -208,6 +271,8 @@ class _Source:
 
     def columns(self, rows: slice, tally: dict) -> dict:
         """The model columns of rows ``rows``, counting into ``tally`` what :func:`_notes_of` says."""
+        if self.spz is not None:
+            return {name: values[rows] for name, values in self._spz_columns().items()}
         pos = _quiet(_values(self.views[POSITION], rows))
         cols = {"x": -pos[:, 0], "y": -pos[:, 1], "z": pos[:, 2]}  # the turn undone: exact
         q = _quiet(_values(self.views[ROTATION], rows))  # x, y, z, w in the file's frame
@@ -298,7 +363,7 @@ def _json(raw: bytes, path: str) -> dict:
     required = doc.get("extensionsRequired", [])
     if not isinstance(required, list):
         raise FormatError("extensionsRequired must be a list", path)
-    unknown = [name for name in required if name != EXTENSION]
+    unknown = [name for name in required if name != EXTENSION and name not in SPZ_NAMES]
     if unknown:
         raise UnsupportedError(f"requires {', '.join(map(_shown, unknown))}, which splatconv does not read", path)
     return doc
@@ -354,7 +419,8 @@ def _primitive(doc: dict, path: str) -> dict:
     attributes = prim.get("attributes")
     if not isinstance(attributes, dict):
         raise FormatError("attributes must be an object", path, where)
-    missing = [name for name in REQUIRED if name not in attributes]
+    # A compressed primitive's attributes are placeholders; its POSITION gives the count to check.
+    missing = [name for name in ((POSITION,) if _compression(prim) else REQUIRED) if name not in attributes]
     if missing:
         ext = prim["extensions"][EXTENSION]
         inner = ext.get("extensions") if isinstance(ext, dict) else None
@@ -368,6 +434,31 @@ def _primitive(doc: dict, path: str) -> dict:
             raise UnsupportedError(f"node {i} places the splats with a transform; splatconv reads splats placed "
                                    "by none", path)
     return prim
+
+
+def _compression(prim: dict) -> tuple | None:
+    """``(name, object)`` of the SPZ compression extension nested in the primitive's extension object, or None."""
+    ext = prim["extensions"][EXTENSION]
+    inner = ext.get("extensions") if isinstance(ext, dict) else None
+    if isinstance(inner, dict):
+        for name in SPZ_NAMES:
+            if name in inner:
+                return name, inner[name]
+    return None
+
+
+def _spz_frame(cols: dict, degree: int) -> dict:
+    """``cols`` turned by :data:`SPZ_TURN` (its own inverse): the scene's frame to the SPZ stream's and back.
+    Sign changes only: exact."""
+    out = dict(cols)
+    for name in ("y", "z", "rot_2", "rot_3"):  # positions' y, z; the quaternion's (w, x, y, z) y and z
+        out[name] = -np.asarray(cols[name])
+    k = model.SH_COEFFS[degree]
+    for j in range(k):
+        if SPZ_SH_SIGNS[j] < 0:
+            for c in range(3):
+                out[f"f_rest_{c * k + j}"] = -np.asarray(cols[f"f_rest_{c * k + j}"])
+    return out
 
 
 def _sh_degree(attributes: dict, path: str) -> int:
@@ -559,7 +650,8 @@ def _load(path: str) -> _Source:
     asset = src.doc.get("asset", {})
     src.meta = {"file_bytes": src.size, "container": src.container,
                 "generator": asset.get("generator") if isinstance(asset.get("generator"), str) else None,
-                "sh_degree": src.degree, "kernel": ext.get("kernel"), "color_space": ext.get("colorSpace")}
+                "sh_degree": src.degree, "kernel": ext.get("kernel"), "color_space": ext.get("colorSpace"),
+                "compression": _compression(src.primitive)[0] if src.spz is not None else None}
     if ext.get("kernel", "ellipse") != "ellipse":
         src.notes.append(f"kernel {_shown(ext.get('kernel'))} drawn as the ellipse kernel")
     if ext.get("colorSpace", "srgb_rec709_display") != "srgb_rec709_display":
@@ -684,10 +776,13 @@ def _sh_rest(j: int, k: int):
     return names, encode
 
 
-def segments(degree: int) -> list:
-    """What a write stores, in file order: ``(attribute, type, componentType, normalized, columns, encode)``."""
+def segments(degree: int, compressed: bool = False) -> list:
+    """What a write stores, in file order: ``(attribute, type, componentType, normalized, columns, encode)``;
+    ``compressed``: the accessors declared beside the SPZ stream, each of its values' type once decoded
+    (``COLOR_0`` float)."""
+    color = (COLOR_0, "VEC4", FLOAT, False) if compressed else (COLOR_0, "VEC4", UNSIGNED_BYTE, True)
     out = [(POSITION, "VEC3", FLOAT, False, model.POSITION, _position),
-           (COLOR_0, "VEC4", UNSIGNED_BYTE, True, model.COLOR + model.OPACITY, _color),
+           (*color, model.COLOR + model.OPACITY, _color),
            (ROTATION, "VEC4", FLOAT, False, model.ROTATION, _rotation),
            (SCALE, "VEC3", FLOAT, False, model.SCALE, _scale),
            (OPACITY, "SCALAR", FLOAT, False, model.OPACITY, _opacity),
@@ -731,32 +826,45 @@ def _camera_nodes(cameras: list, tally: dict) -> tuple:
     return gl_cameras, nodes
 
 
-def _document(scene: Scene, segs: list, lengths: list, bounds: tuple, uri: str | None, tally: dict) -> dict:
-    """The glTF JSON of a write: one buffer, a view and an accessor per segment, the mesh and camera nodes."""
+def _document(scene: Scene, segs: list, lengths: list, bounds: tuple, uri: str | None, tally: dict,
+              compressed: bool = False) -> dict:
+    """The glTF JSON of a write: one buffer, a view and an accessor per segment, the mesh and camera nodes;
+    ``compressed``: one view, the SPZ stream (``lengths[0]`` bytes), and accessors without views."""
     n = scene.count
     views, accessors, attributes, offset = [], [], {}, 0
+    for length in lengths:
+        view = {"buffer": 0, "byteOffset": offset, "byteLength": length}
+        if not compressed:
+            view["target"] = ARRAY_BUFFER
+        views.append(view)
+        offset += _padded(length)
     for i, (name, kind, component, normalized, _columns, _encode) in enumerate(segs):
-        views.append({"buffer": 0, "byteOffset": offset, "byteLength": lengths[i], "target": ARRAY_BUFFER})
-        accessor = {"bufferView": i, "componentType": component, "count": n, "type": kind}
+        accessor = {"componentType": component, "count": n, "type": kind}
+        if not compressed:
+            accessor = {"bufferView": i, **accessor}
         if normalized:
             accessor["normalized"] = True
         if name == POSITION:
             accessor["min"], accessor["max"] = bounds
         accessors.append(accessor)
         attributes[name] = i
-        offset += _padded(lengths[i])
     buffer = {"byteLength": offset}
     if uri is not None:
         buffer["uri"] = uri
     gl_cameras, camera_nodes = _camera_nodes(scene.cameras, tally)
+    extension = dict(PRIMITIVE_EXTENSION)
+    if compressed:
+        extension["extensions"] = {SPZ_EXTENSION: {"bufferView": 0}}
     doc = {"asset": {"version": "2.0", "generator": "splatconv"},
-           "extensionsUsed": [EXTENSION],
-           "scene": 0,
-           "scenes": [{"nodes": list(range(1 + len(camera_nodes)))}],
-           "nodes": [{"mesh": 0}] + camera_nodes,
-           "meshes": [{"primitives": [{"attributes": attributes, "mode": MODE_POINTS,
-                                       "extensions": {EXTENSION: dict(PRIMITIVE_EXTENSION)}}]}],
-           "buffers": [buffer], "bufferViews": views, "accessors": accessors}
+           "extensionsUsed": [EXTENSION, SPZ_EXTENSION] if compressed else [EXTENSION]}
+    if compressed:  # the data is in the stream alone: a viewer without the extension has nothing to draw
+        doc["extensionsRequired"] = [EXTENSION, SPZ_EXTENSION]
+    doc.update({"scene": 0,
+                "scenes": [{"nodes": list(range(1 + len(camera_nodes)))}],
+                "nodes": [{"mesh": 0}] + camera_nodes,
+                "meshes": [{"primitives": [{"attributes": attributes, "mode": MODE_POINTS,
+                                            "extensions": {EXTENSION: extension}}]}],
+                "buffers": [buffer], "bufferViews": views, "accessors": accessors})
     if gl_cameras:
         doc["cameras"] = gl_cameras
     return doc
@@ -766,10 +874,23 @@ def _padded(length: int) -> int:
     return (length + 3) & ~3
 
 
+def _spz_blob(scene: Scene, sort: str | None) -> tuple:
+    """``scene`` as the SPZ version 2 stream of the compression extension (in :data:`SPZ_TURN`'s frame), the
+    notes on its quantization, and the bounds (glTF's frame) of the positions it decodes to."""
+    stored = Scene(columns=_spz_frame(scene.columns, scene.sh_degree), variant=scene.variant)
+    blob, notes = spz.legacy_stream(stored, sort, version=SPZ_VERSION)
+    _version, n, _degree, bits, _flags, arrays = spz.unpack(blob, "")
+    xyz = spz.decode_positions(arrays[0], n, bits) * np.array([-1.0, 1.0, -1.0], np.float32)  # to glTF's frame
+    bounds = ([float(v) for v in xyz.min(axis=0)], [float(v) for v in xyz.max(axis=0)])
+    return blob, notes, bounds
+
+
 def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, name: str | None = None,
-          companions: tuple = (), **_options) -> WriteReport:
+          companions: tuple = (), layout: str | None = None, **_options) -> WriteReport:
     """Write ``scene`` as a ``.glb`` to ``stream``, or, given a companion stream, as a ``.gltf`` whose buffer
-    goes to ``companions[0]`` (the ``.bin`` named after ``name``).
+    goes to ``companions[0]`` (the ``.bin`` named after ``name``). ``layout="spz"``: the splats as one SPZ
+    version 2 stream, the draft ``KHR_gaussian_splatting_compression_spz_2`` (lossy; noted); else float
+    attributes.
 
     Raises
     ------
@@ -786,15 +907,22 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, nam
     if not finite.all():
         raise UnsupportedError(f"{plural(int(np.count_nonzero(~finite)), 'splat')} with a NaN or infinite position: "
                                "glTF bounds every position (drop them with `convert --drop-nonfinite`)")
-    turned = _position({"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]}, {})
-    bounds = ([float(v) for v in turned.min(axis=0)], [float(v) for v in turned.max(axis=0)])
-    del xyz, turned
-    segs = segments(scene.sh_degree)
-    itemsizes = {FLOAT: 4, UNSIGNED_BYTE: 1}
-    lengths = [n * WIDTHS[kind] * itemsizes[component] for _name, kind, component, *_ in segs]
+    compressed = layout == LAYOUT_SPZ
+    segs = segments(scene.sh_degree, compressed)
+    blob, spz_notes = None, []
+    if compressed:
+        del xyz
+        blob, spz_notes, bounds = _spz_blob(scene, sort)
+        lengths = [len(blob)]
+    else:
+        turned = _position({"x": xyz[:, 0], "y": xyz[:, 1], "z": xyz[:, 2]}, {})
+        bounds = ([float(v) for v in turned.min(axis=0)], [float(v) for v in turned.max(axis=0)])
+        del xyz, turned
+        itemsizes = {FLOAT: 4, UNSIGNED_BYTE: 1}
+        lengths = [n * WIDTHS[kind] * itemsizes[component] for _name, kind, component, *_ in segs]
     tally = {"degenerate": 0, "normalised": 0, "overflow": 0, "nan_opacity": 0, "cameras": 0}
     uri = urllib.parse.quote(bin_name(os.path.basename(name or "scene.gltf"))) if companions else None
-    doc = _document(scene, segs, lengths, bounds, uri, tally)
+    doc = _document(scene, segs, lengths, bounds, uri, tally, compressed)
     text = json.dumps(doc, separators=(",", ":"), allow_nan=False).encode("utf-8")
     total = doc["buffers"][0]["byteLength"]
     if companions:
@@ -810,6 +938,24 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, nam
         stream.write(CHUNK.pack(json_length, CHUNK_JSON) + text + b" " * (json_length - len(text)))
         stream.write(CHUNK.pack(total, CHUNK_BIN))
         data = stream
+    if compressed:
+        data.write(blob + b"\0" * (_padded(len(blob)) - len(blob)))
+    else:
+        _write_segments(data, cols, segs, lengths, order, tally, progress)
+    report = WriteReport(count=n)
+    report.notes.extend(spz_notes)
+    if compressed:
+        report.notes.append(f"glTF: splats as SPZ version 2 in {SPZ_EXTENSION}, a draft extension (required: "
+                            "a viewer without it draws nothing)")
+    report.notes.extend(_write_notes(tally, n))
+    if companions:
+        report.notes.append(f"buffer: {total:,} bytes in {urllib.parse.unquote(uri)} beside it")
+    return report
+
+
+def _write_segments(data, cols: dict, segs: list, lengths: list, order, tally: dict, progress) -> None:
+    """Each segment's values (``order``: rows in that order), :data:`BLOCK` rows at a time, padded to 4 bytes."""
+    n = len(cols["x"])
     with progress.stage("writing", n * len(segs), "value") as advance:
         for length, (_name, _kind, _component, _normalized, columns, encode) in zip(lengths, segs):
             for start in range(0, n, BLOCK):
@@ -819,11 +965,6 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, nam
                 data.write(memoryview(np.ascontiguousarray(encode(block, tally))).cast("B"))
                 advance(stop - start)
             data.write(b"\0" * (_padded(length) - length))
-    report = WriteReport(count=n)
-    report.notes.extend(_write_notes(tally, n))
-    if companions:
-        report.notes.append(f"buffer: {total:,} bytes in {urllib.parse.unquote(uri)} beside it")
-    return report
 
 
 def _write_notes(tally: dict, n: int) -> list:
@@ -843,13 +984,14 @@ def _write_notes(tally: dict, n: int) -> list:
 
 
 def storage(scene: Scene) -> dict:
-    """How a glTF file stores each attribute group: :data:`STORAGE`."""
-    return STORAGE
+    """How a glTF file stores each attribute group: :data:`STORAGE`, or ``.spz``'s for a compressed one."""
+    return spz.STORAGE if scene.meta.get("compression") else STORAGE
 
 
 def info_fields(meta: dict) -> dict:
     """What ``info`` shows of a glTF file (its ``meta``): container, generator, SH degree, kernel, colour space."""
-    return {key: meta.get(key) for key in ("container", "generator", "sh_degree", "kernel", "color_space")}
+    return {key: meta.get(key) for key in ("container", "generator", "sh_degree", "kernel", "color_space",
+                                           "compression")}
 
 
 FORMAT = Format(
@@ -859,6 +1001,6 @@ FORMAT = Format(
     holds_empty=False,  # an accessor holds at least one element
     dynamic=False,
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats,
-    write=write, holds_sh=True, companions=companions,
+    write=write, layouts=(LAYOUT_SPZ,), holds_sh=True, companions=companions,
     info_fields=info_fields, storage=storage,
 )

@@ -3,7 +3,8 @@
 Read: versions 2 and 3 (one gzip stream: a 16-byte header, then the attribute
 arrays) and 4 (a 32-byte plain header, a table of contents, one zstd stream an
 array). Written: version 4, what PlayCanvas splat-transform 3.7 writes by
-default (and the reference library's latest), zstd level 12 as the reference.
+default (and the reference library's latest), zstd level 12 as the reference; a version 2 stream
+(:func:`legacy_stream`) for glTF's SPZ compression extension (:mod:`splatconv.formats.gltf`).
 Arrays, N splats, in this order::
 
     positions  9 N   x, y, z as 24-bit signed fixed point (value * 2^fractional_bits)
@@ -74,50 +75,57 @@ def _payload(path: str) -> tuple:
     """The header fields and the six arrays (bytes) of the ``.spz`` at ``path``."""
     with open_input(path) as f:
         raw = f.read()
+    return unpack(raw, path)
+
+
+def unpack(raw, path: str, where: tuple = ()) -> tuple:
+    """``(version, N, SH degree, fractional bits, flags, the six arrays)`` of a ``.spz``'s bytes ``raw`` (a file,
+    or a glTF buffer view holding one); errors name ``path`` and ``where``."""
+    raw = bytes(raw)
     if not raw:
-        raise FormatError("file is empty", path)
+        raise FormatError("file is empty", path, where)
     if raw[:2] == b"\x1f\x8b":
         try:
             raw = gzip.decompress(raw)
         except (OSError, EOFError, zlib.error) as e:
-            raise FormatError(f"gzip stream is damaged ({e})", path) from None
+            raise FormatError(f"gzip stream is damaged ({e})", path, where) from None
         if len(raw) < LEGACY_HEADER.size:
-            raise FormatError(f"header needs {LEGACY_HEADER.size} bytes, the stream holds {len(raw)}", path)
+            raise FormatError(f"header needs {LEGACY_HEADER.size} bytes, the stream holds {len(raw)}", path, where)
         magic, version, n, degree, bits, flags, _ = LEGACY_HEADER.unpack_from(raw)
-        _check_header(magic, version, degree, path, legacy=True)
+        _check_header(magic, version, degree, path, where, legacy=True)
         sizes = _array_sizes(n, degree, version)
         need = LEGACY_HEADER.size + sum(sizes)
         if len(raw) < need:
             raise FormatError(f"{n:,} splats need {need:,} bytes, the stream holds {len(raw):,}; file truncated?",
-                              path)
+                              path, where)
         arrays, at = [], LEGACY_HEADER.size
         for size in sizes:
             arrays.append(np.frombuffer(raw, np.uint8, size, at))
             at += size
         return version, n, degree, bits, flags, arrays
     if len(raw) < V4_HEADER.size:
-        raise FormatError("not a .spz file (neither gzip nor a version 4 header)", path)
+        raise FormatError("not a .spz file (neither gzip nor a version 4 header)", path, where)
     magic, version, n, degree, bits, flags, streams, toc = V4_HEADER.unpack_from(raw)
-    _check_header(magic, version, degree, path, legacy=False)
+    _check_header(magic, version, degree, path, where, legacy=False)
     sizes = [s for s in _array_sizes(n, degree, version) if s] if n else []
     if streams != len(sizes) and not (n == 0 and streams in (5, 6)):
         raise FormatError(f"header says {streams} streams; {n:,} splats of SH degree {degree} need {len(sizes)}",
-                          path)
+                          path, where)
     if toc < V4_HEADER.size or toc + TOC_ENTRY.size * streams > len(raw):
-        raise FormatError(f"table of contents at byte {toc:,} lies outside the file", path)
+        raise FormatError(f"table of contents at byte {toc:,} lies outside the file", path, where)
     arrays, at = [], toc + TOC_ENTRY.size * streams
     expected = _array_sizes(n, degree, version)
     for i in range(streams):
         packed, plain = TOC_ENTRY.unpack_from(raw, toc + i * TOC_ENTRY.size)
         if plain != expected[i] or at + packed > len(raw):
             raise FormatError(f"stream {i}: {plain:,} bytes declared, {expected[i]:,} expected, or it runs past "
-                              "the end of the file; file truncated?", path)
+                              "the end of the file; file truncated?", path, where)
         try:
             data = zstandard.ZstdDecompressor().decompress(raw[at:at + packed], max_output_size=plain)
         except zstandard.ZstdError as e:
-            raise FormatError(f"stream {i}: zstd data is damaged ({e})", path) from None
+            raise FormatError(f"stream {i}: zstd data is damaged ({e})", path, where) from None
         if len(data) != plain:
-            raise FormatError(f"stream {i}: {len(data):,} bytes decompressed, {plain:,} declared", path)
+            raise FormatError(f"stream {i}: {len(data):,} bytes decompressed, {plain:,} declared", path, where)
         arrays.append(np.frombuffer(data, np.uint8))
         at += packed
     while len(arrays) < 6:
@@ -125,24 +133,21 @@ def _payload(path: str) -> tuple:
     return version, n, degree, bits, flags, arrays
 
 
-def _check_header(magic: int, version: int, degree: int, path: str, legacy: bool) -> None:
+def _check_header(magic: int, version: int, degree: int, path: str, where: tuple, legacy: bool) -> None:
     if magic != MAGIC:
-        raise FormatError(f"not a .spz file (magic 0x{magic:08x}, expected 0x{MAGIC:08x})", path)
+        raise FormatError(f"not a .spz file (magic 0x{magic:08x}, expected 0x{MAGIC:08x})", path, where)
     if version not in READ_VERSIONS or (version == 4) == legacy:
         raise UnsupportedError(f".spz version {version} in a {'gzip' if legacy else 'plain'} container "
-                               f"(read: {', '.join(map(str, READ_VERSIONS))})", path)
+                               f"(read: {', '.join(map(str, READ_VERSIONS))})", path, where)
     if degree not in model.SH_COEFFS:
-        raise UnsupportedError(f"SH degree {degree} (read: 0 to 3)", path)
+        raise UnsupportedError(f"SH degree {degree} (read: 0 to 3)", path, where)
 
 
 def decode(version: int, n: int, degree: int, bits: int, arrays: list) -> dict:
     """The model columns of a ``.spz``'s six arrays (``(size,) uint8`` each): ``(N,) float32`` each."""
     pos, alpha, color, scale, rot, shb = arrays
     cols = {}
-    p = pos.reshape(n, 3, 3).astype(np.int32)
-    fixed = p[:, :, 0] | (p[:, :, 1] << 8) | (p[:, :, 2] << 16)
-    fixed = np.where(fixed & 0x800000, fixed - (1 << 24), fixed)
-    xyz = (fixed.astype(np.float64) / float(1 << bits)).astype(np.float32)
+    xyz = decode_positions(pos, n, bits)
     for i, name in enumerate(model.POSITION):
         cols[name] = xyz[:, i]
     a = np.clip(alpha.astype(np.float64) / 255.0, 1e-6, 1 - 1e-6)
@@ -165,6 +170,24 @@ def decode(version: int, n: int, degree: int, bits: int, arrays: list) -> dict:
             for j in range(k):
                 cols[f"f_rest_{c * k + j}"] = values[:, j, c]
     return cols
+
+
+def decode_positions(pos: np.ndarray, n: int, bits: int) -> np.ndarray:
+    """Positions ``(n, 3) float32`` of the positions array (``(9 n,) uint8``: 24-bit fixed point)."""
+    p = pos.reshape(n, 3, 3).astype(np.int32)
+    fixed = p[:, :, 0] | (p[:, :, 1] << 8) | (p[:, :, 2] << 16)
+    fixed = np.where(fixed & 0x800000, fixed - (1 << 24), fixed)
+    return (fixed.astype(np.float64) / float(1 << bits)).astype(np.float32)
+
+
+def legacy_header(raw) -> tuple | None:
+    """The header fields ``(magic, version, N, SH degree, fractional bits, flags, reserved)`` at the start of
+    a gzip stream ``raw`` (versions 2, 3), without inflating the rest; None when it holds no header."""
+    try:
+        head = zlib.decompressobj(31).decompress(bytes(raw[:1 << 16]), LEGACY_HEADER.size)
+    except zlib.error:
+        return None
+    return LEGACY_HEADER.unpack_from(head) if len(head) >= LEGACY_HEADER.size else None
 
 
 def _quaternions(rot: np.ndarray, n: int, version: int) -> np.ndarray:
@@ -222,8 +245,8 @@ def splat_count(path: str | os.PathLike) -> int | None:
         with open_input(os.fspath(path)) as f:
             head = f.read(1 << 16)
         if head[:2] == b"\x1f\x8b":
-            head = zlib.decompressobj(31).decompress(head, LEGACY_HEADER.size)
-            return LEGACY_HEADER.unpack_from(head)[2] if len(head) >= LEGACY_HEADER.size else None
+            fields = legacy_header(head)
+            return fields[2] if fields else None
         return V4_HEADER.unpack_from(head)[2] if len(head) >= V4_HEADER.size else None
     except (FormatError, zlib.error, struct.error):
         return None
@@ -282,9 +305,21 @@ def _smallest_three(q: np.ndarray) -> np.ndarray:
     return word.astype("<u4")
 
 
-def encode(scene: Scene, sort: str | None = None) -> tuple:
-    """The six arrays (bytes) of ``scene`` as a ``.spz`` holds them, its fractional bits, and counts of
-    what the bytes changed."""
+def _first_three(q: np.ndarray) -> np.ndarray:
+    """Quaternions (w, x, y, z) ``(n, 4)`` as version 2's bytes ``(n, 3) uint8``: x, y, z of the unit
+    quaternion with w >= 0, each * 127.5 + 127.5 (w is derived when read)."""
+    xyzw = q[:, [1, 2, 3, 0]].astype(np.float64)
+    length = np.sqrt((xyzw * xyzw).sum(axis=1, keepdims=True))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        xyzw = xyzw / length
+    xyzw[~np.isfinite(xyzw).all(axis=1)] = (0.0, 0.0, 0.0, 1.0)
+    xyzw[xyzw[:, 3] < 0] *= -1.0
+    return _byte(xyzw[:, :3] * 127.5 + 127.5)
+
+
+def encode(scene: Scene, sort: str | None = None, version: int = VERSION) -> tuple:
+    """The six arrays (bytes) of ``scene`` as a ``.spz`` of ``version`` holds them, its fractional bits, and
+    counts of what the bytes changed."""
     cols = scene.columns
     n = scene.count
     order = importance_order(importance(cols)) if sort == "importance" else slice(None)
@@ -304,7 +339,7 @@ def encode(scene: Scene, sort: str | None = None) -> tuple:
         log_scale = np.stack([wide(np.asarray(cols[name])[order]) for name in model.SCALE], axis=1)
         scale = _byte((log_scale + 10.0) * 16.0)
     q = np.stack([wide(np.asarray(cols[name])[order]) for name in model.ROTATION], axis=1)
-    rot = _smallest_three(q).view(np.uint8)
+    rot = (_first_three(q) if version == 2 else _smallest_three(q).view(np.uint8)).reshape(-1)
     degree = scene.sh_degree
     k = model.SH_COEFFS[degree]
     shb = np.zeros((n, k, 3), np.uint8)
@@ -345,9 +380,28 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_
     return report
 
 
-def _notes(n: int, bits: int, clamped: dict, degree: int) -> list:
-    notes = [f"quantized to .spz: positions to 1/{1 << bits:,} (24-bit fixed point), colour, opacity, scale and "
-             f"rotation to bytes" + (f", SH degree 1-{degree} bands to 5 and 4 bits" if degree else "")]
+def legacy_stream(scene: Scene, sort: str | None = None, version: int = 2) -> tuple:
+    """``scene`` as the gzip stream of a ``.spz`` of ``version`` 2 or 3 (a 16-byte header, then the arrays;
+    specs/spz.md), and the notes on what quantizing it changed. Positions, rotations and SH are stored as
+    ``scene`` holds them: a caller wanting another frame turns the scene first.
+
+    Raises
+    ------
+    UnsupportedError
+        For a NaN or infinite position, or one .spz cannot hold.
+    """
+    n = scene.count
+    arrays, bits, clamped, degree = encode(scene, sort, version)
+    head = LEGACY_HEADER.pack(MAGIC, version, n, degree, bits, 0, 0)
+    # mtime 0: two writes of one scene give identical bytes; level 6 is zlib's default, the reference's.
+    data = gzip.compress(head + b"".join(a.tobytes() for a in arrays), compresslevel=6, mtime=0)
+    return data, _notes(n, bits, clamped, degree, version)
+
+
+def _notes(n: int, bits: int, clamped: dict, degree: int, version: int = VERSION) -> list:
+    rotation = "rotation to 3 bytes (x, y, z)" if version == 2 else "rotation to bytes"
+    notes = [f"quantized to .spz: positions to 1/{1 << bits:,} (24-bit fixed point), colour, opacity, scale "
+             f"to bytes, {rotation}" + (f", SH degree 1-{degree} bands to 5 and 4 bits" if degree else "")]
     if bits < FRACTIONAL_BITS:
         notes.append(f"position: {bits} fractional bits (of {FRACTIONAL_BITS}) so that the farthest splat fits")
     if clamped["color"]:
