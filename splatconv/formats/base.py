@@ -250,6 +250,16 @@ class Format:
 STATIC_MIN_TEMPORAL = 1.0 - 0.5 / 255.0
 
 
+def fixed_storage(table: dict) -> Callable:
+    """A :attr:`Format.storage` for a format that stores every scene alike: ``table``."""
+    return lambda _scene: table
+
+
+def meta_fields(*keys: str) -> Callable:
+    """A :attr:`Format.info_fields` that shows these keys of a scene's ``meta`` (None where absent)."""
+    return lambda meta: {key: meta.get(key) for key in keys}
+
+
 def time_varying(columns: dict) -> np.ndarray:
     """Which splats the viewer shows differently at different times in [0, 1]: ``(N,) bool``.
 

@@ -36,7 +36,7 @@ from ..progress import SILENT
 from ..viewer import logit, sigmoid, wide
 from ..wording import plural
 from . import ply_container as container
-from .base import Format, Scan, WriteReport, refuse_time_varying
+from .base import Format, Scan, WriteReport, fixed_storage, refuse_time_varying
 
 #: Splats a chunk.
 CHUNK_SPLATS = 256
@@ -482,10 +482,6 @@ def _notes(degree: int, counts: dict, sort: str | None) -> list:
     return notes
 
 
-def storage(scene: Scene) -> dict:
-    """How a compressed PLY stores each attribute group: :data:`STORAGE`."""
-    return STORAGE
-
 
 def info_fields(meta: dict) -> dict:
     """What ``info`` shows of a compressed PLY (its ``meta``): the PLY encoding, the layout, its chunks, SH degree."""
@@ -501,5 +497,5 @@ FORMAT = Format(
     dynamic=False,
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats, declared_size=declared_size,
     write=write, holds_sh=True,
-    info_fields=info_fields, storage=storage,
+    info_fields=info_fields, storage=fixed_storage(STORAGE),
 )

@@ -464,7 +464,7 @@ def storage(scene: Scene) -> dict:
     one float32 conversion each way; a plain 3DGS PLY holds no time or motion.
     """
     if scene.meta.get("layout") == compressed_ply.LAYOUT:
-        return compressed_ply.storage(scene)
+        return compressed_ply.STORAGE
     kinds = dict.fromkeys(GROUPS, "exact")  # SH bands too, as float32 (verify judges the groups only)
     if scene.meta.get("color") == "sh":
         kinds["color"] = "float32"

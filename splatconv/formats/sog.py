@@ -41,7 +41,7 @@ from ..model import Scene
 from ..progress import SILENT
 from ..viewer import logit, sigmoid, wide
 from ..wording import plural
-from .base import Format, Scan, WriteReport, refuse_time_varying
+from .base import Format, Scan, WriteReport, fixed_storage, meta_fields, refuse_time_varying
 from .ply import SH_C0  # rgb = 0.5 + SH_C0 * f_dc: the model keeps RGB, sh0 the coefficient
 
 #: meta.json's version, the one written and read.
@@ -751,15 +751,6 @@ def most_splats(path: str | os.PathLike) -> int:
     return splat_count(path) or 0
 
 
-def storage(scene: Scene) -> dict:
-    """How a ``.sog`` stores each attribute group: :data:`STORAGE`."""
-    return STORAGE
-
-
-def info_fields(meta: dict) -> dict:
-    """What ``info`` shows of a ``.sog`` (its ``meta``): version, SH degree, palette, generator, antialiasing."""
-    return {"version": meta.get("version"), "sh_degree": meta.get("sh_degree"), "palette": meta.get("palette"),
-            "generator": meta.get("generator"), "antialias": meta.get("antialias")}
 
 
 FORMAT = Format(
@@ -770,5 +761,5 @@ FORMAT = Format(
     dynamic=False,
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats,
     write=write, holds_sh=True, expands=True,
-    info_fields=info_fields, storage=storage,
+    info_fields=meta_fields('version', 'sh_degree', 'palette', 'generator', 'antialias'), storage=fixed_storage(STORAGE),
 )

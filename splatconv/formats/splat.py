@@ -37,7 +37,7 @@ from ..packing import F32_EXP_MASK, F32_MANT_MASK, F32_QUIET_BIT
 from ..progress import SILENT
 from ..viewer import importance, importance_order, opacity, scales, wide
 from ..wording import plural
-from .base import Format, Scan, WriteReport, refuse_time_varying
+from .base import Format, Scan, WriteReport, fixed_storage, meta_fields, refuse_time_varying
 from .splatv import COLOR_OF_BYTE, LOGIT_OF_BYTE
 from .splatv_layout import MAGIC as SPLATV_MAGIC
 
@@ -332,14 +332,6 @@ def _notes(report: WriteReport, changed: dict, n: int) -> list:
     return notes + report.byte_notes()
 
 
-def storage(scene: Scene) -> dict:
-    """How a ``.splat`` stores each attribute group: :data:`STORAGE`."""
-    return STORAGE
-
-
-def info_fields(meta: dict) -> dict:
-    """What ``info`` shows of a ``.splat`` (its ``meta``): its record count."""
-    return {"records": meta.get("records")}
 
 
 FORMAT = Format(
@@ -350,5 +342,5 @@ FORMAT = Format(
     dynamic=False,
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats,
     write=write,
-    info_fields=info_fields, storage=storage,
+    info_fields=meta_fields('records'), storage=fixed_storage(STORAGE),
 )

@@ -38,7 +38,7 @@ from ..model import Scene
 from ..progress import SILENT
 from ..viewer import importance, importance_order, logit, sigmoid, wide
 from ..wording import plural
-from .base import Format, Scan, WriteReport, refuse_time_varying
+from .base import Format, Scan, WriteReport, fixed_storage, meta_fields, refuse_time_varying
 from .ply import SH_C0  # rgb = 0.5 + SH_C0 * f_dc: the model keeps RGB, .spz the coefficient
 
 MAGIC = 0x5053474E  # "NGSP"
@@ -411,15 +411,6 @@ def _notes(n: int, bits: int, clamped: dict, degree: int, version: int = VERSION
     return notes
 
 
-def storage(scene: Scene) -> dict:
-    """How a ``.spz`` stores each attribute group: :data:`STORAGE`."""
-    return STORAGE
-
-
-def info_fields(meta: dict) -> dict:
-    """What ``info`` shows of a ``.spz`` (its ``meta``): version, SH degree, fixed point, antialiasing."""
-    return {"version": meta.get("version"), "sh_degree": meta.get("sh_degree"),
-            "fractional_bits": meta.get("fractional_bits"), "antialiased": meta.get("antialiased")}
 
 
 FORMAT = Format(
@@ -430,5 +421,5 @@ FORMAT = Format(
     dynamic=False,
     read=read, scan=scan, splat_count=splat_count, most_splats=most_splats,
     write=write, holds_sh=True, expands=True,
-    info_fields=info_fields, storage=storage,
+    info_fields=meta_fields('version', 'sh_degree', 'fractional_bits', 'antialiased'), storage=fixed_storage(STORAGE),
 )
