@@ -324,8 +324,8 @@ def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
     """
     # On the grid: q * 128 + 128 (float64) whole, in 0..255. A float32 component whose q * 128 is
     # neither whole nor tiny is off it; the first component rules out almost every trained splat.
-    t = q[:, 0] * np.float32(ROT_STEPS)  # exact
     with np.errstate(over="ignore", invalid="ignore"):
+        t = q[:, 0] * np.float32(ROT_STEPS)  # exact, or infinite (then tested in float64)
         maybe = np.flatnonzero((np.rint(t) == t) | (np.abs(t) < _ROUNDED_AWAY))
     q = wide(q)
     on_grid = np.zeros(len(q), dtype=bool)

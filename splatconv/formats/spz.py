@@ -268,8 +268,8 @@ def _sh_bytes(values: np.ndarray, rounding: np.ndarray) -> np.ndarray:
     In float32: v * 128 is exact, and rint(v * 128 + 128) = rint(v * 128) + 128 for a float32 v (the
     reference computes in double), so clamping rint(v * 128) to -128..127 first gives the same bytes.
     """
-    x = np.multiply(values, np.float32(128.0), dtype=np.float32)
-    with np.errstate(invalid="ignore"):
+    with np.errstate(over="ignore", invalid="ignore"):  # past float32's range: inf, clamped below
+        x = np.multiply(values, np.float32(128.0), dtype=np.float32)
         np.rint(x, out=x)
         x[np.isnan(x)] = 0.0
         np.clip(x, -128.0, 127.0, out=x)
