@@ -79,3 +79,30 @@ def pack_block(cols: dict, compat: bool, report: WriteReport) -> np.ndarray:
     engine.pack_rows(engine.RowSource(cols), slice(0, m), out, compat, counts, engine.Scratch())
     engine.merge_counts(report, counts)
     return out
+
+
+def splat_rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
+    """``.splat`` rotation bytes of quaternions ``(M, 4) float32``, the plain float64 way: bytes, splats
+    normalised and rounded, non-finite ones (what :func:`splatconv.formats.splat._rotation_bytes` gives)."""
+    q = q.astype(np.float64)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        steps = q * 128.0 + 128.0
+        on_grid = np.all((steps == np.rint(steps)) & (steps >= 0) & (steps <= 255), axis=1)
+        length = np.sqrt((q * q).sum(axis=1, keepdims=True))
+        kept = on_grid & ((np.abs(length[:, 0] - 1.0) <= 2.0 / 128.0) | (length[:, 0] == 0.0))
+        unit = q / length
+        nonfinite = ~np.all(np.isfinite(unit), axis=1) & ~kept
+        unit[nonfinite] = 0.0
+        scaled = np.where(kept[:, None], steps, unit * 128.0 + 128.0)
+    out = np.rint(np.clip(scaled, 0.0, 255.0)).astype(np.uint8)
+    return out, int(np.count_nonzero(~kept & ~nonfinite)), int(np.count_nonzero(nonfinite))
+
+
+def spz_sh_bytes(values: np.ndarray, bits: int) -> np.ndarray:
+    """``.spz`` SH coefficient bytes of float32 ``values`` rounded to ``bits``, in float64 as the reference
+    library's quantizeSH computes them (NaN as 0)."""
+    with np.errstate(over="ignore"):
+        q = np.rint(np.nan_to_num(values.astype(np.float64), nan=0.0) * 128.0 + 128.0)
+    bucket = 1 << (8 - bits)
+    q = np.floor((q + bucket / 2) / bucket) * bucket
+    return np.clip(q, 0, 255).astype(np.uint8)

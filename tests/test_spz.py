@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
-from splatconv import io, model
+from splatconv import io, model, viewer
 from splatconv.cli import main
 from splatconv.formats import spz
 
@@ -142,3 +142,33 @@ def test_bad_files_give_one_error_line(tmp_path, data, start):
     path.write_bytes(data)
     r = run("info", path)
     assert error_line(r, 1).startswith(start)
+
+
+def test_sh_bytes_match_the_float64_reference():
+    from .reference import spz_sh_bytes
+
+    rng = np.random.default_rng(3)
+    ties = (np.arange(-140, 140) + 0.5) / 128.0  # halfway between bytes: rounded to even either way
+    special = [0.0, -0.0, np.nan, np.inf, -np.inf, 1.0, -1.0, 127 / 128, -128 / 128, 0.999, 1e-30, -1e-30,
+               2.0 ** -20, 3e38, -3e38, 1e-45, 0.5 / 128, -0.5 / 128, 1.5 / 128]
+    values = np.concatenate([rng.normal(0, 0.4, 3000), ties, special]).astype(np.float32)
+    k = 15
+    block = np.resize(values, (len(values) // (3 * k) + 1) * 3 * k).reshape(-1, 3 * k)
+    block[:, :] = np.roll(block, 7, axis=0)  # every value in every column, some 5-bit, some 4-bit
+    bits = [spz.SH1_BITS if j < 3 else spz.SH_REST_BITS for _c in range(3) for j in range(k)]
+    rounding = np.stack([spz._rounding_table(b) for b in bits])
+    got = spz._sh_bytes(block, rounding)
+    for col, b in enumerate(bits):
+        assert np.array_equal(got[:, col], spz_sh_bytes(block[:, col], b)), col
+
+
+def test_importance_sorted_spz_holds_the_reordered_scene(tmp_path, gs_ply):
+    # Encoded in row order, then reordered: the same arrays as encoding the reordered scene.
+    scene = io.read(gs_ply)
+    order = viewer.importance_order(viewer.importance(scene.columns))
+    moved = model.Scene(columns={name: np.asarray(c)[order] for name, c in scene.columns.items()},
+                        variant=scene.variant)
+    sorted_arrays = spz.encode(scene, "importance")
+    moved_arrays = spz.encode(moved, "none")
+    assert all(np.array_equal(a, b) for a, b in zip(sorted_arrays[0], moved_arrays[0]))
+    assert sorted_arrays[1:] == moved_arrays[1:]

@@ -269,12 +269,24 @@ def time_varying(columns: dict) -> np.ndarray:
     hidden by the viewer's cut). The temporal opacity peaks at the splat's
     centre, so its least value over [0, 1] is at one of the ends.
     """
-    moving = np.zeros(len(columns["x"]), dtype=bool)
+    n = len(columns["x"])
+    moving = np.zeros(n, dtype=bool)
     for name in MOTION + OMEGA:
-        moving |= np.asarray(columns[name]) != 0  # NaN != 0 too
+        moving |= _constant_or_whole(columns[name]) != 0  # NaN != 0 too
+    # A static scene's temporal basis is one value for every splat (model.static_columns): tested once.
+    basis = {name: _constant_or_whole(columns[name]) for name in ("trbf_center", "trbf_scale")}
+    if len(basis["trbf_center"]) != len(basis["trbf_scale"]):
+        basis = {name: np.broadcast_to(np.asarray(columns[name]), (n,)) for name in basis}
     for t in TIME_RANGE:
-        moving |= ~(temporal_opacity(columns, t, cut=False) >= STATIC_MIN_TEMPORAL)
+        moving |= ~(temporal_opacity(basis, t, cut=False) >= STATIC_MIN_TEMPORAL)
     return moving
+
+
+def _constant_or_whole(column) -> np.ndarray:
+    """``column``'s first value alone when it holds one value for every row (a broadcast constant, stride
+    0), else the whole column."""
+    column = np.asarray(column)
+    return column[:1] if column.ndim == 1 and len(column) and column.strides[0] == 0 else column
 
 
 def refuse_time_varying(columns: dict, what: str) -> None:

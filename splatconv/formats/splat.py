@@ -52,8 +52,13 @@ RECORD_BYTES = RECORD.itemsize
 #: Quaternion byte = q * ROT_STEPS + ROT_STEPS.
 ROT_STEPS = 128.0
 
-#: Records converted per step when writing: bounds the temporaries.
+#: Records written per step.
 BLOCK = 1 << 16
+#: Rows encoded per step: their columns' stretch of a row table (a PLY read in place) and the float64
+#: temporaries stay in cache.
+ENCODE_BLOCK = 1 << 14
+#: The model columns a record is made of.
+_READS = model.POSITION + model.SCALE + model.COLOR + model.OPACITY + model.ROTATION
 
 
 # --------------------------------------------------------------------------
@@ -241,15 +246,23 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_
     n = scene.count
     report = WriteReport(count=n, clamped={"color": 0, "alpha": 0}, nan_bytes={"color": 0, "alpha": 0})
     changed = {"color": 0, "opacity": 0, "rotation": 0, "degenerate": 0, "scale": 0}
-    order = importance_order(importance(cols)) if sort == "importance" else None
-    out = np.zeros(min(BLOCK, n), dtype=RECORD)
+    # Each record depends on its own splat alone: encoded in the scene's row order, a block of rows at
+    # a time (the columns read in passes over a stretch of memory that stays in cache, only those a
+    # record holds), then written in the asked order by gathering whole 32-byte records.
+    records = np.empty(n, dtype=RECORD)
+    key = np.empty(n, dtype=np.float64) if sort == "importance" else None
     with progress.stage("writing", n, "splat") as advance:
+        for start in range(0, n, ENCODE_BLOCK):
+            rows = slice(start, min(start + ENCODE_BLOCK, n))
+            block = {name: np.asarray(cols[name])[rows] for name in _READS}
+            _encode(block, records[rows], report, changed)
+            if key is not None:
+                key[rows] = importance(block)
+        order = importance_order(key) if key is not None else None
+        words = records.view(np.uint64).reshape(n, RECORD_BYTES // 8)  # gathered as plain words: faster
         for start in range(0, n, BLOCK):
             stop = min(start + BLOCK, n)
-            rows = slice(start, stop) if order is None else order[start:stop]
-            block = {name: np.asarray(cols[name])[rows] for name in model.COLUMNS}
-            rec = out[: stop - start]
-            _encode(block, rec, report, changed)
+            rec = records[start:stop] if order is None else words[order[start:stop]]
             stream.write(memoryview(rec).cast("B"))
             advance(stop - start)
     report.notes.extend(_notes(report, changed, n))
@@ -258,19 +271,23 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_
 
 def _encode(block: dict, rec: np.ndarray, report: WriteReport, changed: dict) -> None:
     """Fill records ``rec`` from a block of model columns, counting what the bytes change."""
-    rec["position"] = np.stack([block[name] for name in model.POSITION], axis=1)
+    for i, name in enumerate(model.POSITION):
+        rec["position"][:, i] = block[name]
     linear = scales(block)
     with np.errstate(over="ignore"):
         rec["scale"] = linear  # float64 -> float32: past float32's range becomes inf
     changed["scale"] += int(np.count_nonzero(np.isinf(rec["scale"]) & np.isfinite(linear)))
     rgb = np.stack([wide(block[name]) for name in model.COLOR], axis=1)
     alpha = opacity(block)
-    rec["rgba"][:, :3] = _bytes(rgb, report, "color")
-    rec["rgba"][:, 3] = _bytes(alpha, report, "alpha")
+    rgba = rec["rgba"]
+    rgba[:, :3] = _bytes(rgb, report, "color")
+    rgba[:, 3] = _bytes(alpha, report, "alpha")
     # A value survives when reading its byte back gives the same number.
-    kept_rgb = COLOR_OF_BYTE[rec["rgba"][:, :3]] == np.stack([block[name] for name in model.COLOR], axis=1)
-    changed["color"] += int(np.count_nonzero(~kept_rgb.all(axis=1)))
-    changed["opacity"] += int(np.count_nonzero(LOGIT_OF_BYTE[rec["rgba"][:, 3]] != block["opacity"]))
+    moved = np.zeros(len(rec), dtype=bool)
+    for i, name in enumerate(model.COLOR):
+        moved |= np.take(COLOR_OF_BYTE, rgba[:, i]) != block[name]
+    changed["color"] += int(np.count_nonzero(moved))
+    changed["opacity"] += int(np.count_nonzero(np.take(LOGIT_OF_BYTE, rgba[:, 3]) != block["opacity"]))
     rec["rot"], moved, degenerate = _rotation_bytes(np.stack([block[name] for name in model.ROTATION], axis=1))
     changed["rotation"] += moved
     changed["degenerate"] += degenerate
@@ -287,7 +304,12 @@ def _bytes(values: np.ndarray, report: WriteReport, key: str) -> np.ndarray:
     report.nan_bytes[key] += int(np.count_nonzero(nan))
     report.clamped[key] += int(np.count_nonzero((scaled < 0) | (scaled > 255)))
     scaled[nan] = 0.0
-    return np.clip(scaled, 0.0, 255.0).astype(np.uint8)
+    return np.clip(scaled, 0.0, 255.0, out=scaled).astype(np.uint8)
+
+
+#: Below this size a float32 q * 128 may be lost when 128 is added in float64 (its lowest bit is then
+#: under 2^-43, past the 53 bits of 128 + q * 128): such a component is on the byte grid too.
+_ROUNDED_AWAY = 2.0 ** -20
 
 
 def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
@@ -300,19 +322,34 @@ def _rotation_bytes(q: np.ndarray) -> tuple[np.ndarray, int, int]:
     normalised and rounded. A NaN or infinite quaternion has no direction:
     written as 128s (zero), which viewers draw unrotated.
     """
-    q = wide(q)
+    # On the grid: q * 128 + 128 (float64) whole, in 0..255. A float32 component whose q * 128 is
+    # neither whole nor tiny is off it; the first component rules out almost every trained splat.
     with np.errstate(over="ignore", invalid="ignore"):
-        steps = q * ROT_STEPS + ROT_STEPS
-        on_grid = np.all((steps == np.rint(steps)) & (steps >= 0) & (steps <= 255), axis=1)
-        length = np.sqrt((q * q).sum(axis=1, keepdims=True))
-        kept = on_grid & ((np.abs(length[:, 0] - 1.0) <= 2.0 / ROT_STEPS) | (length[:, 0] == 0.0))
-        unit = q / length
-    nonfinite = ~np.all(np.isfinite(unit), axis=1) & ~kept
-    unit[nonfinite] = 0.0
-    with np.errstate(invalid="ignore"):
-        scaled = np.where(kept[:, None], steps, unit * ROT_STEPS + ROT_STEPS)
-    out = np.rint(np.clip(scaled, 0.0, 255.0)).astype(np.uint8)
-    return out, int(np.count_nonzero(~kept & ~nonfinite)), int(np.count_nonzero(nonfinite))
+        t = q[:, 0] * np.float32(ROT_STEPS)  # exact, or infinite (then tested in float64)
+        maybe = np.flatnonzero((np.rint(t) == t) | (np.abs(t) < _ROUNDED_AWAY))
+    q = wide(q)
+    on_grid = np.zeros(len(q), dtype=bool)
+    steps = None
+    if len(maybe):
+        with np.errstate(over="ignore", invalid="ignore"):
+            steps = q[maybe] * ROT_STEPS + ROT_STEPS
+            on_grid[maybe] = np.all((steps == np.rint(steps)) & (steps >= 0) & (steps <= 255), axis=1)
+    # Float32 components: q * q neither overflows nor underflows in float64, so the length is finite and
+    # positive exactly when the quaternion is finite and not zero, when q / length is finite.
+    length = np.sqrt((q * q).sum(axis=1))
+    kept = on_grid & ((np.abs(length - 1.0) <= 2.0 / ROT_STEPS) | (length == 0.0))
+    direction = (length > 0.0) & (length < np.inf)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        scaled = np.divide(q, length[:, None], out=q)
+    scaled[~direction] = 0.0
+    scaled *= ROT_STEPS
+    scaled += ROT_STEPS
+    if steps is not None:
+        grid = kept[maybe]
+        scaled[maybe[grid]] = steps[grid]
+    np.clip(scaled, 0.0, 255.0, out=scaled)
+    out = np.rint(scaled, out=scaled).astype(np.uint8)
+    return out, int(np.count_nonzero(~kept & direction)), int(np.count_nonzero(~kept & ~direction))
 
 
 def _notes(report: WriteReport, changed: dict, n: int) -> list:

@@ -261,9 +261,9 @@ def most_splats(path: str | os.PathLike) -> int:
 # Writing
 
 
-def _fractional_bits(xyz: np.ndarray) -> int:
-    """The most fractional bits (up to :data:`FRACTIONAL_BITS`) at which every position fits 24 bits."""
-    extent = float(np.abs(xyz).max()) if len(xyz) else 0.0
+def _fractional_bits(extent: float) -> int:
+    """The most fractional bits (up to :data:`FRACTIONAL_BITS`) at which a position ``extent`` from the
+    origin (the farthest coordinate's size) fits 24 bits."""
     bits = FRACTIONAL_BITS
     while bits > 0 and extent * (1 << bits) > (1 << 23) - 1:
         bits -= 1
@@ -274,15 +274,37 @@ def _fractional_bits(xyz: np.ndarray) -> int:
 
 def _byte(values: np.ndarray) -> np.ndarray:
     """Values in byte units as the nearest of 0..255 (NaN as 0)."""
-    return np.clip(np.nan_to_num(np.rint(values), nan=0.0), 0, 255).astype(np.uint8)
+    return np.clip(np.nan_to_num(np.rint(values)), 0, 255).astype(np.uint8)
 
 
-def _sh_bytes(values: np.ndarray, bits: int) -> np.ndarray:
-    """SH coefficients as bytes, rounded to ``bits`` (the reference's quantizeSH)."""
-    q = np.rint(np.nan_to_num(values, nan=0.0) * 128.0 + 128.0)
+def _rounding_table(bits: int) -> np.ndarray:
+    """Byte ``b`` of an SH coefficient -> ``b`` rounded to ``bits`` (the reference's quantizeSH): ``(256,) uint8``."""
     bucket = 1 << (8 - bits)
-    q = np.floor((q + bucket / 2) / bucket) * bucket
-    return np.clip(q, 0, 255).astype(np.uint8)
+    q = np.arange(256)
+    return np.minimum((q + bucket // 2) // bucket * bucket, 255).astype(np.uint8)
+
+
+def _sh_bytes(values: np.ndarray, rounding: np.ndarray) -> np.ndarray:
+    """SH coefficients ``(M, K) float32`` as bytes, ``(M, K) uint8``: rint(v * 128 + 128) (NaN as 128), in
+    0..255, rounded by column ``k``'s ``rounding[k]`` (:func:`_rounding_table`).
+
+    In float32: v * 128 is exact, and rint(v * 128 + 128) = rint(v * 128) + 128 for a float32 v (the
+    reference computes in double), so clamping rint(v * 128) to -128..127 first gives the same bytes.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):  # past float32's range: inf, clamped below
+        x = np.multiply(values, np.float32(128.0), dtype=np.float32)
+        np.rint(x, out=x)
+        x[np.isnan(x)] = 0.0
+        np.clip(x, -128.0, 127.0, out=x)
+    q = (x.astype(np.int16) + 128).astype(np.uint8)
+    return _round_columns(q, rounding)
+
+
+def _round_columns(q: np.ndarray, rounding: np.ndarray) -> np.ndarray:
+    """Bytes ``(M, K)`` each rounded by its column's table ``rounding[k]`` (``(K, 256) uint8``)."""
+    flat = rounding.reshape(-1)
+    offset = (np.arange(q.shape[1], dtype=np.intp) * 256)[None, :]
+    return np.take(flat, q.astype(np.intp) + offset)
 
 
 def _smallest_three(q: np.ndarray) -> np.ndarray:
@@ -317,41 +339,96 @@ def _first_three(q: np.ndarray) -> np.ndarray:
     return _byte(xyzw[:, :3] * 127.5 + 127.5)
 
 
-def encode(scene: Scene, sort: str | None = None, version: int = VERSION) -> tuple:
-    """The six arrays (bytes) of ``scene`` as a ``.spz`` of ``version`` holds them, its fractional bits, and
-    counts of what the bytes changed."""
-    cols = scene.columns
-    n = scene.count
-    order = importance_order(importance(cols)) if sort == "importance" else slice(None)
-    xyz = np.stack([wide(np.asarray(cols[name])[order]) for name in model.POSITION], axis=1)
-    if not np.isfinite(xyz).all():
-        bad = int(np.count_nonzero(~np.isfinite(xyz).all(axis=1)))
+#: Rows encoded per step: their columns' stretch of a row table (a PLY read in place) and the float64
+#: temporaries stay in cache.
+ENCODE_BLOCK = 1 << 14
+
+
+def _positions_checked(cols: dict, n: int) -> int:
+    """The fractional bits the positions are written with (:func:`_fractional_bits`), once they are known
+    finite.
+
+    Raises
+    ------
+    UnsupportedError
+        For a NaN or infinite position.
+    """
+    extent, bad = 0.0, 0
+    for start in range(0, n, ENCODE_BLOCK):
+        xyz = np.stack([np.asarray(cols[name])[start:start + ENCODE_BLOCK] for name in model.POSITION], axis=1)
+        finite = np.isfinite(xyz).all(axis=1)
+        bad += int(np.count_nonzero(~finite))
+        if not bad:
+            extent = max(extent, float(np.abs(xyz).max()))
+    if bad:
         raise UnsupportedError(f"{plural(bad, 'splat')} with a NaN or infinite position: .spz holds fixed point "
                                "(drop them with `convert --drop-nonfinite`)")
-    bits = _fractional_bits(xyz)
-    fixed = np.rint(xyz * (1 << bits)).astype(np.int64) & 0xFFFFFF
-    pos = np.stack([(fixed >> s) & 0xFF for s in (0, 8, 16)], axis=2).astype(np.uint8)  # (n, 3, 3)
-    with np.errstate(over="ignore", invalid="ignore"):
-        alpha = _byte(255.0 * sigmoid(np.asarray(cols["opacity"])[order]))
-        rgb = np.stack([wide(np.asarray(cols[name])[order]) for name in model.COLOR], axis=1)
-        dc = (rgb - 0.5) / SH_C0
-        color = _byte((dc * COLOR_SCALE + 0.5) * 255.0)
-        log_scale = np.stack([wide(np.asarray(cols[name])[order]) for name in model.SCALE], axis=1)
-        scale = _byte((log_scale + 10.0) * 16.0)
-    q = np.stack([wide(np.asarray(cols[name])[order]) for name in model.ROTATION], axis=1)
-    rot = (_first_three(q) if version == 2 else _smallest_three(q).view(np.uint8)).reshape(-1)
+    return _fractional_bits(extent)
+
+
+def encode(scene: Scene, sort: str | None = None, version: int = VERSION) -> tuple:
+    """The six arrays (bytes) of ``scene`` as a ``.spz`` of ``version`` holds them, its fractional bits, and
+    counts of what the bytes changed.
+
+    Every splat's bytes depend on it alone (and on the fractional bits, from all positions): they are
+    encoded in the scene's row order, a block of rows at a time, and put in the asked order at the end.
+    """
+    cols = scene.columns
+    n = scene.count
     degree = scene.sh_degree
     k = model.SH_COEFFS[degree]
-    shb = np.zeros((n, k, 3), np.uint8)
-    for c in range(3):
-        for j in range(k):
-            shb[:, j, c] = _sh_bytes(wide(np.asarray(cols[f"f_rest_{c * k + j}"])[order]), SH1_BITS if j < 3 else SH_REST_BITS)
-    clamped = {"color": int(np.count_nonzero((np.rint((dc * COLOR_SCALE + 0.5) * 255.0) < 0)
-                                                         | (np.rint((dc * COLOR_SCALE + 0.5) * 255.0) > 255))),
-               "scale": int(np.count_nonzero((np.rint((log_scale + 10.0) * 16.0) < 0)
-                                             | (np.rint((log_scale + 10.0) * 16.0) > 255)))}
-    arrays = [pos.reshape(-1), alpha, color.reshape(-1), scale.reshape(-1), rot, shb.reshape(-1)]
+    bits = _positions_checked(cols, n)
+    pos = np.empty((n, 3, 3), np.uint8)
+    alpha = np.empty(n, np.uint8)
+    color = np.empty((n, 3), np.uint8)
+    scale = np.empty((n, 3), np.uint8)
+    rot = np.empty((n, 3), np.uint8) if version == 2 else np.empty(n, "<u4")
+    shb = np.empty((n, k, 3), np.uint8)
+    sh_names = model.sh_names(degree)
+    # Column c * k + j (channel c, coefficient j) is rounded to 5 bits for degree 1 (j < 3), 4 above.
+    rounding = np.stack([_rounding_table(SH1_BITS if j < 3 else SH_REST_BITS) for _c in range(3) for j in range(k)]) \
+        if k else None
+    clamped = {"color": 0, "scale": 0}
+    step = np.float32(1 << bits)
+    for start in range(0, n, ENCODE_BLOCK):
+        rows = slice(start, min(start + ENCODE_BLOCK, n))
+        for i, name in enumerate(model.POSITION):
+            # x * 2^bits is exact in float32 and within 24 bits: its rint is the fixed-point value.
+            fixed = np.rint(np.asarray(cols[name])[rows] * step).astype("<i4")
+            pos[rows, i] = fixed.view(np.uint8).reshape(-1, 4)[:, :3]
+        with np.errstate(over="ignore", invalid="ignore"):
+            alpha[rows] = _byte(255.0 * sigmoid(np.asarray(cols["opacity"])[rows]))
+            rgb = np.stack([wide(np.asarray(cols[name])[rows]) for name in model.COLOR], axis=1)
+            dc = (rgb - 0.5) / SH_C0
+            c = np.rint((dc * COLOR_SCALE + 0.5) * 255.0)
+            log_scale = np.stack([wide(np.asarray(cols[name])[rows]) for name in model.SCALE], axis=1)
+            s = np.rint((log_scale + 10.0) * 16.0)
+            clamped["color"] += int(np.count_nonzero((c < 0) | (c > 255)))
+            clamped["scale"] += int(np.count_nonzero((s < 0) | (s > 255)))
+        color[rows] = _byte(c)
+        scale[rows] = _byte(s)
+        q = np.stack([np.asarray(cols[name])[rows] for name in model.ROTATION], axis=1)
+        rot[rows] = _first_three(q) if version == 2 else _smallest_three(q)
+        if k:
+            block = _float32_block([np.asarray(cols[name])[rows] for name in sh_names])
+            shb[rows] = _sh_bytes(block, rounding).reshape(-1, 3, k).transpose(0, 2, 1)
+    if sort == "importance":
+        order = importance_order(importance(cols))
+        pos, alpha, color, scale, rot, shb = (a[order] for a in (pos, alpha, color, scale, rot, shb))
+    arrays = [pos.reshape(-1), alpha, color.reshape(-1), scale.reshape(-1), rot.reshape(-1).view(np.uint8),
+              shb.reshape(-1)]
     return arrays, bits, clamped, degree
+
+
+def _float32_block(columns: list) -> np.ndarray:
+    """Columns ``(M,) float32`` side by side, ``(M, K) float32``: one copy of a stretch of each row when they
+    are neighbouring fields of one row table (a PLY read in place), else a stack."""
+    found = model.row_fields(columns)
+    if found is not None:
+        matrix, fields = found
+        if fields == list(range(len(columns))):
+            return np.array(matrix)
+    return np.stack(columns, axis=1).astype(np.float32, copy=False)
 
 
 def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, **_options) -> WriteReport:

@@ -79,6 +79,10 @@ def frame_times(count: int) -> np.ndarray:
 #: draws the splat as flat as the viewer does; -inf would be as exact, but readers
 #: that drop rows with a non-finite value (splat-transform's NaN filter) lose it.
 FLAT_LOG_SCALE = -120.0
+#: Rows baked at a time (see :func:`bake`).
+_BLOCK = 1 << 13
+#: Columns of a drawn splat that a bake reads beside the viewer's values at its time.
+_KEPT_AS_THEY_ARE = model.OPACITY + model.SCALE + model.COLOR
 #: The opacity logit an opacity of +inf is baked with: sigmoid(40) is 1 in float64
 #: and float32, as sigmoid(inf) is.
 OPAQUE_LOGIT = 40.0
@@ -150,28 +154,47 @@ def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Sc
         raise UsageError(f"--time {time}: not a finite number")
     cols = scene.columns
     n = scene.count
-    kinds, position, rotation, kept_temporal = viewer.state_at(cols, t)
-    keep = np.flatnonzero(kinds == viewer.DRAWABLE)
-    index = keep if len(keep) < n else None
-    part = _rows_of(cols, index)
-    m = len(keep)
-    _rows, out = model.lite_rows(m)
-    if index is not None:  # the viewer's values at t, computed once for every row, of the rows kept
-        position, rotation, kept_temporal = position[index], rotation[index], kept_temporal[index]
-    rotation = viewer.unit_quaternions(rotation)
-    with np.errstate(over="ignore", invalid="ignore"):
-        for i, name in enumerate(model.POSITION):
-            out[name][:] = position[:, i]
-        for i, name in enumerate(model.ROTATION):
-            out[name][:] = rotation[:, i]
-        out["opacity"][:] = baked_opacity(part["opacity"], kept_temporal)
-    for name in model.SCALE + model.COLOR:
-        out[name][:] = part[name]
-    for name, column in model.static_columns(m).items():
-        out[name][:] = column
-    counts = viewer.kind_counts(kinds)
-    counts["faded"] = int(np.count_nonzero(kept_temporal < 1.0))
-    counts.update(finite_stand_ins(out))
+    # A block of rows at a time: the viewer's float64 values of a block stay in cache, and only the
+    # columns a static scene keeps are filled (the time columns are the static constants). The drawn
+    # rows of each block go after those of the blocks before: the columns are made as long as the
+    # scene, and only the drawn count of them is ever touched and kept.
+    kinds = np.empty(n, dtype=np.int8)
+    kept_names = model.POSITION + model.ROTATION + model.OPACITY + model.SCALE + model.COLOR
+    full = {name: np.empty(n, dtype=np.float32) for name in kept_names}
+    counts = {"faded": 0, "flat": 0, "opaque": 0, "color": 0}
+    turning = 0
+    m = 0
+    for start in range(0, n, _BLOCK):
+        rows = slice(start, min(start + _BLOCK, n))
+        part = {name: np.asarray(cols[name])[rows] for name in model.COLUMNS}
+        code, position, rotation, temporal = viewer.state_at(part, t)
+        kinds[rows] = code
+        drawn = code == viewer.DRAWABLE
+        if scene.sh_degree:
+            turning += sum(int(np.count_nonzero((part[name] != 0) & drawn)) for name in model.OMEGA)
+        keep = np.flatnonzero(drawn)
+        if len(keep) < len(code):  # the viewer's values at t, computed once for every row, of the rows kept
+            part = {name: part[name][keep] for name in _KEPT_AS_THEY_ARE}
+            position, rotation, temporal = position[keep], rotation[keep], temporal[keep]
+        done = m + len(keep)
+        out = {name: full[name][m:done] for name in kept_names}
+        rotation = viewer.unit_quaternions(rotation)
+        with np.errstate(over="ignore", invalid="ignore"):
+            for i, name in enumerate(model.POSITION):
+                out[name][:] = position[:, i]
+            for i, name in enumerate(model.ROTATION):
+                out[name][:] = rotation[:, i]
+            out["opacity"][:] = baked_opacity(part["opacity"], temporal)
+        for name in model.SCALE + model.COLOR:
+            out[name][:] = part[name]
+        counts["faded"] += int(np.count_nonzero(temporal < 1.0))
+        for key, count in finite_stand_ins(out).items():
+            counts[key] += count
+        m = done
+    out = {name: full[name][:m] for name in kept_names}
+    out.update(model.static_columns(m))
+    out = {name: out[name] for name in model.COLUMNS}
+    counts = {**viewer.kind_counts(kinds), **counts}
     notes = [f"baked at t={t:g}: {m:,} of {plural(n, 'splat')} drawn"]
     if m < n:
         left_out = kinds_text({k: counts[k] for k in viewer.UNDRAWABLE_KINDS})
@@ -180,11 +203,10 @@ def bake(scene: Scene, time: float, *, drop_nonfinite: bool = False) -> tuple[Sc
     notes.extend(_stand_in_notes(counts))
     if scene.sh_degree:
         # A splat's SH bands hold in its rest frame's directions as long as it does not turn: kept then.
-        turning = sum(int(np.count_nonzero(np.asarray(part[name]) != 0)) for name in model.OMEGA)
         if turning:
             notes.extend(model.sh_dropped_note(scene.sh_degree, "a bake of splats that turn over time"))
         else:
-            out = model.with_sh(out, cols, index)
+            out = model.with_sh(out, cols, np.flatnonzero(kinds == viewer.DRAWABLE) if m < n else None)
     baked = Scene(columns=out, cameras=scene.cameras, variant=model.VARIANT_3DGS, meta={"baked_time": t})
     if drop_nonfinite:
         baked, dropped = filters.drop_nonfinite(baked)
@@ -235,18 +257,6 @@ def _stand_in_notes(counts: dict) -> list:
         notes.append(f"{plural(counts['color'], 'splat')} with an infinite colour value written as 0 or 1, as the "
                      "viewer clamps it")
     return notes
-
-
-def _rows_of(cols: dict, index) -> dict:
-    """Rows ``index`` (all when None) of every column; from a row table by one gather of whole rows."""
-    if index is None:
-        return cols
-    found = model.row_fields([np.asarray(cols[name]) for name in model.COLUMNS])
-    if found is None:
-        return {name: np.asarray(cols[name])[index] for name in model.COLUMNS}
-    matrix, fields = found
-    rows = matrix[index]  # one pass over memory instead of one strided pass a column
-    return {name: rows[:, f] for name, f in zip(model.COLUMNS, fields)}
 
 
 def bake_frames(scene: Scene, count: int, *, drop_nonfinite: bool = False):
