@@ -449,7 +449,9 @@ def test_convert_help_states_the_edit_order_and_an_example():
     assert ("Edits apply in this order, whatever the order of the options: --drop-undrawable, --drop-nonfinite, "
             "--trim, --crop, "
             "--min-opacity, --max-splats, then --translate/--rotate/--scale, as p' = R(S p) + T") in text
-    assert "  splatconv convert scene.ply clean.splatv --drop-nonfinite --trim 0.25,0.75 --rotate x:180" in text
+    example = "\n    splatconv convert scene.ply clean.splatv --drop-nonfinite --trim 0.25,0.75 --rotate x:180\n"
+    # In the Example block, as a line of its own, before the paragraph that follows the block.
+    assert example in text and text.index(example) < text.index("A .splatvq OUTPUT proves its quality")
     for option in ("--drop-undrawable", "--drop-nonfinite", "--trim T0,T1", "--crop X0,Y0,Z0,X1,Y1,Z1", "--min-opacity A",
                    "--max-splats N", "--translate X,Y,Z", "--rotate STEPS", "--scale S"):
         assert f"  {option} " in text, option

@@ -115,8 +115,10 @@ def edit_options():
                      "scene). Each says on stderr what it removed or changed.\n\n    ")
         at = doc.find("\b\n    Example:")
         if at >= 0:
-            # The Example block comes last: add an edit example to it.
-            doc = doc[:at] + paragraph + doc[at:] + f"\n      {EXAMPLE}"
+            # Add an edit example at the end of the Example block (a paragraph may follow it).
+            end = doc.find("\n\n", at)
+            end = len(doc) if end < 0 else end
+            doc = doc[:at] + paragraph + doc[at:end] + f"\n      {EXAMPLE}" + doc[end:]
         else:
             doc += "\n\n    " + paragraph
         fn.__doc__ = doc + "\n    "

@@ -21,8 +21,8 @@ from ..zstd import DEFAULT_MAX_DECOMPRESSED, MAX_DECOMPRESSED_ENV, parse_byte_si
 #: lists every command without importing any (a test checks that the two agree).
 COMMANDS = {
     "bake": ("edit", "Write the scene as the viewer shows it at one time, as a static scene."),
-    "convert": ("scenes", "Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; "
-                          ".html: a player page)."),
+    "convert": ("scenes", "Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splatvq, .splat, .spz, "
+                          ".sog, .glb, ...; any + .zst; .html: a player page)."),
     "diff": ("drawing", "Compare A and B: two images, or two scene files drawn the same way."),
     "info": ("facts", "Describe scene files: format, variant, count, texture, cameras, time range, bounds, "
                       "non-finite values and what is ignored."),
@@ -114,7 +114,7 @@ class _Commands(click.Group):
                    f"[default: {DEFAULT_MAX_DECOMPRESSED >> 30}G].")
 def main():
     """Convert, check and preview 4D Gaussian-splatting scenes: Spacetime Gaussians and 3DGS PLY,
-    splaTV's .splatv.
+    splaTV's .splatv, and the static formats the field shares in (.spz, .sog, .glb, ...).
 
     \b
     Example:

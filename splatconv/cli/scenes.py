@@ -90,7 +90,8 @@ def _convert_frames(inputs, output_path, *, edits, quiet, **options):
 def convert(input_paths, output_path, external, durations, compat, sort, cameras, layout, quality, min_psnr,
             max_bytes, best_effort, prune, no_proof, color, zstd_level, frame_times, same_splats, max_error, fit,
             no_poster, force, quiet, **edits):
-    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splat, any + .zst; .html: a player page).
+    """Convert INPUT to OUTPUT; formats by extension (.ply, .splatv, .splatvq, .splat, .spz, .sog, .glb, ...;
+    any + .zst; .html: a player page).
 
     Lossy steps (saturated halves, clamped colours, dropped properties) are
     reported as notes on stderr. OUTPUT is written atomically; a .zst OUTPUT is
