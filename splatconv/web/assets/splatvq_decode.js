@@ -419,11 +419,9 @@ function layout(p, n, raw, which) {
       if (coding === SATURATING) {
         // Its escapes are counted only where they take bytes (with a width of 0 each is 255).
         if (at + n > p.length) throw short();
-        let m = 0;
-        if (column.width) for (let t = at; t < at + n; t++) m += (p[t] + 1) >> 8; // 1 for a byte of 255
-        column.escapes = m;
+        column.escapes = column.width ? countSaturated(p.subarray(at, at + n)) : 0;
         column.escapesAt = at + n;
-        at += n + column.width * m;
+        at += n + column.width * column.escapes;
       } else {
         at += column.width * n;
       }
@@ -438,17 +436,25 @@ function layout(p, n, raw, which) {
   return {columns, rawAt};
 }
 
+// How many bytes of a plane are 255 (few are: the native search runs past the rest).
+function countSaturated(plane) {
+  let m = 0;
+  for (let t = plane.indexOf(SATURATED); t !== -1; t = plane.indexOf(SATURATED, t + 1)) m++;
+  return m;
+}
+
 // A plain column's values, in splat order, into `out` (a Uint32Array of n): byte plane
 // after byte plane.
 function plainValues(p, n, column, out) {
   const {at, width} = column;
   if (width === 0) return out.fill(0, 0, n);
   out.set(p.subarray(at, at + n));
-  for (let b = 1; b < width; b++) {
-    const plane = at + b * n, shift = 8 * b;
-    for (let i = 0; i < n; i++) out[i] |= p[plane + i] << shift;
-  }
+  for (let b = 1; b < width; b++) orPlane(out, p, at + b * n, 8 * b, n);
   return out;
+}
+
+function orPlane(out, p, plane, shift, n) {
+  for (let i = 0; i < n; i++) out[i] |= p[plane + i] << shift;
 }
 
 // The x-th escaped value of a saturating column: 255 plus its escape's bytes (lowest first,
@@ -475,16 +481,28 @@ function saturatingValues(p, n, column, out) {
 
 // Where each splat's value lies in a classed plane: the splats in the stable order of
 // their classes (a counting sort: numpy's stable argsort of the classes, inverted).
+// Each hot loop is a function of its own, with one loop: V8 compiles a long loop while
+// it runs (on-stack replacement), and code after a loop that has not run yet has no type
+// feedback, so a function of several loops was compiled and dropped again several times
+// a block, for each worker's first blocks (most of the decode's time on two cores).
 function classRanks(cls, n, rank) {
   const next = new Int32Array(CLASS_LIMITS.length + 1);
-  for (let i = 0; i < n; i++) next[cls[i]]++;
+  countClasses(cls, n, next);
   for (let c = 0, sum = 0; c < next.length; c++) {
     const count = next[c];
     next[c] = sum;
     sum += count;
   }
-  for (let i = 0; i < n; i++) rank[i] = next[cls[i]]++;
+  assignRanks(cls, n, next, rank);
   return rank;
+}
+
+function countClasses(cls, n, next) {
+  for (let i = 0; i < n; i++) next[cls[i]]++;
+}
+
+function assignRanks(cls, n, next, rank) {
+  for (let i = 0; i < n; i++) rank[i] = next[cls[i]]++;
 }
 
 // A block payload -> its records. Field by field over all splats (short loops over
@@ -520,14 +538,14 @@ function decodePayload(p, n, raw, s, which) {
   rotations(b);
   scaleField(b, columns.trbf_scale[0], 31, b.trbfBase, 1, 0, s.trbf_scale_step);
   // Colour and opacity (word 7): the four bytes as they are.
-  const bytes = new Uint8Array(out.buffer, 0, n * WORDS * 4);
-  for (let j = 0; j < 4; j++) {
-    const plane = columns.color[j].at;
-    for (let i = 0; i < n; i++) bytes[64 * i + 28 + j] = p[plane + i];
-  }
+  colourWords(out, p, columns.color[0].at, columns.color[1].at, columns.color[2].at, columns.color[3].at, n);
   motionAndOmega(b);
   temporalCentres(b);
   return {words: out, order: importanceOrder(out, n + raw)};
+}
+
+function colourWords(words, p, r, g, b, a, n) {
+  for (let i = 0; i < n; i++) words[WORDS * i + 7] = (p[r + i] | (p[g + i] << 8) | (p[b + i] << 16) | (p[a + i] << 24)) >>> 0;
 }
 
 // ------------------------------------------------------------------ importance order
@@ -553,14 +571,36 @@ const DIGIT_BITS = 13, DIGITS = 4, RADIX = 1 << DIGIT_BITS, DIGIT = RADIX - 1;
 // LSD radix sort of four 13-bit digits (a digit all records share is skipped), all four
 // counts made in one pass.
 function importanceOrder(words, n) {
-  const halves = new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2);
-  const keys = new Float64Array(n), bits = new Uint32Array(keys.buffer);
+  const keys = new Float64Array(n), low = new Uint32Array(n), high = new Uint32Array(n);
+  const count = new Uint32Array(DIGITS * RADIX);
+  importanceKeys(new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2), words, keys, n);
+  sortCodes(keys, new Uint32Array(keys.buffer), low, high, count, n);
+  let order = null, spare = new Uint32Array(n);
+  for (let d = 0; d < DIGITS; d++) {
+    const at = d * RADIX, code = d < 2 ? low : high, shift = d & 1 ? DIGIT_BITS : 0;
+    if (count[at + ((code[0] >>> shift) & DIGIT)] === n) continue; // one digit: the order stands
+    offsets(count, at);
+    if (order === null) {
+      scatterFirst(code, shift, count, at, spare, n);
+      order = new Uint32Array(n);
+    } else {
+      scatter(order, code, shift, count, at, spare, n);
+    }
+    [order, spare] = [spare, order];
+  }
+  return order;
+}
+
+function importanceKeys(halves, words, keys, n) {
   for (let i = 0; i < n; i++) {
     const key = HALF_VALUE[halves[32 * i + 10]] * HALF_VALUE[halves[32 * i + 11]] * HALF_VALUE[halves[32 * i + 12]] *
                 (words[WORDS * i + 7] >>> 24);
     keys[i] = key === 0 ? 0 : key;
   }
-  const low = new Uint32Array(n), high = new Uint32Array(n), count = new Uint32Array(DIGITS * RADIX);
+}
+
+// Each key's two 26-bit halves of its code, and the counts of all four digits.
+function sortCodes(keys, bits, low, high, count, n) {
   for (let i = 0; i < n; i++) {
     let lo = bits[2 * i], hi = bits[2 * i + 1];
     if (keys[i] !== keys[i]) {
@@ -577,27 +617,26 @@ function importanceOrder(words, n) {
     count[2 * RADIX + (b & DIGIT)]++;
     count[3 * RADIX + (b >>> DIGIT_BITS)]++;
   }
-  let order = null, spare = new Uint32Array(n);
-  for (let d = 0; d < DIGITS; d++) {
-    const at = d * RADIX, code = d < 2 ? low : high, shift = d & 1 ? DIGIT_BITS : 0;
-    if (count[at + ((code[0] >>> shift) & DIGIT)] === n) continue; // one digit: the order stands
-    for (let k = at, sum = 0; k < at + RADIX; k++) {
-      const c = count[k];
-      count[k] = sum;
-      sum += c;
-    }
-    if (order === null) {
-      for (let i = 0; i < n; i++) spare[count[at + ((code[i] >>> shift) & DIGIT)]++] = i;
-      order = new Uint32Array(n);
-    } else {
-      for (let i = 0; i < n; i++) {
-        const r = order[i];
-        spare[count[at + ((code[r] >>> shift) & DIGIT)]++] = r;
-      }
-    }
-    [order, spare] = [spare, order];
+}
+
+// A digit's counts -> where its records start.
+function offsets(count, at) {
+  for (let k = at, sum = 0; k < at + RADIX; k++) {
+    const c = count[k];
+    count[k] = sum;
+    sum += c;
   }
-  return order;
+}
+
+function scatterFirst(code, shift, count, at, spare, n) {
+  for (let i = 0; i < n; i++) spare[count[at + ((code[i] >>> shift) & DIGIT)]++] = i;
+}
+
+function scatter(order, code, shift, count, at, spare, n) {
+  for (let i = 0; i < n; i++) {
+    const r = order[i];
+    spare[count[at + ((code[r] >>> shift) & DIGIT)]++] = r;
+  }
 }
 
 // Scales (words 5-6, half slots 10-12) and the temporal scale (slot 31): integers only.
@@ -634,7 +673,11 @@ function stepExponents(b) {
 // from floor(previous code * 2^(previous k - k)), the chunk's first splat as its code.
 function positions(b) {
   const {p, n, floats, posBase, k, columns} = b;
-  const steps = saturatingValues(p, n, columns.x_step[0], b.values);
+  positionX(b, saturatingValues(p, n, columns.x_step[0], b.values), floats, posBase, k, n);
+  for (let j = 1; j < 3; j++) positionAxis(floats, posBase, plainValues(p, n, columns.yz[j - 1], b.plain[0]), k, j, n);
+}
+
+function positionX(b, steps, floats, posBase, k, n) {
   let previous = 0;
   for (let i = 0; i < n; i++) {
     let code = steps[i];
@@ -647,12 +690,10 @@ function positions(b) {
     previous = code;
     floats[16 * i] = posBase[3 * (i >>> CHUNK_LOG2)] + code * POW2[POW2_BIAS + k[i]];
   }
-  for (let j = 1; j < 3; j++) {
-    const code = plainValues(p, n, columns.yz[j - 1], b.plain[0]);
-    for (let i = 0; i < n; i++) {
-      floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code[i] * POW2[POW2_BIAS + k[i]];
-    }
-  }
+}
+
+function positionAxis(floats, posBase, code, k, j, n) {
+  for (let i = 0; i < n; i++) floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code[i] * POW2[POW2_BIAS + k[i]];
 }
 
 // Window exponent e, from the byte that also holds the rotation index.
@@ -670,10 +711,7 @@ function rotations(b) {
   const {p, n, halves, columns, plain} = b, plane = columns.window_index[0].at;
   const M = (1 << b.s.rotation_bits) - 1;
   const rotValue = new Float64Array(M + 1), rotHalf = new Uint16Array(M + 1);
-  for (let r = 0; r <= M; r++) { // a kept component depends on its code alone
-    rotValue[r] = ((2 * r - M) / M) * Math.SQRT1_2;
-    rotHalf[r] = half(rotValue[r]);
-  }
+  rotationTables(M, rotValue, rotHalf);
   const r0 = plainValues(p, n, columns.rotation[0], plain[0]), r1 = plainValues(p, n, columns.rotation[1], plain[1]);
   const r2 = plainValues(p, n, columns.rotation[2], plain[2]);
   for (let i = 0; i < n; i++) {
@@ -690,6 +728,14 @@ function rotations(b) {
   }
 }
 
+// A kept component depends on its code alone.
+function rotationTables(M, rotValue, rotHalf) {
+  for (let r = 0; r <= M; r++) {
+    rotValue[r] = ((2 * r - M) / M) * Math.SQRT1_2;
+    rotHalf[r] = half(rotValue[r]);
+  }
+}
+
 // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice
 // 2^(k + motion_shift + (0, acceleration_shift, jerk_shift)[d - 1] - e d); omega (words
 // 13-14, half slots 26-29) on the lattice 2^-(e + omega_shift - c). motion_0's plane is in
@@ -698,37 +744,49 @@ function rotations(b) {
 // cls holds each splat's class so far (the class of a maximum is the largest of the classes),
 // rank where its value lies in the plane.
 function motionAndOmega(b) {
-  const {p, n, s, k, e, c, columns} = b;
+  const {p, n, s, k, e, c, columns, values} = b;
   const cls = new Uint8Array(n), rank = new Int32Array(n), exponent = new Int32Array(n);
-  for (let i = 0; i < n; i++) rank[i] = i;
-  // A column without escape bytes is read from its plane as it is.
-  const valuesOf = (column) => (column.width === 0 ? [p, column.at] : [saturatingValues(p, n, column, b.values), 0]);
+  identity(rank, n);
   for (let j = 0; j < 9; j++) {
     const d = 1 + ((j / 3) | 0);
-    if (j % 3 === 0) for (let i = 0; i < n; i++) exponent[i] = k[i] - e[i] * d;
+    if (j % 3 === 0) exponents(exponent, k, e, d, n);
     if (j >= 1 && j <= 3) classRanks(cls, n, rank);
-    const [src, at] = valuesOf(columns.motion[j]);
-    termAt(b, src, at, rank, 16 + j, s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1], exponent);
-    if (j < 3) {
-      for (let i = 0; i < n; i++) {
-        const v = src[at + rank[i]], vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
-        if (vc > cls[i]) cls[i] = vc;
-      }
-    }
+    // Every column's values as doubles (a saturating value may pass 2^32): one element type
+    // for every call of termAt, so that it stays optimized.
+    saturatingValues(p, n, columns.motion[j], values);
+    termAt(b, values, rank, 16 + j, s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1], exponent);
+    if (j < 3) raiseClasses(cls, values, rank, n);
   }
-  for (let i = 0; i < n; i++) exponent[i] = c[i] - e[i];
+  exponents(exponent, c, e, 1, n);
   for (let j = 0; j < 4; j++) {
-    const [src, at] = valuesOf(columns.omega[j]);
-    termAt(b, src, at, rank, 26 + j, -s.omega_shift, exponent);
+    saturatingValues(p, n, columns.omega[j], values);
+    termAt(b, values, rank, 26 + j, -s.omega_shift, exponent);
+  }
+}
+
+function identity(rank, n) {
+  for (let i = 0; i < n; i++) rank[i] = i;
+}
+
+// exponent[i] = k[i] - e[i] * d
+function exponents(exponent, k, e, d, n) {
+  for (let i = 0; i < n; i++) exponent[i] = k[i] - e[i] * d;
+}
+
+// Each splat's class: the larger of the class so far and that of its code in this column.
+function raiseClasses(cls, values, rank, n) {
+  for (let i = 0; i < n; i++) {
+    const v = values[rank[i]], vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
+    if (vc > cls[i]) cls[i] = vc;
   }
 }
 
 // One motion or omega column into half slot `slot`: half(unzigzag(code) * 2^(shift + exponent[i]))
-// for splat i, its code at src[at + rank[i]].
-function termAt(b, src, at, rank, slot, shift, exponent) {
+// for splat i, its code at values[rank[i]].
+function termAt(b, values, rank, slot, shift, exponent) {
   const {n, halves} = b, x = POW2_BIAS + shift;
   for (let i = 0; i < n; i++) {
-    const v = src[at + rank[i]];
+    const v = values[rank[i]];
     if (v !== 0) halves[32 * i + slot] = half(unzigzag(v) * POW2[x + exponent[i]]);
   }
 }
