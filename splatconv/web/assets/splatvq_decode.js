@@ -87,19 +87,25 @@ for (let i = 1; i <= POW2_BIAS; i++) {
 const f32 = new Float32Array(1), u32 = new Uint32Array(f32.buffer);
 function half(v) {
   f32[0] = v;
-  const x = u32[0];
+  const x = u32[0], a = x & 0x7fffffff;
+  // A normal half (most values): drop 13 mantissa bits, ties to even (adding 0xfff and
+  // the lowest kept bit carries exactly when the dropped bits round up; a carry moves the exponent).
+  if (((a - 0x38800000) >>> 0) <= 0x477fe000 - 0x38800000) {
+    return ((x >>> 16) & 0x8000) | ((a - 0x38000000 + 0xfff + ((a >>> 13) & 1)) >>> 13);
+  }
+  return halfOther(x);
+}
+
+// Infinity, NaN, past 65504, zero and subnormal halves.
+function halfOther(x) {
   const sign = (x >>> 16) & 0x8000;
   const a = x & 0x7fffffff;
   if (a >= 0x7f800000) return sign | (a === 0x7f800000 ? HALF_INF : 0x7e00 | ((a >>> 13) & 0x3ff));
   if (a > 0x477fe000) return sign | 0x7bff;
-  if (a >= 0x38800000) { // a normal half: drop 13 mantissa bits, ties to even (a carry moves the exponent)
-    let h = (a - 0x38000000) >>> 13;
-    const r = a & 0x1fff;
-    if (r > 0x1000 || (r === 0x1000 && (h & 1))) h++;
-    return sign | h;
-  }
   // Zero or a subnormal half: the value in steps of 2^-24, ties to even (exact in doubles).
-  const t = Math.abs(f32[0]) * 16777216;
+  f32[0] = 0;
+  u32[0] = a;
+  const t = f32[0] * 16777216;
   let f = Math.floor(t);
   const d = t - f;
   if (d > 0.5 || (d === 0.5 && (f & 1))) f++;
@@ -530,9 +536,9 @@ function decodePayload(p, n, raw, s, which) {
     k: new Int32Array(n), e: new Int32Array(n), c: new Int32Array(n),
     // A column's values, one column at a time (the rotation's three together).
     plain: [new Uint32Array(n), new Uint32Array(n), new Uint32Array(n)], values: new Float64Array(n),
+    values1: new Float64Array(n), values2: new Float64Array(n),
   };
-  for (let j = 0; j < 3; j++) scaleField(b, columns.scale[j], 10 + j, b.scaleBase, 3, j, s.scale_step);
-  stepExponents(b);
+  scalesAndSteps(b);
   positions(b);
   windowExponents(b);
   rotations(b);
@@ -656,17 +662,48 @@ function scaleField(b, column, slot, base, stride, offset, step) {
   }
 }
 
-// Each splat's coarsening c from its alpha byte (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))),
-// and step exponent k (from its least scale, at most flat_octaves below its middle one, plus c).
-function stepExponents(b) {
-  const {p, n, s, halves, k, c} = b, alphaPlane = b.columns.color[3].at, flat = s.flat_octaves << 10;
+// Scales (words 5-6, half slots 10-12), each splat's coarsening c from its alpha byte
+// (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))) and its step exponent k (from its
+// least scale, at most flat_octaves below its middle one, plus c): one pass, the scales
+// kept in registers.
+function scalesAndSteps(b) {
+  const {p, n, s, halves, k, c, columns} = b;
+  const v0 = saturatingValues(p, n, columns.scale[0], b.values);
+  const v1 = saturatingValues(p, n, columns.scale[1], b.values1);
+  const v2 = saturatingValues(p, n, columns.scale[2], b.values2);
+  const coarsening = new Int32Array(256);
+  for (let a = 0; a < 256; a++) coarsening[a] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, a))));
+  const bad = scaleSteps(halves, v0, v1, v2, b.scaleBase, s.scale_step, p, columns.color[3].at, coarsening,
+                         s.flat_octaves << 10, s.position_shift, k, c, n);
+  if (bad) throw new Refusal(`${b.which} is damaged (a scale code decodes past the half range).`);
+}
+
+// A scale code -> its half: 0 and 1 are zero and infinity, the rest steps above the chunk's
+// base; past infinity -1 (refused).
+function scaleHalf(u, base, step) {
+  if (u === SCALE_ZERO) return 0;
+  if (u === SCALE_INF) return HALF_INF;
+  const h = (base + u - SCALE_FIRST) * step;
+  return h > HALF_INF ? -1 : h;
+}
+
+function scaleSteps(halves, v0, v1, v2, base, step, p, alphaPlane, coarsening, flat, shift, k, c, n) {
+  let bad = false;
   for (let i = 0; i < n; i++) {
-    const s0 = halves[32 * i + 10], s1 = halves[32 * i + 11], s2 = halves[32 * i + 12];
+    const chunk = 3 * (i >>> CHUNK_LOG2);
+    const s0 = scaleHalf(v0[i], base[chunk], step), s1 = scaleHalf(v1[i], base[chunk + 1], step);
+    const s2 = scaleHalf(v2[i], base[chunk + 2], step);
+    if ((s0 | s1 | s2) < 0) bad = true;
+    halves[32 * i + 10] = s0;
+    halves[32 * i + 11] = s1;
+    halves[32 * i + 12] = s2;
     const middle = Math.max(Math.min(s0, s1), Math.min(Math.max(s0, s1), s2));
     const h = Math.max(Math.min(s0, s1, s2), middle - flat);
-    c[i] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, p[alphaPlane + i]))));
-    k[i] = Math.min(16, Math.max(-15, (h >> 10) - 15)) + s.position_shift + c[i];
+    const ci = coarsening[p[alphaPlane + i]];
+    c[i] = ci;
+    k[i] = Math.min(16, Math.max(-15, (h >> 10) - 15)) + shift + ci;
   }
+  return bad;
 }
 
 // Positions (words 0-2): f32(base + code * 2^k). Inside a chunk x is stored as the step
