@@ -781,23 +781,21 @@ function rotationTables(M, rotValue, rotHalf) {
 // cls holds each splat's class so far (the class of a maximum is the largest of the classes),
 // rank where its value lies in the plane.
 function motionAndOmega(b) {
-  const {p, n, s, k, e, c, columns, values} = b;
-  const cls = new Uint8Array(n), rank = new Int32Array(n), exponent = new Int32Array(n);
+  const {p, n, s, k, e, c, columns, values, halves} = b;
+  const cls = new Uint8Array(n), rank = new Int32Array(n);
   identity(rank, n);
   for (let j = 0; j < 9; j++) {
-    const d = 1 + ((j / 3) | 0);
-    if (j % 3 === 0) exponents(exponent, k, e, d, n);
+    const d = 1 + ((j / 3) | 0), x = POW2_BIAS + s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1];
     if (j >= 1 && j <= 3) classRanks(cls, n, rank);
     // Every column's values as doubles (a saturating value may pass 2^32): one element type
     // for every call of termAt, so that it stays optimized.
     saturatingValues(p, n, columns.motion[j], values);
-    termAt(b, values, rank, 16 + j, s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1], exponent);
-    if (j < 3) raiseClasses(cls, values, rank, n);
+    if (j < 3) termAndClass(halves, values, rank, 16 + j, x, k, e, d, cls, n);
+    else termAt(halves, values, rank, 16 + j, x, k, e, d, n);
   }
-  exponents(exponent, c, e, 1, n);
   for (let j = 0; j < 4; j++) {
     saturatingValues(p, n, columns.omega[j], values);
-    termAt(b, values, rank, 26 + j, -s.omega_shift, exponent);
+    termAt(halves, values, rank, 26 + j, POW2_BIAS - s.omega_shift, c, e, 1, n);
   }
 }
 
@@ -805,26 +803,24 @@ function identity(rank, n) {
   for (let i = 0; i < n; i++) rank[i] = i;
 }
 
-// exponent[i] = k[i] - e[i] * d
-function exponents(exponent, k, e, d, n) {
-  for (let i = 0; i < n; i++) exponent[i] = k[i] - e[i] * d;
-}
-
-// Each splat's class: the larger of the class so far and that of its code in this column.
-function raiseClasses(cls, values, rank, n) {
+// One motion or omega column into half slot `slot`: half(unzigzag(code) * 2^(x - POW2_BIAS +
+// k[i] - d e[i])) for splat i, its code at values[rank[i]].
+function termAt(halves, values, rank, slot, x, k, e, d, n) {
   for (let i = 0; i < n; i++) {
-    const v = values[rank[i]], vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
-    if (vc > cls[i]) cls[i] = vc;
+    const v = values[rank[i]];
+    if (v !== 0) halves[32 * i + slot] = half(unzigzag(v) * POW2[x + k[i] - d * e[i]]);
   }
 }
 
-// One motion or omega column into half slot `slot`: half(unzigzag(code) * 2^(shift + exponent[i]))
-// for splat i, its code at values[rank[i]].
-function termAt(b, values, rank, slot, shift, exponent) {
-  const {n, halves} = b, x = POW2_BIAS + shift;
+// termAt, and each splat's class raised to the class of its code in this column if larger.
+function termAndClass(halves, values, rank, slot, x, k, e, d, cls, n) {
   for (let i = 0; i < n; i++) {
     const v = values[rank[i]];
-    if (v !== 0) halves[32 * i + slot] = half(unzigzag(v) * POW2[x + exponent[i]]);
+    if (v !== 0) {
+      halves[32 * i + slot] = half(unzigzag(v) * POW2[x + k[i] - d * e[i]]);
+      const vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
+      if (vc > cls[i]) cls[i] = vc;
+    }
   }
 }
 
