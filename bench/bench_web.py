@@ -18,11 +18,14 @@ splats within 1 s), and for each load the time from the first byte to the last
 block decoded while the page draws, after the last byte, and the blocks' summed
 inflate and decode time in the helper workers. On a shared machine the wall
 times stretch with the load: it also prints the CPU time the browser used for
-each decode (from ``/proc``), which stretches much less.
+each decode (from ``/proc``), which stretches much less. With ``--baseline REV``
+it also times the decoder (``splatvq_decode.js``) of git revision REV on the
+same page, decodes of the two alternating, and prints both medians side by side.
 
 Run::
 
-    python bench/bench_web.py [--splats N] [--loads K] [--mbps 100] [--size WxH] [--splatvq [--decode-only]]
+    python bench/bench_web.py [--splats N] [--loads K] [--mbps 100] [--size WxH]
+                              [--splatvq [--decode-only] [--baseline REV]]
 
 Needs Debian's ``chromium`` (or SPLATCONV_CHROMIUM) and the ``playwright`` package.
 """
@@ -34,6 +37,7 @@ import math
 import os
 import shutil
 import statistics
+import subprocess
 import sys
 import threading
 import time
@@ -131,8 +135,18 @@ def main() -> None:
     ap.add_argument("--size", default="1280x720")
     ap.add_argument("--splatvq", action="store_true", help="write and play the scene as .splatvq")
     ap.add_argument("--decode-only", action="store_true", help="with --splatvq: the decode figures alone")
+    ap.add_argument("--baseline", metavar="REV",
+                    help="with --splatvq: also time git revision REV's decoder, alternating with this one's")
     args = ap.parse_args()
     size = cam.parse_size(args.size)
+    decoders = [("this", None)]
+    if args.baseline:
+        root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+        source = subprocess.run(["git", "show", f"{args.baseline}:splatconv/web/assets/splatvq_decode.js"], cwd=root,
+                                capture_output=True, text=True)
+        if source.returncode:
+            raise SystemExit(f"--baseline {args.baseline}: {source.stderr.strip()}")
+        decoders.append((args.baseline, source.stdout))
     path = os.environ.get("SPLATCONV_CHROMIUM") or shutil.which("chromium")
     if not path:
         raise SystemExit("needs Chromium: apt-get install chromium (or set SPLATCONV_CHROMIUM)")
@@ -162,20 +176,27 @@ def main() -> None:
                 sorts.append(r["ms"])
                 print(f"worker sort {k}: {r['count']:,} records in {r['ms']:.1f} ms")
             if args.splatvq:
-                decodes = []
+                decodes = {label: [] for label, _ in decoders}
                 for k in range(args.sorts):
-                    cpu0 = _browser_cpu_seconds()
-                    r = page.evaluate("(url) => window.splatconvPlayer.benchDecode(url)", server.url + "scene/0.splatvq")
-                    cpu1 = _browser_cpu_seconds()
-                    if r["error"]:
-                        raise SystemExit(f"decode failed: {r['error']}")
-                    decodes.append(r["ms"])
-                    cpu = "" if cpu0 is None else f"; the browser's CPU time, fetch included: {cpu1 - cpu0:.2f} s"
-                    print(f"decode {k}: {r['splats']:,} splats in {r['ms']:.0f} ms (blocks' work {r['blockMs']:.0f} ms "
-                          f"summed over the helper workers, of which inflate {r['inflateMs']:.0f} ms{cpu})")
-                med = statistics.median(decodes)
-                print(f"decode, median of {len(decodes)}: {med:.0f} ms (target <= 1000 ms: "
+                    for label, source in decoders:
+                        cpu0 = _browser_cpu_seconds()
+                        r = page.evaluate("([url, source]) => window.splatconvPlayer.benchDecode(url, source)",
+                                          [server.url + "scene/0.splatvq", source])
+                        cpu1 = _browser_cpu_seconds()
+                        if r["error"]:
+                            raise SystemExit(f"decode failed ({label} decoder): {r['error']}")
+                        decodes[label].append(r["ms"])
+                        cpu = "" if cpu0 is None else f"; the browser's CPU time, fetch included: {cpu1 - cpu0:.2f} s"
+                        print(f"decode {k} ({label} decoder): {r['splats']:,} splats in {r['ms']:.0f} ms (blocks' work "
+                              f"{r['blockMs']:.0f} ms summed over the helper workers, of which inflate "
+                              f"{r['inflateMs']:.0f} ms{cpu})")
+                med = statistics.median(decodes["this"])
+                print(f"decode, median of {len(decodes['this'])}: {med:.0f} ms (target <= 1000 ms: "
                       f"{'met' if med <= 1000 else 'NOT MET'})")
+                if args.baseline:
+                    base = statistics.median(decodes[args.baseline])
+                    print(f"decode medians, alternating: this decoder {med:.0f} ms, {args.baseline}'s {base:.0f} ms "
+                          f"({base / med:.2f}x)")
             page.close()
             med = statistics.median(sorts)
             print(f"worker sort, median of {len(sorts)}: {med:.1f} ms (target <= 150 ms: "

@@ -231,6 +231,10 @@ def _wrong_size_block(data: bytes) -> bytes:
     return damage.with_payload(data, payload[:-1], declared=len(payload))
 
 
+def _bad_scale(tables, fields):
+    fields["scale"][5, 1] = 1 << 20
+
+
 BAD = [
     ("truncated in its last block", lambda d: d[:-100], "the file is truncated: it ends inside block 1 of 1"),
     ("truncated in its header", lambda d: d[:30], "the file is truncated: it ends inside its header"),
@@ -249,6 +253,8 @@ BAD = [
     ("a setting out of range", lambda d: d[:7] + b"\x00" + d[8:], "setting rotation_bits is 0"),
     ("a position step past the code range", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 1 of 1 is damaged (a position code past 2^32 - 1)"),
+    ("a scale code past the half range", lambda d: damage.with_codes(d, _bad_scale),
+     "block 1 of 1 is damaged (a scale code decodes past the half range)"),
     ("a width past 4", lambda d: damage.with_width(d, "x_step[0]", 5),
      "block 1 of 1 is damaged (a column of its values is 5 bytes wide; at most 4)"),
     ("a window byte past 243", lambda d: damage.with_codes(d, damage.bad_window),

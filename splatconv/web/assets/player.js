@@ -408,8 +408,8 @@
     return bytes.length >= 4 && bytes[0] === 0x53 && bytes[1] === 0x50 && bytes[2] === 0x56 && bytes[3] === 0x51;
   }
 
-  function startDecoder() {
-    const source = embedded("splatvq_decode.js");
+  function startDecoder(given) {
+    const source = given || embedded("splatvq_decode.js");
     const decoder = new Worker(URL.createObjectURL(new Blob([source], {type: "text/javascript"})));
     decoder.postMessage({type: "init", source}); // it starts helpers from it, to decode blocks in parallel
     return decoder;
@@ -980,9 +980,10 @@
 
   // Decode the .splatvq at `url` in the decode workers, all its bytes in memory first and
   // nothing drawn (bench): the wall milliseconds, the splats, the blocks' summed work.
-  async function benchDecode(url) {
+  // `source`: another decoder's source to time instead of the page's (bench_web.py --baseline).
+  async function benchDecode(url, source) {
     const bytes = new Uint8Array(await (await fetch(url)).arrayBuffer());
-    const decoder = startDecoder();
+    const decoder = startDecoder(source);
     return new Promise((resolve) => {
       let splats = 0, blockMs = 0, inflateMs = 0;
       const t0 = performance.now();

@@ -87,19 +87,25 @@ for (let i = 1; i <= POW2_BIAS; i++) {
 const f32 = new Float32Array(1), u32 = new Uint32Array(f32.buffer);
 function half(v) {
   f32[0] = v;
-  const x = u32[0];
+  const x = u32[0], a = x & 0x7fffffff;
+  // A normal half (most values): drop 13 mantissa bits, ties to even (adding 0xfff and
+  // the lowest kept bit carries exactly when the dropped bits round up; a carry moves the exponent).
+  if (((a - 0x38800000) >>> 0) <= 0x477fe000 - 0x38800000) {
+    return ((x >>> 16) & 0x8000) | ((a - 0x38000000 + 0xfff + ((a >>> 13) & 1)) >>> 13);
+  }
+  return halfOther(x);
+}
+
+// Infinity, NaN, past 65504, zero and subnormal halves.
+function halfOther(x) {
   const sign = (x >>> 16) & 0x8000;
   const a = x & 0x7fffffff;
   if (a >= 0x7f800000) return sign | (a === 0x7f800000 ? HALF_INF : 0x7e00 | ((a >>> 13) & 0x3ff));
   if (a > 0x477fe000) return sign | 0x7bff;
-  if (a >= 0x38800000) { // a normal half: drop 13 mantissa bits, ties to even (a carry moves the exponent)
-    let h = (a - 0x38000000) >>> 13;
-    const r = a & 0x1fff;
-    if (r > 0x1000 || (r === 0x1000 && (h & 1))) h++;
-    return sign | h;
-  }
   // Zero or a subnormal half: the value in steps of 2^-24, ties to even (exact in doubles).
-  const t = Math.abs(f32[0]) * 16777216;
+  f32[0] = 0;
+  u32[0] = a;
+  const t = f32[0] * 16777216;
   let f = Math.floor(t);
   const d = t - f;
   if (d > 0.5 || (d === 0.5 && (f & 1))) f++;
@@ -419,11 +425,9 @@ function layout(p, n, raw, which) {
       if (coding === SATURATING) {
         // Its escapes are counted only where they take bytes (with a width of 0 each is 255).
         if (at + n > p.length) throw short();
-        let m = 0;
-        if (column.width) for (let t = at; t < at + n; t++) m += (p[t] + 1) >> 8; // 1 for a byte of 255
-        column.escapes = m;
+        column.escapes = column.width ? countSaturated(p.subarray(at, at + n)) : 0;
         column.escapesAt = at + n;
-        at += n + column.width * m;
+        at += n + column.width * column.escapes;
       } else {
         at += column.width * n;
       }
@@ -438,17 +442,25 @@ function layout(p, n, raw, which) {
   return {columns, rawAt};
 }
 
+// How many bytes of a plane are 255 (few are: the native search runs past the rest).
+function countSaturated(plane) {
+  let m = 0;
+  for (let t = plane.indexOf(SATURATED); t !== -1; t = plane.indexOf(SATURATED, t + 1)) m++;
+  return m;
+}
+
 // A plain column's values, in splat order, into `out` (a Uint32Array of n): byte plane
 // after byte plane.
 function plainValues(p, n, column, out) {
   const {at, width} = column;
   if (width === 0) return out.fill(0, 0, n);
   out.set(p.subarray(at, at + n));
-  for (let b = 1; b < width; b++) {
-    const plane = at + b * n, shift = 8 * b;
-    for (let i = 0; i < n; i++) out[i] |= p[plane + i] << shift;
-  }
+  for (let b = 1; b < width; b++) orPlane(out, p, at + b * n, 8 * b, n);
   return out;
+}
+
+function orPlane(out, p, plane, shift, n) {
+  for (let i = 0; i < n; i++) out[i] |= p[plane + i] << shift;
 }
 
 // The x-th escaped value of a saturating column: 255 plus its escape's bytes (lowest first,
@@ -475,16 +487,28 @@ function saturatingValues(p, n, column, out) {
 
 // Where each splat's value lies in a classed plane: the splats in the stable order of
 // their classes (a counting sort: numpy's stable argsort of the classes, inverted).
+// Each hot loop is a function of its own, with one loop: V8 compiles a long loop while
+// it runs (on-stack replacement), and code after a loop that has not run yet has no type
+// feedback, so a function of several loops was compiled and dropped again several times
+// a block, for each worker's first blocks (most of the decode's time on two cores).
 function classRanks(cls, n, rank) {
   const next = new Int32Array(CLASS_LIMITS.length + 1);
-  for (let i = 0; i < n; i++) next[cls[i]]++;
+  countClasses(cls, n, next);
   for (let c = 0, sum = 0; c < next.length; c++) {
     const count = next[c];
     next[c] = sum;
     sum += count;
   }
-  for (let i = 0; i < n; i++) rank[i] = next[cls[i]]++;
+  assignRanks(cls, n, next, rank);
   return rank;
+}
+
+function countClasses(cls, n, next) {
+  for (let i = 0; i < n; i++) next[cls[i]]++;
+}
+
+function assignRanks(cls, n, next, rank) {
+  for (let i = 0; i < n; i++) rank[i] = next[cls[i]]++;
 }
 
 // A block payload -> its records. Field by field over all splats (short loops over
@@ -512,22 +536,22 @@ function decodePayload(p, n, raw, s, which) {
     k: new Int32Array(n), e: new Int32Array(n), c: new Int32Array(n),
     // A column's values, one column at a time (the rotation's three together).
     plain: [new Uint32Array(n), new Uint32Array(n), new Uint32Array(n)], values: new Float64Array(n),
+    values1: new Float64Array(n), values2: new Float64Array(n),
   };
-  for (let j = 0; j < 3; j++) scaleField(b, columns.scale[j], 10 + j, b.scaleBase, 3, j, s.scale_step);
-  stepExponents(b);
+  scalesAndSteps(b);
   positions(b);
   windowExponents(b);
   rotations(b);
   scaleField(b, columns.trbf_scale[0], 31, b.trbfBase, 1, 0, s.trbf_scale_step);
   // Colour and opacity (word 7): the four bytes as they are.
-  const bytes = new Uint8Array(out.buffer, 0, n * WORDS * 4);
-  for (let j = 0; j < 4; j++) {
-    const plane = columns.color[j].at;
-    for (let i = 0; i < n; i++) bytes[64 * i + 28 + j] = p[plane + i];
-  }
+  colourWords(out, p, columns.color[0].at, columns.color[1].at, columns.color[2].at, columns.color[3].at, n);
   motionAndOmega(b);
   temporalCentres(b);
   return {words: out, order: importanceOrder(out, n + raw)};
+}
+
+function colourWords(words, p, r, g, b, a, n) {
+  for (let i = 0; i < n; i++) words[WORDS * i + 7] = (p[r + i] | (p[g + i] << 8) | (p[b + i] << 16) | (p[a + i] << 24)) >>> 0;
 }
 
 // ------------------------------------------------------------------ importance order
@@ -553,14 +577,36 @@ const DIGIT_BITS = 13, DIGITS = 4, RADIX = 1 << DIGIT_BITS, DIGIT = RADIX - 1;
 // LSD radix sort of four 13-bit digits (a digit all records share is skipped), all four
 // counts made in one pass.
 function importanceOrder(words, n) {
-  const halves = new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2);
-  const keys = new Float64Array(n), bits = new Uint32Array(keys.buffer);
+  const keys = new Float64Array(n), low = new Uint32Array(n), high = new Uint32Array(n);
+  const count = new Uint32Array(DIGITS * RADIX);
+  importanceKeys(new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2), words, keys, n);
+  sortCodes(keys, new Uint32Array(keys.buffer), low, high, count, n);
+  let order = null, spare = new Uint32Array(n);
+  for (let d = 0; d < DIGITS; d++) {
+    const at = d * RADIX, code = d < 2 ? low : high, shift = d & 1 ? DIGIT_BITS : 0;
+    if (count[at + ((code[0] >>> shift) & DIGIT)] === n) continue; // one digit: the order stands
+    offsets(count, at);
+    if (order === null) {
+      scatterFirst(code, shift, count, at, spare, n);
+      order = new Uint32Array(n);
+    } else {
+      scatter(order, code, shift, count, at, spare, n);
+    }
+    [order, spare] = [spare, order];
+  }
+  return order;
+}
+
+function importanceKeys(halves, words, keys, n) {
   for (let i = 0; i < n; i++) {
     const key = HALF_VALUE[halves[32 * i + 10]] * HALF_VALUE[halves[32 * i + 11]] * HALF_VALUE[halves[32 * i + 12]] *
                 (words[WORDS * i + 7] >>> 24);
     keys[i] = key === 0 ? 0 : key;
   }
-  const low = new Uint32Array(n), high = new Uint32Array(n), count = new Uint32Array(DIGITS * RADIX);
+}
+
+// Each key's two 26-bit halves of its code, and the counts of all four digits.
+function sortCodes(keys, bits, low, high, count, n) {
   for (let i = 0; i < n; i++) {
     let lo = bits[2 * i], hi = bits[2 * i + 1];
     if (keys[i] !== keys[i]) {
@@ -577,27 +623,26 @@ function importanceOrder(words, n) {
     count[2 * RADIX + (b & DIGIT)]++;
     count[3 * RADIX + (b >>> DIGIT_BITS)]++;
   }
-  let order = null, spare = new Uint32Array(n);
-  for (let d = 0; d < DIGITS; d++) {
-    const at = d * RADIX, code = d < 2 ? low : high, shift = d & 1 ? DIGIT_BITS : 0;
-    if (count[at + ((code[0] >>> shift) & DIGIT)] === n) continue; // one digit: the order stands
-    for (let k = at, sum = 0; k < at + RADIX; k++) {
-      const c = count[k];
-      count[k] = sum;
-      sum += c;
-    }
-    if (order === null) {
-      for (let i = 0; i < n; i++) spare[count[at + ((code[i] >>> shift) & DIGIT)]++] = i;
-      order = new Uint32Array(n);
-    } else {
-      for (let i = 0; i < n; i++) {
-        const r = order[i];
-        spare[count[at + ((code[r] >>> shift) & DIGIT)]++] = r;
-      }
-    }
-    [order, spare] = [spare, order];
+}
+
+// A digit's counts -> where its records start.
+function offsets(count, at) {
+  for (let k = at, sum = 0; k < at + RADIX; k++) {
+    const c = count[k];
+    count[k] = sum;
+    sum += c;
   }
-  return order;
+}
+
+function scatterFirst(code, shift, count, at, spare, n) {
+  for (let i = 0; i < n; i++) spare[count[at + ((code[i] >>> shift) & DIGIT)]++] = i;
+}
+
+function scatter(order, code, shift, count, at, spare, n) {
+  for (let i = 0; i < n; i++) {
+    const r = order[i];
+    spare[count[at + ((code[r] >>> shift) & DIGIT)]++] = r;
+  }
 }
 
 // Scales (words 5-6, half slots 10-12) and the temporal scale (slot 31): integers only.
@@ -617,24 +662,59 @@ function scaleField(b, column, slot, base, stride, offset, step) {
   }
 }
 
-// Each splat's coarsening c from its alpha byte (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))),
-// and step exponent k (from its least scale, at most flat_octaves below its middle one, plus c).
-function stepExponents(b) {
-  const {p, n, s, halves, k, c} = b, alphaPlane = b.columns.color[3].at, flat = s.flat_octaves << 10;
+// Scales (words 5-6, half slots 10-12), each splat's coarsening c from its alpha byte
+// (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))) and its step exponent k (from its
+// least scale, at most flat_octaves below its middle one, plus c): one pass, the scales
+// kept in registers.
+function scalesAndSteps(b) {
+  const {p, n, s, halves, k, c, columns} = b;
+  const v0 = saturatingValues(p, n, columns.scale[0], b.values);
+  const v1 = saturatingValues(p, n, columns.scale[1], b.values1);
+  const v2 = saturatingValues(p, n, columns.scale[2], b.values2);
+  const coarsening = new Int32Array(256);
+  for (let a = 0; a < 256; a++) coarsening[a] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, a))));
+  const bad = scaleSteps(halves, v0, v1, v2, b.scaleBase, s.scale_step, p, columns.color[3].at, coarsening,
+                         s.flat_octaves << 10, s.position_shift, k, c, n);
+  if (bad) throw new Refusal(`${b.which} is damaged (a scale code decodes past the half range).`);
+}
+
+// A scale code -> its half: 0 and 1 are zero and infinity, the rest steps above the chunk's
+// base; past infinity -1 (refused).
+function scaleHalf(u, base, step) {
+  if (u === SCALE_ZERO) return 0;
+  if (u === SCALE_INF) return HALF_INF;
+  const h = (base + u - SCALE_FIRST) * step;
+  return h > HALF_INF ? -1 : h;
+}
+
+function scaleSteps(halves, v0, v1, v2, base, step, p, alphaPlane, coarsening, flat, shift, k, c, n) {
+  let bad = false;
   for (let i = 0; i < n; i++) {
-    const s0 = halves[32 * i + 10], s1 = halves[32 * i + 11], s2 = halves[32 * i + 12];
+    const chunk = 3 * (i >>> CHUNK_LOG2);
+    const s0 = scaleHalf(v0[i], base[chunk], step), s1 = scaleHalf(v1[i], base[chunk + 1], step);
+    const s2 = scaleHalf(v2[i], base[chunk + 2], step);
+    if ((s0 | s1 | s2) < 0) bad = true;
+    halves[32 * i + 10] = s0;
+    halves[32 * i + 11] = s1;
+    halves[32 * i + 12] = s2;
     const middle = Math.max(Math.min(s0, s1), Math.min(Math.max(s0, s1), s2));
     const h = Math.max(Math.min(s0, s1, s2), middle - flat);
-    c[i] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, p[alphaPlane + i]))));
-    k[i] = Math.min(16, Math.max(-15, (h >> 10) - 15)) + s.position_shift + c[i];
+    const ci = coarsening[p[alphaPlane + i]];
+    c[i] = ci;
+    k[i] = Math.min(16, Math.max(-15, (h >> 10) - 15)) + shift + ci;
   }
+  return bad;
 }
 
 // Positions (words 0-2): f32(base + code * 2^k). Inside a chunk x is stored as the step
 // from floor(previous code * 2^(previous k - k)), the chunk's first splat as its code.
 function positions(b) {
   const {p, n, floats, posBase, k, columns} = b;
-  const steps = saturatingValues(p, n, columns.x_step[0], b.values);
+  positionX(b, saturatingValues(p, n, columns.x_step[0], b.values), floats, posBase, k, n);
+  for (let j = 1; j < 3; j++) positionAxis(floats, posBase, plainValues(p, n, columns.yz[j - 1], b.plain[0]), k, j, n);
+}
+
+function positionX(b, steps, floats, posBase, k, n) {
   let previous = 0;
   for (let i = 0; i < n; i++) {
     let code = steps[i];
@@ -647,12 +727,10 @@ function positions(b) {
     previous = code;
     floats[16 * i] = posBase[3 * (i >>> CHUNK_LOG2)] + code * POW2[POW2_BIAS + k[i]];
   }
-  for (let j = 1; j < 3; j++) {
-    const code = plainValues(p, n, columns.yz[j - 1], b.plain[0]);
-    for (let i = 0; i < n; i++) {
-      floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code[i] * POW2[POW2_BIAS + k[i]];
-    }
-  }
+}
+
+function positionAxis(floats, posBase, code, k, j, n) {
+  for (let i = 0; i < n; i++) floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code[i] * POW2[POW2_BIAS + k[i]];
 }
 
 // Window exponent e, from the byte that also holds the rotation index.
@@ -670,10 +748,7 @@ function rotations(b) {
   const {p, n, halves, columns, plain} = b, plane = columns.window_index[0].at;
   const M = (1 << b.s.rotation_bits) - 1;
   const rotValue = new Float64Array(M + 1), rotHalf = new Uint16Array(M + 1);
-  for (let r = 0; r <= M; r++) { // a kept component depends on its code alone
-    rotValue[r] = ((2 * r - M) / M) * Math.SQRT1_2;
-    rotHalf[r] = half(rotValue[r]);
-  }
+  rotationTables(M, rotValue, rotHalf);
   const r0 = plainValues(p, n, columns.rotation[0], plain[0]), r1 = plainValues(p, n, columns.rotation[1], plain[1]);
   const r2 = plainValues(p, n, columns.rotation[2], plain[2]);
   for (let i = 0; i < n; i++) {
@@ -690,6 +765,14 @@ function rotations(b) {
   }
 }
 
+// A kept component depends on its code alone.
+function rotationTables(M, rotValue, rotHalf) {
+  for (let r = 0; r <= M; r++) {
+    rotValue[r] = ((2 * r - M) / M) * Math.SQRT1_2;
+    rotHalf[r] = half(rotValue[r]);
+  }
+}
+
 // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice
 // 2^(k + motion_shift + (0, acceleration_shift, jerk_shift)[d - 1] - e d); omega (words
 // 13-14, half slots 26-29) on the lattice 2^-(e + omega_shift - c). motion_0's plane is in
@@ -698,38 +781,46 @@ function rotations(b) {
 // cls holds each splat's class so far (the class of a maximum is the largest of the classes),
 // rank where its value lies in the plane.
 function motionAndOmega(b) {
-  const {p, n, s, k, e, c, columns} = b;
-  const cls = new Uint8Array(n), rank = new Int32Array(n), exponent = new Int32Array(n);
-  for (let i = 0; i < n; i++) rank[i] = i;
-  // A column without escape bytes is read from its plane as it is.
-  const valuesOf = (column) => (column.width === 0 ? [p, column.at] : [saturatingValues(p, n, column, b.values), 0]);
+  const {p, n, s, k, e, c, columns, values, halves} = b;
+  const cls = new Uint8Array(n), rank = new Int32Array(n);
+  identity(rank, n);
   for (let j = 0; j < 9; j++) {
-    const d = 1 + ((j / 3) | 0);
-    if (j % 3 === 0) for (let i = 0; i < n; i++) exponent[i] = k[i] - e[i] * d;
+    const d = 1 + ((j / 3) | 0), x = POW2_BIAS + s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1];
     if (j >= 1 && j <= 3) classRanks(cls, n, rank);
-    const [src, at] = valuesOf(columns.motion[j]);
-    termAt(b, src, at, rank, 16 + j, s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1], exponent);
-    if (j < 3) {
-      for (let i = 0; i < n; i++) {
-        const v = src[at + rank[i]], vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
-        if (vc > cls[i]) cls[i] = vc;
-      }
-    }
+    // Every column's values as doubles (a saturating value may pass 2^32): one element type
+    // for every call of termAt, so that it stays optimized.
+    saturatingValues(p, n, columns.motion[j], values);
+    if (j < 3) termAndClass(halves, values, rank, 16 + j, x, k, e, d, cls, n);
+    else termAt(halves, values, rank, 16 + j, x, k, e, d, n);
   }
-  for (let i = 0; i < n; i++) exponent[i] = c[i] - e[i];
   for (let j = 0; j < 4; j++) {
-    const [src, at] = valuesOf(columns.omega[j]);
-    termAt(b, src, at, rank, 26 + j, -s.omega_shift, exponent);
+    saturatingValues(p, n, columns.omega[j], values);
+    termAt(halves, values, rank, 26 + j, POW2_BIAS - s.omega_shift, c, e, 1, n);
   }
 }
 
-// One motion or omega column into half slot `slot`: half(unzigzag(code) * 2^(shift + exponent[i]))
-// for splat i, its code at src[at + rank[i]].
-function termAt(b, src, at, rank, slot, shift, exponent) {
-  const {n, halves} = b, x = POW2_BIAS + shift;
+function identity(rank, n) {
+  for (let i = 0; i < n; i++) rank[i] = i;
+}
+
+// One motion or omega column into half slot `slot`: half(unzigzag(code) * 2^(x - POW2_BIAS +
+// k[i] - d e[i])) for splat i, its code at values[rank[i]].
+function termAt(halves, values, rank, slot, x, k, e, d, n) {
   for (let i = 0; i < n; i++) {
-    const v = src[at + rank[i]];
-    if (v !== 0) halves[32 * i + slot] = half(unzigzag(v) * POW2[x + exponent[i]]);
+    const v = values[rank[i]];
+    if (v !== 0) halves[32 * i + slot] = half(unzigzag(v) * POW2[x + k[i] - d * e[i]]);
+  }
+}
+
+// termAt, and each splat's class raised to the class of its code in this column if larger.
+function termAndClass(halves, values, rank, slot, x, k, e, d, cls, n) {
+  for (let i = 0; i < n; i++) {
+    const v = values[rank[i]];
+    if (v !== 0) {
+      halves[32 * i + slot] = half(unzigzag(v) * POW2[x + k[i] - d * e[i]]);
+      const vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
+      if (vc > cls[i]) cls[i] = vc;
+    }
   }
 }
 
