@@ -27,13 +27,14 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
 from splatconv import io, model
 from splatconv.model import Scene
+
+from _harness import best_seconds as best
 
 ROOT = Path(__file__).resolve().parent.parent
 REAL = ROOT.parent / "shared" / "real"
@@ -82,15 +83,6 @@ def random_scene(n: int, degree: int) -> Scene:
     cols.update({name: rng.normal(0, 0.2, n).astype(np.float32) for name in model.sh_names(degree)})
     cols.update(model.static_columns(n))
     return Scene(columns=cols, variant=model.VARIANT_3DGS)
-
-
-def best(fn, repeat: int = 3) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def gsply_arrays(scene: Scene, path: Path) -> None:

@@ -23,7 +23,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -31,7 +30,7 @@ import numpy as np
 from splatconv import io, model
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from _harness import CLI, run_fresh  # noqa: E402
+from _harness import CLI, best_seconds as best, run_fresh  # noqa: E402
 
 #: The interpreter that runs gaussforge in a fresh process.
 GAUSSFORGE_PYTHON = os.environ.get("GAUSSFORGE_PYTHON", "/tmp/libvenv/bin/python")
@@ -71,15 +70,6 @@ def make_ply(path: Path, n: int) -> None:
     head = f"ply\nformat binary_little_endian 1.0\nelement vertex {n}\n" + "".join(
         f"property float {k}\n" for k in names) + "end_header\n"
     path.write_bytes(head.encode() + d.tobytes())
-
-
-def best(fn, repeat: int = 3) -> float:
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def fresh_gaussforge() -> bool:

@@ -112,20 +112,6 @@ def _ordered_bits(bits: np.ndarray) -> np.ndarray:
     return np.where(negative, ~bits, bits | np.uint32(0x80000000))
 
 
-def _spread21(v: np.ndarray) -> np.ndarray:
-    """The low 21 bits of ``v`` (uint64) spread out to every third bit."""
-    v = v & np.uint64(0x1FFFFF)
-    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
-                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
-        v = (v | v << np.uint64(shift)) & np.uint64(mask)
-    return v
-
-
-def _morton(top: np.ndarray) -> np.ndarray:
-    """Morton code of ``(N, 3)`` 21-bit integers: ``(N,) uint64``."""
-    return _spread21(top[:, 0]) | _spread21(top[:, 1]) << np.uint64(1) | _spread21(top[:, 2]) << np.uint64(2)
-
-
 #: Neighbours each side looked at in each sorted order when candidates are gathered (:func:`_candidates`).
 _WINDOW = 3
 #: Offsets of the grids whose Morton orders give the candidates, in units of the finest cell: a splat's
@@ -260,7 +246,7 @@ def _content_pairs(a_cols: dict, b_cols: dict, *, ignore_colour: bool = False) -
     top = (np.concatenate([_ordered_bits(keys[0]), _ordered_bits(keys[1])]) >> np.uint32(11)).astype(np.uint64)
     word = np.concatenate([words[0][rest_a], words[1][rest_b]])
     side = np.concatenate([np.zeros(na, np.int8), np.ones(nb, np.int8)])
-    orders = [_morton(top + np.array(shift, np.uint64)) for shift in _GRID_SHIFTS]
+    orders = [packing.morton_code(top + np.array(shift, np.uint64)) for shift in _GRID_SHIFTS]
     left = np.arange(na + nb)
     while len(left):
         ci, cj = _candidates(word[left], side[left], [o[left] for o in orders])

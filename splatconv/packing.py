@@ -340,3 +340,20 @@ def unpack_rgba8(words: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray,
     channels.flags.writeable = False
     order = (0, 1, 2, 3) if np.little_endian else (3, 2, 1, 0)
     return tuple(channels[..., i] for i in order)
+
+
+def morton_code(cells: np.ndarray) -> np.ndarray:
+    """The Morton (Z-order) code of ``(N, 3)`` integer cells, 21 bits an axis: ``(N,) uint64``.
+
+    Bit i of the x, y and z cells goes to bit 3i, 3i + 1 and 3i + 2; bits above
+    the 21st are dropped.
+    """
+    cells = np.asarray(cells, dtype=np.uint64)
+    code = np.zeros(len(cells), np.uint64)
+    for axis in range(3):
+        v = cells[:, axis] & np.uint64(0x1FFFFF)
+        for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
+                            (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
+            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
+        code |= v << np.uint64(axis)
+    return code

@@ -29,7 +29,7 @@ import os
 
 import numpy as np
 
-from .. import model
+from .. import model, packing
 from ..errors import FormatError, UnsupportedError
 from ..model import Scene
 from ..progress import SILENT
@@ -290,15 +290,6 @@ def declared_size(head: bytes):
 # Writing
 
 
-def _spread(v: np.ndarray) -> np.ndarray:
-    """The 21 low bits of ``v`` (uint64) spread to every third bit (bit i to bit 3 i)."""
-    v = v & np.uint64(0x1FFFFF)
-    for shift, mask in ((32, 0x1F00000000FFFF), (16, 0x1F0000FF0000FF), (8, 0x100F00F00F00F00F),
-                        (4, 0x10C30C30C30C30C3), (2, 0x1249249249249249)):
-        v = (v | (v << np.uint64(shift))) & np.uint64(mask)
-    return v
-
-
 def morton_order(xyz: np.ndarray) -> np.ndarray:
     """Indices that put positions ``(N, 3)`` (finite) in Morton (Z) order within their bounds: ``(N,) intp``,
     equal codes in input order.
@@ -316,7 +307,7 @@ def morton_order(xyz: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         cell = np.where(span > 0, (xyz - lo) / np.where(span > 0, span, 1.0) * (1 << bits), 0.0)
     cell = np.clip(cell, 0, (1 << bits) - 1).astype(np.uint64)
-    code = _spread(cell[:, 0]) | (_spread(cell[:, 1]) << np.uint64(1)) | (_spread(cell[:, 2]) << np.uint64(2))
+    code = packing.morton_code(cell)
     key = np.sort((code << np.uint64(index_bits)) | np.arange(n, dtype=np.uint64))
     return (key & np.uint64((1 << index_bits) - 1)).astype(np.intp)
 

@@ -34,7 +34,7 @@ from io import BytesIO
 
 import numpy as np
 
-from .. import model
+from .. import model, packing
 from ..errors import FormatError, UnsupportedError
 from ..files.inputs import open_input
 from ..model import Scene
@@ -113,16 +113,7 @@ def morton_order(xyz: np.ndarray) -> np.ndarray:
     span = xyz.max(axis=0) - lo
     span[span == 0] = 1.0
     cells = np.minimum((xyz - lo) / span * (1 << 21), (1 << 21) - 1).astype(np.uint64)
-    code = np.zeros(len(xyz), np.uint64)
-    for axis in range(3):
-        v = cells[:, axis]
-        v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
-        v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
-        v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
-        v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
-        v = (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
-        code |= v << np.uint64(axis)
-    return np.argsort(code, kind="stable")
+    return np.argsort(packing.morton_code(cells), kind="stable")
 
 
 def fit_codebook(values: np.ndarray, size: int = CODEBOOK_SIZE) -> np.ndarray:

@@ -299,17 +299,7 @@ def _morton(positions: np.ndarray) -> np.ndarray:
     """
     bits = np.ascontiguousarray(positions, dtype=np.float32).view(np.uint32)
     flip = np.where(bits >> 31 != 0, np.uint32(0xFFFFFFFF), np.uint32(0x80000000))
-    keys = ((bits ^ flip) >> np.uint32(11)).astype(np.uint64)
-    out = np.zeros(len(positions), dtype=np.uint64)
-    for axis in range(3):
-        v = keys[:, axis]
-        v = (v | (v << np.uint64(32))) & np.uint64(0x1F00000000FFFF)
-        v = (v | (v << np.uint64(16))) & np.uint64(0x1F0000FF0000FF)
-        v = (v | (v << np.uint64(8))) & np.uint64(0x100F00F00F00F00F)
-        v = (v | (v << np.uint64(4))) & np.uint64(0x10C30C30C30C30C3)
-        v = (v | (v << np.uint64(2))) & np.uint64(0x1249249249249249)
-        out |= v << np.uint64(axis)
-    return out
+    return packing.morton_code((bits ^ flip) >> np.uint32(11))
 
 
 def alpha_coarsening(alpha: np.ndarray, levels: int) -> np.ndarray:
