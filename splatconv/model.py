@@ -272,3 +272,20 @@ def row_fields(columns: list):
     matrix = np.lib.stride_tricks.as_strided(columns[address.index(base)], shape=(n, max(fields) + 1),
                                              strides=(stride, 4), writeable=False)
     return matrix, fields
+
+
+def far_rows(xyz: np.ndarray, extents: float) -> np.ndarray:
+    """Positions far from the rest: ``(N, 3)`` float64 -> ``(N,) bool``.
+
+    A row is far when an axis of it lies more than ``extents`` robust scene
+    extents (the widest interquartile range of an axis over the finite rows, at
+    least 1e-6) from the finite rows' median. NaN rows are not far; infinite ones are.
+    """
+    far = np.zeros(len(xyz), bool)
+    finite = xyz[np.isfinite(xyz).all(axis=1)]
+    if len(finite):
+        lo, mid, hi = np.percentile(finite, (25, 50, 75), axis=0)
+        extent = max(float(np.max(hi - lo)), 1e-6)
+        with np.errstate(invalid="ignore"):
+            far = (np.abs(xyz - mid) > extents * extent).any(axis=1)
+    return far

@@ -318,3 +318,38 @@ def test_a_plain_ply_named_compressed_is_refused_plainly(tmp_path, gs_ply):
     path = tmp_path / "plain.compressed.ply"
     path.write_bytes(Path(gs_ply).read_bytes())
     assert error_line(run("info", path), 1).startswith(f"Error: {path}: not a compressed PLY")
+
+
+def test_far_splats_take_chunks_of_their_own(tmp_path):
+    """A few splats far out (real scenes hold them) would widen their chunks' bounds for near neighbours:
+    they go last, in chunks of their own, the note says so, and the picture holds."""
+    scene = static_scene(11 * 256 + 3, degree=0, seed=4)  # 11 chunks of near splats, then the far ones
+    for i, row in enumerate((17, 900, 2500)):  # scattered, so that Morton order alone would mix them in
+        scene.columns["x"][row] = (-1) ** i * 1e30
+    plain, packed = tmp_path / "far.ply", tmp_path / "far.compressed.ply"
+    io.write(scene, plain)
+    r = run("convert", plain, packed)
+    assert r.exit_code == 0 and "position: 3 splats more than 4096 scene extents from the rest" in r.output
+    assert "share their first chunk" not in r.output
+    back = io.read(packed)
+    assert (np.abs(back.columns["x"][-3:]) > 1e29).all() and (np.abs(back.columns["x"][:-3]) < 10).all()
+    pictures = []
+    for src in (plain, packed):
+        out = tmp_path / f"{src.name}.png"
+        r = run("render", src, out, "--size", "160x120", "--fx", "150", "--fy", "150")
+        assert r.exit_code == 0, r.output
+        pictures.append(np.asarray(Image.open(out).convert("RGB")))
+    assert pictures[0].std() > 5 and compare(*pictures).psnr >= 40
+
+
+def test_the_least_important_splats_share_the_far_splats_chunk(tmp_path):
+    scene = static_scene(11 * 256 + 13, degree=0, seed=4)  # 2,828 near splats: 12 past 11 whole chunks
+    scene.columns["x"][5] = 1e30
+    scene.columns["opacity"][:] = 2.0
+    scene.columns["opacity"][[3, 4, 6, 7, 8, 9, 10, 11, 12, 40, 41, 2000]] = -6.0  # the 12 least important
+    plain, packed = tmp_path / "far.ply", tmp_path / "far.compressed.ply"
+    io.write(scene, plain)
+    r = run("convert", plain, packed)
+    assert r.exit_code == 0 and "the 12 least important splats of the rest share their first chunk" in r.output
+    alpha = 1 / (1 + np.exp(-io.read(packed).columns["opacity"].astype(np.float64)))
+    assert (alpha[-13:-1] < 0.01).all() and (alpha[:-13] > 0.8).all()

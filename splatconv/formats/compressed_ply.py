@@ -33,7 +33,7 @@ from .. import model, packing
 from ..errors import FormatError, UnsupportedError
 from ..model import Scene
 from ..progress import SILENT
-from ..viewer import logit, sigmoid, wide
+from ..viewer import importance, logit, sigmoid, wide
 from ..wording import plural
 from . import ply_container as container
 from .base import Format, Scan, WriteReport, fixed_storage, refuse_time_varying
@@ -58,6 +58,9 @@ ROTATION_BITS = 10
 ROTATION_NORM = np.sqrt(0.5)
 #: Log-scale bounds are clamped to +-this (infinite scales, as the reference writer does).
 SCALE_LIMIT = 20.0
+#: A splat more than this many robust scene extents from the middle (:func:`splatconv.model.far_rows`)
+#: is put in a chunk of far splats only.
+FAR_EXTENTS = 4096.0
 #: A chunk's range below this stores every value as its minimum.
 MIN_RANGE = 1e-5
 #: An SH coefficient v is stored as trunc((v / SH_RANGE + 1/2) * 256): [-4, 4) in 256 steps of 1/32.
@@ -371,7 +374,22 @@ def encode(scene: Scene) -> tuple:
         bad = int(np.count_nonzero(~np.isfinite(xyz).all(axis=1)))
         raise UnsupportedError(f"{plural(bad, 'splat')} with a NaN or infinite position: a compressed PLY holds "
                                "positions within chunk bounds (drop them with `convert --drop-nonfinite`)")
-    order = morton_order(xyz)
+    # Splats far from the rest go last: in a chunk of near ones, a far splat's bounds would leave its
+    # neighbours a step as wide as the scene. The chunk where near and far meet takes the least important
+    # near splats (the viewer's importance: scales and opacity).
+    far = model.far_rows(xyz, FAR_EXTENTS)
+    shared = 0
+    if far.any():
+        near, out = np.flatnonzero(~far), np.flatnonzero(far)
+        shared = len(near) % CHUNK_SPLATS
+        least = np.argsort(importance({name: np.asarray(cols[name])[near] for name in ("opacity", *model.SCALE)}),
+                           kind="stable")[:shared]
+        spilled = np.zeros(len(near), bool)
+        spilled[least] = True
+        kept = near[~spilled]
+        order = np.concatenate([kept[morton_order(xyz[kept])], near[spilled], out[morton_order(xyz[out])]])
+    else:
+        order = morton_order(xyz)
     c = -(-n // CHUNK_SPLATS)
     # The last chunk is filled with its last splat again: the bounds are its splats' alone.
     take = order[np.minimum(np.arange(c * CHUNK_SPLATS), n - 1)]
@@ -381,7 +399,7 @@ def encode(scene: Scene) -> tuple:
 
     chunks = np.zeros(c, CHUNK_DTYPE)
     words = {}
-    counts = {"nan": 0, "scale_clamped": 0}
+    counts = {"nan": 0, "scale_clamped": 0, "far": int(np.count_nonzero(far)), "shared": shared}
     groups = (("packed_position", model.POSITION, ("x", "y", "z"), "", None),
               ("packed_scale", model.SCALE, ("x", "y", "z"), "scale_", SCALE_LIMIT),
               ("packed_color", model.COLOR, ("r", "g", "b"), "", None))
@@ -460,6 +478,11 @@ def _notes(degree: int, counts: dict, sort: str | None) -> list:
                                       if degree else "")]
     if sort == "importance":
         notes.append("splats in Morton order, not by importance: a chunk's bounds need neighbours")
+    if counts["far"]:
+        notes.append(f"position: {plural(counts['far'], 'splat')} more than {FAR_EXTENTS:g} scene extents from the "
+                     "rest put in chunks of their own, after the others (their positions coarse)"
+                     + (f"; the {plural(counts['shared'], 'least important splat')} of the rest share their first "
+                        "chunk and its coarse positions" if counts["shared"] else ""))
     if counts["scale_clamped"]:
         notes.append(f"scale: {plural(counts['scale_clamped'], 'log scale')} past +-{SCALE_LIMIT:g} clamped")
     if counts["sh_clamped"]:

@@ -32,6 +32,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from .. import packing
+from ..model import far_rows
 from ..errors import FormatError
 from ..wording import plural
 from ..viewer import VISIBLE_RADIUS
@@ -384,13 +385,7 @@ def escapes(records: np.ndarray) -> np.ndarray:
     direction on its own).
     """
     pos = records[:, :3].view(np.float32).astype(np.float64)
-    bad = ~np.isfinite(pos).all(axis=1)
-    finite = pos[~bad]
-    if len(finite):
-        lo, mid, hi = np.percentile(finite, (25, 50, 75), axis=0)
-        extent = max(float(np.max(hi - lo)), 1e-6)
-        with np.errstate(invalid="ignore"):
-            bad |= (np.abs(pos - mid) > OUTLIER_EXTENTS * extent).any(axis=1)
+    bad = ~np.isfinite(pos).all(axis=1) | far_rows(pos, OUTLIER_EXTENTS)
     h = records.view(np.uint16)
     for at in ROT_AT + MOTION_AT + OMEGA_AT + (TRBF_CENTER_AT,):
         bad |= (h[:, 2 * at[0] + at[1]] & 0x7FFF) >= packing.HALF_INF_BITS
