@@ -357,7 +357,8 @@ def _has_suffix(path, suffixes) -> bool:
 
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
           force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None,
-          quality: str | None = None, precision: int | None = None, prepared=None, progress=SILENT):
+          quality: str | None = None, precision: int | None = None, tune: tuple = (), prepared=None,
+          progress=SILENT):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -385,6 +386,9 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     precision : int, optional
         A precision step beside the quality that the output's format offers
         (``precisions``); None: the quality as named.
+    tune : tuple of str
+        Quantizers coarsened a notch each beyond the step, of those the output's
+        format offers (``tunings``; a name once a notch).
     prepared : optional
         What the format's ``prepare`` gave for this very scene (a proof writes it at several steps).
     progress : splatconv.progress.Progress
@@ -402,14 +406,17 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
     if precision is not None and precision not in fmt.precisions:
         raise UsageError(f"precision steps apply to {', '.join(s for s, f in REGISTRY.items() if f.precisions)} "
                          "output only", path)
+    if any(name not in fmt.tunings for name in tune):
+        raise UsageError(f"a .{fmt.name} writer tunes {', '.join(fmt.tunings) or 'no quantizer'}, "
+                         f"not {', '.join(n for n in tune if n not in fmt.tunings)}", path)
     if prepared is not None and fmt.prepare is None:
         raise UsageError(f"a .{fmt.name} writer prepares nothing", path)
     beside = _companions(fmt, path, inputs, force)
     with atomic_group(replace=force) as group, group.open(path) as stream, contextlib.ExitStack() as stack:
         streams = [stack.enter_context(group.open(other)) for other in beside]
         return _write_file(stream, fmt, scene, path, compat=compat, sort=sort, layout=layout, quality=quality,
-                           precision=precision, prepared=prepared, zstd_level=zstd_level, progress=progress,
-                           companions=streams)
+                           precision=precision, tune=tuple(tune), prepared=prepared, zstd_level=zstd_level,
+                           progress=progress, companions=streams)
 
 
 def _companions(fmt, path, inputs, force: bool) -> tuple:
@@ -435,14 +442,14 @@ def _size_hint(scene: Scene) -> int:
 
 def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, sort: str | None = None,
                 layout: str | None = None, quality: str | None = None, precision: int | None = None,
-                prepared=None, zstd_level: int | None = None, progress=SILENT, companions=()):
+                tune: tuple = (), prepared=None, zstd_level: int | None = None, progress=SILENT, companions=()):
     """Write ``scene`` in format ``fmt`` to the binary ``stream`` that becomes ``path`` (``.zst``: compressed
     as it is written), and to the ``companions`` streams of the files beside it: what :func:`write` and
     :func:`write_each` do for each file. Errors name ``path``."""
     level = DEFAULT_LEVEL if zstd_level is None else zstd_level
     # Only the options given: a writer that offers none takes none.
     extra = {key: value for key, value in (("layout", layout), ("quality", quality), ("precision", precision),
-                                           ("prepared", prepared),
+                                           ("tune", tuple(tune) or None), ("prepared", prepared),
                                            ("companions", tuple(companions) or None)) if value is not None}
     try:
         with output_stream(stream, path, level, progress, size_hint=_size_hint(scene)) as out:

@@ -273,3 +273,56 @@ def test_a_proof_prepares_once_what_each_candidate_shares(tmp_path, monkeypatch)
     step = next(p for p in codec.PRECISIONS if codec.precision_name("default", p) == setting)
     io.write(io.read(src), again, precision=step)
     assert again.read_bytes() == out.read_bytes()
+
+
+def test_a_notch_coarsens_one_quantizer_of_the_header():
+    base = codec.SETTINGS["default"]
+    for name in codec.TUNINGS:
+        moved = codec.coarser(base, name)
+        changed = {f for f in codec.SETTING_LIMITS if getattr(moved, f) != getattr(base, f)}
+        assert changed == {name}
+    assert codec.coarser(base, "rotation_bits").rotation_bits == base.rotation_bits - 1
+    assert codec.coarser(base, "scale_step").scale_step == 2 * base.scale_step
+    assert codec.coarser(base, "alpha_levels").alpha_levels == base.alpha_levels + 1
+    low = codec.tuned(base, ["rotation_bits"] * 20)  # held at its limit
+    assert low.rotation_bits == codec.SETTING_LIMITS["rotation_bits"][0] and codec.coarser(low, "rotation_bits") is None
+    with pytest.raises(ValueError):
+        codec.tuned(base, ["chunk_log2"])
+    assert codec.tuned_name("default+1", ()) == "default+1"
+    assert codec.tuned_name("default+1", ("time_shift",)) == "default+1, tuned"
+
+
+def test_a_setting_is_tuned_where_the_scene_has_precision_to_spare(tmp_path):
+    """The proof coarsens the quantizers the scene does not need, says which, and the file is smaller than
+    the same step untuned; the floor still holds, as verify finds."""
+    scene = _shaped("large")
+    src, out, plain = tmp_path / "s.ply", tmp_path / "o.splatvq", tmp_path / "plain.splatvq"
+    io.write(scene, src)
+    r = run("convert", src, out, "--min-psnr", 40)
+    assert r.exit_code == 0, r.output
+    line = next(n for n in r.stderr.splitlines() if n.startswith("note: proved: worst frame "))
+    assert ", tuned to the scene (" in line and " notch" in line
+    printed = float(line.split("worst frame ")[1].split(" dB")[0])
+    setting = io.read(out).meta["setting"]
+    assert setting.endswith(", tuned")
+    step = next(p for p in codec.PRECISIONS if codec.precision_name("default", p) == setting[:-len(", tuned")])
+    io.write(io.read(src), plain, precision=step)
+    assert out.stat().st_size < plain.stat().st_size
+    r = run("verify", src, out, "--proof", "--json", "--min-psnr", 40)
+    assert r.exit_code == 0, r.output
+    assert printed >= 40 and json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.0051)
+    # The header's numbers are the tuned ones: a decoder needs nothing else.
+    tuned = splatvq._header(open(out, "rb"), str(out), out.stat().st_size)[0]
+    assert tuned != codec.refined(codec.SETTINGS["default"], step)
+
+
+def test_a_tuning_is_tried_only_where_a_floor_is_proved(tmp_path):
+    """--max-bytes alone writes the finest step that fits, untuned; --best-effort short of its floor too."""
+    scene = _shaped("large")
+    src = tmp_path / "s.ply"
+    io.write(scene, src)
+    for args in (("--max-bytes", "1M"), ("--min-psnr", 90, "--best-effort")):
+        out = tmp_path / "o.splatvq"
+        r = run("convert", src, out, "--force", *args)
+        assert r.exit_code == 0, r.output
+        assert "tuned" not in io.read(out).meta["setting"] and "tuned to the scene" not in r.stderr

@@ -148,6 +148,10 @@ class Format:
         Steps of precision its writer offers beside each quality (``precision=``),
         coarsest first: 0 is the quality as named, each two steps up about halve every
         quantizer's step. ``convert`` (its proof, ``--min-psnr``, ``--max-bytes``) walks them.
+    tunings : tuple of str
+        Quantizers its writer can coarsen a notch each beyond a precision step
+        (``tune=``, a name once a notch), a file's header saying how: ``convert``'s proof
+        tunes a setting to a scene with them where the scene has precision to spare.
     floors : dict
         Quality setting -> the worst-frame PSNR (dB) ``convert`` proves a file of that
         setting reaches unless told another floor (``--min-psnr``) or none.
@@ -206,6 +210,7 @@ class Format:
     layouts: tuple = ()
     qualities: tuple = ()
     precisions: tuple[int, ...] = ()
+    tunings: tuple[str, ...] = ()
     floors: dict = field(default_factory=dict, hash=False, compare=False)
     kept_step: Callable | None = None
     declared_size: Callable | None = None

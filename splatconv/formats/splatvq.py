@@ -95,7 +95,7 @@ def prepare(scene: Scene) -> tuple:
 
 
 def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, precision: int = 0,
-           level: int = 9, progress=SILENT, prepared: tuple | None = None) -> tuple:
+           tune: tuple = (), level: int = 9, progress=SILENT, prepared: tuple | None = None) -> tuple:
     """A scene as ``.splatvq`` bytes, in memory.
 
     Parameters
@@ -108,6 +108,10 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     precision : int
         Half steps finer (or, below 0, coarser) than the setting (:func:`splatvq_codec.refined`,
         one of :data:`splatvq_codec.PRECISIONS`); the header names step 2 ``"default+1"``.
+    tune : tuple of str
+        Quantizers coarsened a notch each beyond the step (:func:`splatvq_codec.tuned`, names of
+        :data:`splatvq_codec.TUNINGS`, a name once a notch): ``convert``'s tuning to a scene.
+        The header names the setting ``"default+1, tuned"`` and stores its numbers.
     level : int
         Deflate level.
     progress : splatconv.progress.Progress
@@ -123,8 +127,11 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     base = _setting_name(quality)
     if precision not in codec.PRECISIONS:
         raise UsageError(f"precision {precision} is not one of {codec.PRECISIONS[0]}..{codec.PRECISIONS[-1]}")
-    setting = codec.refined(codec.SETTINGS[base], precision)
-    name = codec.precision_name(base, precision)
+    try:
+        setting = codec.tuned(codec.refined(codec.SETTINGS[base], precision), tune)
+    except ValueError as e:
+        raise UsageError(str(e)) from None
+    name = codec.tuned_name(codec.precision_name(base, precision), tune)
     kinds, exact = prepare(scene) if prepared is None else prepared
     drawable = kinds == -1
     if not drawable.any():
@@ -228,10 +235,11 @@ def kept_step(scene: Scene, quality: str | None) -> int | None:
 
 
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
-          quality: str | None = None, precision: int = 0, prepared: tuple | None = None, **_options) -> WriteReport:
+          quality: str | None = None, precision: int = 0, tune: tuple = (), prepared: tuple | None = None,
+          **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`): ``progress`` counts the
     splats written, not those read (undrawable splats are left out)."""
-    data, report = encode(scene, sort=sort, quality=quality, precision=precision, progress=progress,
+    data, report = encode(scene, sort=sort, quality=quality, precision=precision, tune=tune, progress=progress,
                           prepared=prepared)
     stream.write(data)
     return report
@@ -516,6 +524,7 @@ FORMAT = Format(
     # The quality write option, the default setting first (for the help text).
     qualities=tuple(sorted(QUALITIES, key=lambda name: name != codec.DEFAULT_SETTING)),
     precisions=codec.PRECISIONS,
+    tunings=codec.TUNINGS,
     floors=dict(codec.FLOORS),
     kept_step=kept_step,
 )

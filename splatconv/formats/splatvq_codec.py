@@ -171,6 +171,53 @@ def refined(setting: Setting, step: int) -> Setting:
         flat_octaves=held("flat_octaves", setting.flat_octaves - relaxed))
 
 
+#: Quantizers ``convert`` may coarsen one notch beyond its precision step where a scene has
+#: precision to spare in them (its tuning, :func:`coarser`), in the order it tries them: each
+#: notch is a header value one step coarser, so a decoder needs nothing new.
+TUNINGS = ("time_shift", "alpha_levels", "trbf_scale_step", "flat_octaves", "rotation_bits", "omega_shift",
+           "motion_shift", "scale_step", "jerk_shift", "acceleration_shift", "position_shift")
+#: How a notch moves each: added to the value, or (a lattice step, in half-bit units) multiplied.
+_NOTCH = {"time_shift": -1, "alpha_levels": 1, "trbf_scale_step": 2.0, "flat_octaves": -1, "rotation_bits": -1,
+          "omega_shift": -1, "scale_step": 2.0, "motion_shift": 1, "acceleration_shift": 1, "jerk_shift": 1,
+          "position_shift": 1}
+
+
+def coarser(setting: Setting, name: str) -> Setting | None:
+    """``setting`` one notch coarser in the quantizer ``name`` alone (one of :data:`TUNINGS`), or None
+    where it is at its limit (:data:`SETTING_LIMITS`).
+
+    A notch: a lattice step (position, motion, acceleration, jerk, temporal centre,
+    omega) twice as coarse, a rotation bit fewer, a scale or temporal scale lattice
+    step doubled, one more alpha coarsening level, one octave less of a flat
+    splat's finer position step.
+    """
+    value, notch = getattr(setting, name), _NOTCH[name]
+    moved = round(value * notch) if isinstance(notch, float) else value + notch
+    low, high = SETTING_LIMITS[name]
+    moved = min(high, max(low, moved))
+    return None if moved == value else replace(setting, **{name: moved})
+
+
+def tuned(setting: Setting, notches) -> Setting:
+    """``setting`` coarsened by each of ``notches`` (names of :data:`TUNINGS`, a name once a notch), in order.
+
+    Raises
+    ------
+    ValueError
+        A name that is not a quantizer of :data:`TUNINGS`.
+    """
+    for name in notches:
+        if name not in _NOTCH:
+            raise ValueError(f"{name!r} is not a quantizer of a .splatvq setting ({', '.join(TUNINGS)})")
+        setting = coarser(setting, name) or setting
+    return setting
+
+
+def tuned_name(name: str, notches) -> str:
+    """The header's name of a setting ``name`` tuned by ``notches``: ``"default+2, tuned"``."""
+    return f"{name}, tuned" if len(notches) else name
+
+
 #: Limits a header's setting is checked against.
 SETTING_LIMITS = {"position_shift": (-30, 30), "rotation_bits": (2, 16), "scale_step": (1, 255),
                   "trbf_scale_step": (1, 255), "time_shift": (0, 30), "omega_shift": (0, 30),
