@@ -207,7 +207,7 @@ def _lone_pairs(words: list) -> tuple:
     return ra[hit], rb[at[hit]]
 
 
-def _content_pairs(a_cols: dict, b_cols: dict, *, ignore_colour: bool = False) -> np.ndarray:
+def _content_pairs(a_cols: dict, b_cols: dict, *, ignore_colour: bool = False, alpha_only: bool = False) -> np.ndarray:
     """Rows of ``a_cols`` paired with rows of ``b_cols`` by what they hold, not by where they are.
 
     A splat pairs only with one of the same colour word (the RGBA8 word a writer keeps
@@ -220,6 +220,9 @@ def _content_pairs(a_cols: dict, b_cols: dict, *, ignore_colour: bool = False) -
     (a grid of the floats' top bits, which needs no bounds), gathered again among the
     splats left until no colour has splats left on both sides. No per-splat loop.
 
+    ``alpha_only``: the word's alpha byte alone (a writer that rounds the colour bytes
+    keeps alpha exact); ``ignore_colour``: no word at all.
+
     Returns
     -------
     (M,) int64 ndarray
@@ -227,7 +230,9 @@ def _content_pairs(a_cols: dict, b_cols: dict, *, ignore_colour: bool = False) -
         colour word is not among the ``a_cols`` rows left).
     """
     na, nb = len(a_cols["x"]), len(b_cols["x"])
-    words = [np.zeros(n, np.uint32) if ignore_colour else _colour_words(c) for n, c in ((na, a_cols), (nb, b_cols))]
+    mask = np.uint32(0xFF000000 if alpha_only else 0xFFFFFFFF)
+    words = [np.zeros(n, np.uint32) if ignore_colour else _colour_words(c) & mask
+             for n, c in ((na, a_cols), (nb, b_cols))]
     order = np.full(nb, -1, dtype=np.int64)
     lone_a, lone_b = _lone_pairs(words)
     order[lone_b] = lone_a
@@ -267,15 +272,17 @@ _CONTENT_READS = ("x", "y", "z", "trbf_center", "scale_0", "scale_1", "scale_2",
                   "f_dc_2")
 
 
-def content_order(source: Scene, converted: Scene, *, complete: bool) -> np.ndarray:
+def content_order(source: Scene, converted: Scene, *, complete: bool, colour_kept: bool = True) -> np.ndarray:
     """Row order of ``source`` matching ``converted`` by content (:func:`_content_pairs`): ``(M,) int64``.
 
     With ``complete``, the splats whose colour word has no partner left (a damaged
     file) are then paired among themselves by position alone, and any still left in
     row order, so that every row has a partner (``verify`` needs one, and reports
     their errors); without it, they are -1 (``stats`` counts them as unpaired).
+    ``colour_kept`` False (``converted`` rounds its colours: their storage is
+    ``quantized``): splats pair by their alpha byte alone, then by position.
     """
-    order = _content_pairs(source.columns, converted.columns)
+    order = _content_pairs(source.columns, converted.columns, alpha_only=not colour_kept)
     if complete and (order < 0).any():
         rows_b = np.flatnonzero(order < 0)
         rows_a = np.setdiff1d(np.arange(source.count), order[order >= 0])
@@ -293,7 +300,7 @@ def _matching_rows(a: np.ndarray, b: np.ndarray, order: np.ndarray) -> int:
 
 
 def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED", *,
-          storage: dict, complete: bool = True):
+          storage: dict, complete: bool = True, colour_kept: bool = True):
     """Row order of ``source`` matching ``converted`` row by row.
 
     Tries the orders a writer produces (input order; importance, double or
@@ -308,7 +315,7 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
     splats, so the damage is all that differs.
 
     ``storage`` (group -> :data:`STORAGE_KINDS` name) is the quantization the
-    tie-break allows for. ``complete``: as :func:`content_order`.
+    tie-break allows for. ``complete`` and ``colour_kept``: as :func:`content_order`.
 
     Returns
     -------
@@ -329,7 +336,7 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
         candidates = [np.arange(n), viewer.importance_order(key), viewer.importance_order(key.astype(np.float32))]
     scored = _distinct_scored(candidates, a, b)
     if scored[0][0] < n:
-        return content_order(source, converted, complete=complete)
+        return content_order(source, converted, complete=complete, colour_kept=colour_kept)
     best = [order for count, _, order in scored if count == scored[0][0]]
     if len(best) == 1:
         return best[0]
@@ -337,7 +344,7 @@ def align(source: Scene, converted: Scene, source_name: str = "SOURCE", converte
 
 
 def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted_name: str = "CONVERTED", *,
-         storage: dict, complete: bool = True) -> tuple:
+         storage: dict, complete: bool = True, colour_kept: bool = True) -> tuple:
     """Row order of ``source`` matching ``converted`` (:func:`align`), also when only its drawable splats were kept.
 
     A writer may leave out the splats the viewer never draws
@@ -346,7 +353,8 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
     ``converted`` is aligned against ``source``'s drawable splats and a note
     says so. A pruned file (``meta["pruned"]``, :func:`splatconv.ops.prune.leave_out`)
     that holds that many fewer of them is paired with them by content. Any
-    other difference in count is refused by :func:`align`.
+    other difference in count is refused by :func:`align`. ``colour_kept``: as
+    :func:`content_order` (False where ``converted``'s format stores colours quantized).
 
     Returns
     -------
@@ -372,7 +380,7 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
             # A pruned file (splatconv.ops.prune) holds some of the drawable splats: paired by content.
             held = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
                          meta=source.meta)
-            found = content_order(held, converted, complete=complete)
+            found = content_order(held, converted, complete=complete, colour_kept=colour_kept)
             order = np.where(found < 0, -1, keep[found])
             return order, [f"{converted_name} holds {m:,} of {source_name}'s "
                            f"{plural(len(keep) - extra, 'drawable splat')}{also} (its header says {pruned:,} "
@@ -381,13 +389,15 @@ def pair(source: Scene, converted: Scene, source_name: str = "SOURCE", converted
         if len(keep) == m:
             held = Scene(columns=source.take(keep), cameras=source.cameras, variant=source.variant,
                          meta=source.meta)
-            found = align(held, converted, source_name, converted_name, storage=storage, complete=complete)
+            found = align(held, converted, source_name, converted_name, storage=storage, complete=complete,
+                          colour_kept=colour_kept)
             order = np.where(found < 0, -1, keep[found])
             left = kinds_text(viewer.kind_counts(np.where(kept, viewer.DRAWABLE, kinds).astype(kinds.dtype)))
             return order, [f"{converted_name} holds the {plural(m - extra, 'drawable splat')} of {source_name}'s "
                            f"{n:,}{also} (the {n - m:,}{other} undrawable ones, {left}, left out: no frame "
                            "changes); compared against those"]
-    return align(source, converted, source_name, converted_name, storage=storage, complete=complete), []
+    return align(source, converted, source_name, converted_name, storage=storage, complete=complete,
+                 colour_kept=colour_kept), []
 
 
 def _distinct_scored(orders: list, a: np.ndarray, b: np.ndarray) -> list:

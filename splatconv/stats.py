@@ -562,7 +562,8 @@ def stats_findings(source_path: str, converted_path: str | None = None, *, zstd_
         conv_fmt = format_for(converted_path)
         # Ties between a writer's orders are broken as the viewer's texture would store the values.
         order, notes = pair(source, converted, source_path, converted_path,
-                            storage=texture_format().storage(converted), complete=False)
+                            storage=texture_format().storage(converted), complete=False,
+                            colour_kept=conv_fmt.storage(converted)["color"] != "quantized")
         files.append(_file_entry("converted", converted_path, conv_fmt.name, conv_bytes, converted.count, conv_zstd,
                                  level, src_bytes))
     elif src_fmt.stores_texture or source.count == 0:

@@ -569,3 +569,38 @@ def test_the_depth_sort_drops_and_repeats_what_a_splatv_does(tmp_path):
             assert dropped_and_first(decoded, view.view_proj()) == dropped_and_first(scene, view.view_proj()), name
         assert "kept 2 undrawable splats: the viewer's depth sort needs them" in report.notes
         assert np.count_nonzero(undrawable(decoded.columns)) == 2
+
+
+def test_the_small_setting_rounds_colours_and_says_so(tmp_path, monkeypatch):
+    """`small` rounds each coded splat's red, green and blue bytes to a multiple of 4 (255 at most), alpha
+    kept; the header says so, verify judges colour by the frames, and a second encoding keeps them."""
+    from splatconv import compare
+
+    scene = moving_scene(3000, seed=5)
+    out, again = tmp_path / "s.splatvq", tmp_path / "again.splatvq"
+    io.write(scene, out, quality="small")
+    decoded = io.read(out)
+    assert decoded.meta.get("color_shift") == 2
+    rgb = np.rint(np.clip(np.stack([decoded.columns[f"f_dc_{j}"] for j in range(3)], axis=1), 0, 1) * 255)
+    rounded = np.all((rgb % 4 == 0) | (rgb == 255), axis=1)
+    with open(out, "rb") as f:  # the splats kept verbatim keep theirs
+        raw = sum(b.raw for b in splatvq._header(f, str(out), out.stat().st_size)[2])
+    assert np.count_nonzero(~rounded) <= raw < decoded.count // 10
+    assert splatvq.storage(decoded)["color"] == "quantized" and "quantized" in compare.UNCHECKED
+    src = tmp_path / "s.ply"
+    io.write(scene, src)
+    r = CliRunner().invoke(main, ["verify", str(src), str(out), "--json", "--size", "160x120", "--times", "0.5"])
+    assert json.loads(r.stdout)["attributes"]["color"]["storage"] == "quantized"
+    # stats pairs the splats by content: by alpha and position here, the colour words being rounded.
+    r = CliRunner().invoke(main, ["stats", str(src), str(out), "--json", "--zstd-level", "1"])
+    assert json.loads(r.stdout)["pairing"] == {"paired": decoded.count, "unpaired": 0}
+    io.write(decoded, again, quality="small")
+    assert np.array_equal(splatvq.decode(again), splatvq.decode(out))  # the rounding is a projection
+    default = tmp_path / "d.splatvq"
+    io.write(scene, default)
+    assert "color_shift" not in io.read(default).meta and splatvq.storage(io.read(default))["color"] == "byte"
+    # The rounding is what makes it smaller than the same setting with colours kept.
+    kept = tmp_path / "kept.splatvq"
+    monkeypatch.setitem(codec.SETTINGS, "small", codec.replace(codec.SETTINGS["small"], color_shift=0))
+    io.write(scene, kept, quality="small")
+    assert out.stat().st_size < kept.stat().st_size

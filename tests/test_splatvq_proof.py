@@ -279,7 +279,7 @@ def test_a_notch_coarsens_one_quantizer_of_the_header():
     base = codec.SETTINGS["default"]
     for name in codec.TUNINGS:
         moved = codec.coarser(base, name)
-        changed = {f for f in codec.SETTING_LIMITS if getattr(moved, f) != getattr(base, f)}
+        changed = {f for f in codec.LIMITS if getattr(moved, f) != getattr(base, f)}
         assert changed == {name}
     assert codec.coarser(base, "rotation_bits").rotation_bits == base.rotation_bits - 1
     assert codec.coarser(base, "scale_step").scale_step == 2 * base.scale_step

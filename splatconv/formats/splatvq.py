@@ -193,6 +193,8 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     forced = sum(block[4] for block, _ in blocks)
     blocks = [block[:4] for block, _ in blocks]
     header = {"count": n, "setting": name, "cameras": cameras}
+    if setting.color_shift:
+        header["color_shift"] = setting.color_shift  # colours rounded: verify judges them as quantized
     if scene.meta.get("pruned"):
         header["pruned"] = int(scene.meta["pruned"])  # splats pruned from the scene (splatconv.ops.prune)
     text = json.dumps(header, separators=(",", ":"),
@@ -346,9 +348,10 @@ def _opened(f, path: str):
     setting, meta, blocks = _header(f, path, file_size)
     info = {"setting": meta.get("setting"), "blocks": len(blocks), "file_bytes": file_size,
             "records": sum(b.coded + b.raw for b in blocks)}
-    pruned = meta.get("pruned")
-    if isinstance(pruned, int) and not isinstance(pruned, bool) and pruned > 0:
-        info["pruned"] = pruned
+    for key in ("pruned", "color_shift"):
+        value = meta.get(key)
+        if isinstance(value, int) and not isinstance(value, bool) and value > 0:
+            info[key] = value
     return setting, meta, blocks, info
 
 
@@ -489,8 +492,9 @@ def check(path: str | os.PathLike) -> None:
 
 
 def storage(scene: Scene) -> dict:
-    """How a ``.splatvq`` stores each attribute group: :data:`STORAGE`."""
-    return STORAGE
+    """How a ``.splatvq`` stores each attribute group: :data:`STORAGE`, its colours quantized where the
+    header says the encoder rounded them (``"color_shift"``)."""
+    return {**STORAGE, "color": "quantized"} if scene.meta.get("color_shift") else STORAGE
 
 
 def info_fields(meta: dict) -> dict:

@@ -95,6 +95,12 @@ class Setting:
         to its alpha, so the same displacement of a faint splat changes a frame less.
     flat_octaves : int
         How far below the middle scale the least one may take the position step down.
+    color_shift : int
+        The encoder's alone, not among the header's numbers: each coded splat's red,
+        green and blue bytes are rounded to the nearest multiple of ``2**color_shift``
+        (255 at most), which deflate's Huffman codes then store in fewer bits. A decoder
+        reads the bytes as they are; the header JSON says ``"color_shift"`` where it is
+        not 0 (what ``verify`` judges the colours by).
     """
 
     position_shift: int
@@ -108,6 +114,7 @@ class Setting:
     jerk_shift: int
     alpha_levels: int
     flat_octaves: int
+    color_shift: int = 0
 
 
 #: Quality settings by name, best first. The bench (``bench/bench_splatvq.py``) measures them.
@@ -117,7 +124,7 @@ SETTINGS = {
                        flat_octaves=2),
     "small": Setting(position_shift=-4, rotation_bits=9, scale_step=96, trbf_scale_step=255, time_shift=9,
                      omega_shift=7, motion_shift=3, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
-                     flat_octaves=2),
+                     flat_octaves=2, color_shift=2),
 }
 DEFAULT_SETTING = "default"
 #: The worst-frame PSNR (dB) each setting promises: what ``convert`` proves a file of it reaches.
@@ -140,16 +147,16 @@ def refined(setting: Setting, step: int) -> Setting:
     each scale lattice step, and give the rotation a bit more (about 6 dB
     where the error is spread over them all). On real scenes the angular
     quantizers (rotation, omega, scale) buy the most dB for a byte, and the
-    geometric ones (position, motion, temporal centre and scale) lose the
-    fewest when coarsened, after two relations that cost least of all: the
+    geometric ones (position, motion, temporal centre and scale, and the
+    encoder's colour step) lose the fewest when coarsened, after two relations that cost least of all: the
     flat splats' position step (``flat_octaves``) and the acceleration's
     (``acceleration_shift``). So, finer, the angular group leads by a half
     step; coarser, the first half step relaxes those two relations, the next
     coarsens the geometric group, the next the angular group, and so on.
-    Values are held to :data:`SETTING_LIMITS`, so the far steps may change fewer of them.
+    Values are held to :data:`LIMITS`, so the far steps may change fewer of them.
     """
     def held(name, value):
-        low, high = SETTING_LIMITS[name]
+        low, high = LIMITS[name]
         return min(high, max(low, value))
 
     def lattice(step_units, by):  # a factor of 2 in size is 1024 half-bit units
@@ -168,32 +175,33 @@ def refined(setting: Setting, step: int) -> Setting:
         omega_shift=held("omega_shift", setting.omega_shift + angular),
         motion_shift=held("motion_shift", setting.motion_shift - geometric),
         acceleration_shift=held("acceleration_shift", setting.acceleration_shift + relaxed),
-        flat_octaves=held("flat_octaves", setting.flat_octaves - relaxed))
+        flat_octaves=held("flat_octaves", setting.flat_octaves - relaxed),
+        color_shift=held("color_shift", setting.color_shift - geometric))
 
 
 #: Quantizers ``convert`` may coarsen one notch beyond its precision step where a scene has
 #: precision to spare in them (its tuning, :func:`coarser`), in the order it tries them: each
 #: notch is a header value one step coarser, so a decoder needs nothing new.
-TUNINGS = ("time_shift", "alpha_levels", "trbf_scale_step", "flat_octaves", "rotation_bits", "omega_shift",
+TUNINGS = ("time_shift", "alpha_levels", "color_shift", "trbf_scale_step", "flat_octaves", "rotation_bits", "omega_shift",
            "motion_shift", "scale_step", "jerk_shift", "acceleration_shift", "position_shift")
 #: How a notch moves each: added to the value, or (a lattice step, in half-bit units) multiplied.
-_NOTCH = {"time_shift": -1, "alpha_levels": 1, "trbf_scale_step": 2.0, "flat_octaves": -1, "rotation_bits": -1,
+_NOTCH = {"time_shift": -1, "alpha_levels": 1, "color_shift": 1, "trbf_scale_step": 2.0, "flat_octaves": -1, "rotation_bits": -1,
           "omega_shift": -1, "scale_step": 2.0, "motion_shift": 1, "acceleration_shift": 1, "jerk_shift": 1,
           "position_shift": 1}
 
 
 def coarser(setting: Setting, name: str) -> Setting | None:
     """``setting`` one notch coarser in the quantizer ``name`` alone (one of :data:`TUNINGS`), or None
-    where it is at its limit (:data:`SETTING_LIMITS`).
+    where it is at its limit (:data:`LIMITS`).
 
     A notch: a lattice step (position, motion, acceleration, jerk, temporal centre,
-    omega) twice as coarse, a rotation bit fewer, a scale or temporal scale lattice
-    step doubled, one more alpha coarsening level, one octave less of a flat
+    omega, colour) twice as coarse, a rotation bit fewer, a scale or temporal scale
+    lattice step doubled, one more alpha coarsening level, one octave less of a flat
     splat's finer position step.
     """
     value, notch = getattr(setting, name), _NOTCH[name]
     moved = round(value * notch) if isinstance(notch, float) else value + notch
-    low, high = SETTING_LIMITS[name]
+    low, high = LIMITS[name]
     moved = min(high, max(low, moved))
     return None if moved == value else replace(setting, **{name: moved})
 
@@ -223,6 +231,8 @@ SETTING_LIMITS = {"position_shift": (-30, 30), "rotation_bits": (2, 16), "scale_
                   "trbf_scale_step": (1, 255), "time_shift": (0, 30), "omega_shift": (0, 30),
                   "motion_shift": (-30, 30), "acceleration_shift": (0, 8), "jerk_shift": (0, 8),
                   "alpha_levels": (0, 7), "flat_octaves": (0, 15)}
+#: Limits of every number of a :class:`Setting`: the header's, and the encoder's own colour step.
+LIMITS = {**SETTING_LIMITS, "color_shift": (0, 7)}
 
 #: The chunk tables of a block payload, in order: name, dtype, values per chunk.
 CHUNK_FIELDS = (
@@ -752,11 +762,21 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     fields = {
         "x_step": x_steps(pos_code[:, 0], k)[:, None], "yz": pos_code[:, 1:],
         "window_index": ((e + WINDOW_BIAS) * 4 + big).astype(np.uint8)[:, None], "rotation": rot_code,
-        "scale": s_code, "color": rec[:, COLOR_WORD:COLOR_WORD + 1].copy().view(np.uint8),
+        "scale": s_code, "color": _colour_bytes(rec[:, COLOR_WORD], setting.color_shift),
         "trbf_center": _zigzag(np.where(too_big, 0, centre_code), np.uint32)[:, None],
         "trbf_scale": t_code[:, None], "motion": motion_u, "omega": omega_u,
     }
     return tables, fields, kept, too_big
+
+
+def _colour_bytes(words: np.ndarray, shift: int) -> np.ndarray:
+    """The RGBA8 words' bytes, ``(n, 4) uint8``, R first, with R, G and B rounded to the nearest multiple of
+    ``2**shift`` (255 at most: a projection, so a second encoding keeps them); alpha as it is."""
+    out = words.astype("<u4").view(np.uint8).reshape(-1, 4).copy()
+    if shift:
+        rgb = out[:, :3].astype(np.int32)
+        out[:, :3] = np.minimum(((rgb + (1 << (shift - 1))) >> shift) << shift, 255)
+    return out
 
 
 def _class_orders(motion: np.ndarray) -> dict:

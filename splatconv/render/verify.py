@@ -224,10 +224,11 @@ def verify(source_path, converted_path, *, times=None, cameras: str | None = Non
     source, converted = _load_pair(paths, color, progress, VERIFY_MEMORY_BYTES)
     with progress.stage("checking attributes", 2, "step") as advance:
         # Ties between a writer's orders are broken as the viewer's texture would store the values.
-        order, paired = pair(source.scene, converted.scene, *paths,
-                             storage=texture_format().storage(converted.scene))
-        advance()
         storage = format_for(paths[1]).storage(converted.scene)
+        order, paired = pair(source.scene, converted.scene, *paths,
+                             storage=texture_format().storage(converted.scene),
+                             colour_kept=storage["color"] != "quantized")
+        advance()
         attributes = compare_scenes(source.scene, converted.scene, order, storage)
         advance()
     outcome = Outcome("verify", paths, min_psnr, attributes=attributes, count=len(order), notes=paired)
