@@ -122,7 +122,7 @@ SETTINGS = {
     "default": Setting(position_shift=-5, rotation_bits=10, scale_step=48, trbf_scale_step=192, time_shift=10,
                        omega_shift=8, motion_shift=2, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
                        flat_octaves=2),
-    "small": Setting(position_shift=-4, rotation_bits=9, scale_step=96, trbf_scale_step=255, time_shift=9,
+    "small": Setting(position_shift=-4, rotation_bits=8, scale_step=96, trbf_scale_step=255, time_shift=8,
                      omega_shift=7, motion_shift=3, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
                      flat_octaves=2, color_shift=2),
 }
