@@ -305,7 +305,7 @@ BAD = [
     ("window", lambda d: damage.with_codes(d, damage.bad_window), "block 0: a window exponent is past 30"),
     ("position step", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 0: a position code is past 2**32 - 1"),
-    ("rotation code", lambda d: damage.with_codes(d, _bad_rotation), "block 0: a rotation code is past 1023"),
+    ("rotation code", lambda d: damage.with_codes(d, _bad_rotation), f"block 0: a rotation code is past {(1 << codec.SETTINGS['default'].rotation_bits) - 1}"),
     ("scale code", lambda d: damage.with_codes(d, _bad_scale), "block 0: a scale code decodes past the half range"),
     ("width", lambda d: damage.with_width(d, "x_step[0]", 5), "block 0: a column width of 5 bytes (at most 4)"),
     ("payload ends early", lambda d: damage.with_width(d, "rotation[0]", codec.MAX_WIDTH),

@@ -119,7 +119,7 @@ class Setting:
 
 #: Quality settings by name, best first. The bench (``bench/bench_splatvq.py``) measures them.
 SETTINGS = {
-    "default": Setting(position_shift=-5, rotation_bits=10, scale_step=48, trbf_scale_step=192, time_shift=10,
+    "default": Setting(position_shift=-5, rotation_bits=9, scale_step=48, trbf_scale_step=192, time_shift=10,
                        omega_shift=8, motion_shift=2, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
                        flat_octaves=2),
     "small": Setting(position_shift=-4, rotation_bits=8, scale_step=96, trbf_scale_step=255, time_shift=8,
