@@ -294,6 +294,14 @@ def _constant_or_whole(column) -> np.ndarray:
     return column[:1] if column.ndim == 1 and len(column) and column.strides[0] == 0 else column
 
 
+def refuse_nonfinite_positions(bad: int, holds: str) -> None:
+    """Raise :class:`UnsupportedError` when ``bad`` splats have a NaN or infinite position, which a format
+    that ``holds`` its positions so (bounded, fixed point) cannot store; the error says how to drop them."""
+    if bad:
+        raise UnsupportedError(f"{plural(bad, 'splat')} with a NaN or infinite position: {holds} "
+                               "(drop them with `convert --drop-nonfinite`)")
+
+
 def refuse_time_varying(columns: dict, what: str) -> None:
     """Raise :class:`UnsupportedError` when a static format ``what`` cannot hold the scene's motion or fading.
 

@@ -36,7 +36,7 @@ from ..progress import SILENT
 from ..viewer import importance, logit, sigmoid, wide
 from ..wording import plural
 from . import ply_container as container
-from .base import Format, Scan, WriteReport, fixed_storage, refuse_time_varying
+from .base import Format, Scan, WriteReport, fixed_storage, refuse_nonfinite_positions, refuse_time_varying
 
 #: Splats a chunk.
 CHUNK_SPLATS = 256
@@ -370,10 +370,8 @@ def encode(scene: Scene) -> tuple:
     cols = scene.columns
     n = scene.count
     xyz = np.stack([wide(cols[name]) for name in model.POSITION], axis=1)
-    if not np.isfinite(xyz).all():
-        bad = int(np.count_nonzero(~np.isfinite(xyz).all(axis=1)))
-        raise UnsupportedError(f"{plural(bad, 'splat')} with a NaN or infinite position: a compressed PLY holds "
-                               "positions within chunk bounds (drop them with `convert --drop-nonfinite`)")
+    refuse_nonfinite_positions(int(np.count_nonzero(~np.isfinite(xyz).all(axis=1))),
+                               "a compressed PLY holds positions within chunk bounds")
     # Splats far from the rest go last: in a chunk of near ones, a far splat's bounds would leave its
     # neighbours a step as wide as the scene. The chunk where near and far meet takes the least important
     # near splats (the viewer's importance: scales and opacity).

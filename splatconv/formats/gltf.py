@@ -44,7 +44,7 @@ from ..progress import SILENT
 from ..viewer import importance, importance_order, logit, sigmoid, wide
 from ..wording import plural
 from . import spz
-from .base import Format, Scan, WriteReport, refuse_time_varying
+from .base import Format, Scan, WriteReport, refuse_nonfinite_positions, refuse_time_varying
 from .ply import SH_C0  # rgb = 0.5 + SH_C0 * f_dc: the model keeps RGB, glTF the coefficient
 
 MAGIC = 0x46546C67  # "glTF"
@@ -903,10 +903,7 @@ def write(scene: Scene, stream, *, sort: str | None = None, progress=SILENT, nam
     n = scene.count
     order = importance_order(importance(cols)) if sort == "importance" else None
     xyz = np.stack([np.asarray(cols[c]) for c in model.POSITION], axis=1)
-    finite = np.isfinite(xyz).all(axis=1)
-    if not finite.all():
-        raise UnsupportedError(f"{plural(int(np.count_nonzero(~finite)), 'splat')} with a NaN or infinite position: "
-                               "glTF bounds every position (drop them with `convert --drop-nonfinite`)")
+    refuse_nonfinite_positions(int(np.count_nonzero(~np.isfinite(xyz).all(axis=1))), "glTF bounds every position")
     compressed = layout == LAYOUT_SPZ
     segs = segments(scene.sh_degree, compressed)
     blob, spz_notes = None, []

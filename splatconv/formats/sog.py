@@ -41,7 +41,8 @@ from ..model import Scene
 from ..progress import SILENT
 from ..viewer import logit, sigmoid, wide
 from ..wording import plural
-from .base import Format, Scan, WriteReport, fixed_storage, meta_fields, refuse_time_varying
+from .base import (Format, Scan, WriteReport, fixed_storage, meta_fields, refuse_nonfinite_positions,
+                   refuse_time_varying)
 from .ply import SH_C0  # rgb = 0.5 + SH_C0 * f_dc: the model keeps RGB, sh0 the coefficient
 
 #: meta.json's version, the one written and read.
@@ -355,10 +356,8 @@ def encode(scene: Scene) -> tuple:
     cols = scene.columns
     n = scene.count
     xyz = np.stack([wide(cols[name]) for name in model.POSITION], axis=1)
-    if not np.isfinite(xyz).all():
-        bad = int(np.count_nonzero(~np.isfinite(xyz).all(axis=1)))
-        raise UnsupportedError(f"{plural(bad, 'splat')} with a NaN or infinite position: .sog holds positions "
-                               "between finite bounds (drop them with `convert --drop-nonfinite`)")
+    refuse_nonfinite_positions(int(np.count_nonzero(~np.isfinite(xyz).all(axis=1))),
+                               ".sog holds positions between finite bounds")
     order = morton_order(xyz)
     xyz = xyz[order]
     width, height = texture_size(n)

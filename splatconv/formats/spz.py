@@ -38,7 +38,8 @@ from ..model import Scene
 from ..progress import SILENT
 from ..viewer import importance, importance_order, logit, sigmoid, wide
 from ..wording import plural
-from .base import Format, Scan, WriteReport, fixed_storage, meta_fields, refuse_time_varying
+from .base import (Format, Scan, WriteReport, fixed_storage, meta_fields, refuse_nonfinite_positions,
+                   refuse_time_varying)
 from .ply import SH_C0  # rgb = 0.5 + SH_C0 * f_dc: the model keeps RGB, .spz the coefficient
 
 MAGIC = 0x5053474E  # "NGSP"
@@ -360,9 +361,7 @@ def _positions_checked(cols: dict, n: int) -> int:
         bad += int(np.count_nonzero(~finite))
         if not bad:
             extent = max(extent, float(np.abs(xyz).max()))
-    if bad:
-        raise UnsupportedError(f"{plural(bad, 'splat')} with a NaN or infinite position: .spz holds fixed point "
-                               "(drop them with `convert --drop-nonfinite`)")
+    refuse_nonfinite_positions(bad, ".spz holds fixed point")
     return _fractional_bits(extent)
 
 
