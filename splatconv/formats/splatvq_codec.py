@@ -148,8 +148,8 @@ def refined(setting: Setting, step: int) -> Setting:
     where the error is spread over them all). On real scenes the angular
     quantizers (rotation, omega, scale) buy the most dB for a byte, and the
     geometric ones (position, motion, temporal centre and scale, and the
-    encoder's colour step) lose the fewest when coarsened, after two relations that cost least of all: the
-    flat splats' position step (``flat_octaves``) and the acceleration's
+    encoder's colour step) lose the fewest when coarsened, after two relations
+    that cost least of all: the flat splats' position step (``flat_octaves``) and the acceleration's
     (``acceleration_shift``). So, finer, the angular group leads by a half
     step; coarser, the first half step relaxes those two relations, the next
     coarsens the geometric group, the next the angular group, and so on.
@@ -179,15 +179,15 @@ def refined(setting: Setting, step: int) -> Setting:
         color_shift=held("color_shift", setting.color_shift - geometric))
 
 
-#: Quantizers ``convert`` may coarsen one notch beyond its precision step where a scene has
-#: precision to spare in them (its tuning, :func:`coarser`), in the order it tries them: each
-#: notch is a header value one step coarser, so a decoder needs nothing new.
-TUNINGS = ("time_shift", "alpha_levels", "color_shift", "trbf_scale_step", "flat_octaves", "rotation_bits", "omega_shift",
-           "motion_shift", "scale_step", "jerk_shift", "acceleration_shift", "position_shift")
-#: How a notch moves each: added to the value, or (a lattice step, in half-bit units) multiplied.
-_NOTCH = {"time_shift": -1, "alpha_levels": 1, "color_shift": 1, "trbf_scale_step": 2.0, "flat_octaves": -1, "rotation_bits": -1,
-          "omega_shift": -1, "scale_step": 2.0, "motion_shift": 1, "acceleration_shift": 1, "jerk_shift": 1,
-          "position_shift": 1}
+#: How a notch moves each quantizer ``convert`` may coarsen beyond its precision step where a
+#: scene has precision to spare (its tuning, :func:`coarser`): added to the value, or (a lattice
+#: step, in half-bit units) multiplied. In the order it tries them, the cheapest on real scenes
+#: first. Each is a header value (or the encoder's colour step): a decoder needs nothing new.
+_NOTCH = {"time_shift": -1, "alpha_levels": 1, "color_shift": 1, "trbf_scale_step": 2.0, "flat_octaves": -1,
+          "rotation_bits": -1, "omega_shift": -1, "motion_shift": 1, "scale_step": 2.0, "jerk_shift": 1,
+          "acceleration_shift": 1, "position_shift": 1}
+#: The quantizers a tuning tries, in order.
+TUNINGS = tuple(_NOTCH)
 
 
 def coarser(setting: Setting, name: str) -> Setting | None:

@@ -331,7 +331,8 @@ def _tuned(c: _Candidates, tunings: tuple, step: int, floor: float) -> tuple:
 
 
 def tuning_text(tune) -> str:
-    """``"rotation_bits 1 notch coarser, time_shift 2"``: how many notches each quantizer was coarsened."""
+    """``"time_shift 2 notches coarser, rotation_bits 1 notch coarser"``: how many notches each quantizer of
+    ``tune`` was coarsened, in the order first tried."""
     counts = {}
     for name in tune:
         counts[name] = counts.get(name, 0) + 1
