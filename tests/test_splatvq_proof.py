@@ -352,3 +352,28 @@ def test_a_large_scene_skips_the_half_step_its_neighbours_put_short():
     c = Measured({0: 42.5, 1: 45.5, 2: 48.0, 3: 49.0})
     assert job._searched(c, list(codec.PRECISIONS), 45.0, large=True) == 1
     assert {key[0] for key in c.proofs} == {0, 1, 2}
+
+
+def test_a_proof_with_a_floor_stops_at_the_first_frame_below_it():
+    """A candidate that breaks a floor is known to from one frame, drawn in the order asked (the worst frames
+    of a like candidate first); one that holds is drawn in full, as a proof without a floor draws it."""
+    scene = _shaped("large")
+    c = {k: np.array(v) for k, v in scene.columns.items()}
+    c["x"][1::2] += 0.05  # every other splat moved: every frame worse, some more than others
+    moved = Scene(c, cameras=scene.cameras)
+    views, times = proof.proof_plan(scene)
+    with proof.Prover(scene, views, times) as prover:
+        full = prover.prove(moved)
+        values = np.asarray(full.values)
+        assert full.complete and full.frames == len(values) == len(views) * len(times)
+        assert full.worst == values.min()
+        floor = float(np.median(values))  # about half the frames fall below it
+        first = np.argsort(-values, kind="stable")  # best first: the failure shows only later
+        stopped = prover.prove(moved, floor=floor, first=first)
+        at = next(n for n, i in enumerate(first) if values[i] < floor)
+        assert not stopped.complete and stopped.frames == at + 1 and stopped.worst < floor
+        assert stopped.worst == values[first[at]]
+        drawn = np.asarray(stopped.values)
+        assert np.array_equal(np.isnan(drawn), ~np.isin(np.arange(len(values)), first[:at + 1]))
+        held = prover.prove(moved, floor=full.worst, first=first)
+        assert held.complete and held.values == full.values and held.worst == full.worst

@@ -18,6 +18,8 @@ import shutil
 import tempfile
 import time
 
+import numpy as np
+
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_writer
 from ..io import check_write_options, write
@@ -41,7 +43,7 @@ PRUNE_RESOLUTION = 128
 #: Tuning (:func:`_tuned`): candidates it proves at most, and the scenes it is tried on (splats
 #: read), where a proof is quick.
 TUNE_PROOFS = 8
-TUNE_MAX_SPLATS = 50_000
+TUNE_MAX_SPLATS = 100_000
 
 
 def _precisions(output) -> tuple:
@@ -104,9 +106,13 @@ class _Candidates:
     least contributing first).
     """
 
-    def __init__(self, scene: Scene, path: str, prover: Prover, options: dict, advance, prepared=None):
+    def __init__(self, scene: Scene, path: str, prover: Prover, options: dict, advance, prepare=None,
+                 prepared=None):
         self.scene, self.path, self.prover, self.options, self.advance = scene, path, prover, options, advance
-        self.prepared = prepared  # the format's prepare() of the scene: what every unpruned candidate shares
+        # The format's prepare() (``prepared``: of the scene) and what it gave for the scene and for the
+        # scene pruned last: what the candidates of each share.
+        self.prepare = prepare
+        self.prepared = {0: (scene, None, prepared)}
         self.ranked = None
         self.sizes, self.proofs = {}, {}
         self.on_disk = None, None, None  # the candidate the file holds, its write report, its pruning report
@@ -116,10 +122,11 @@ class _Candidates:
         reports."""
         if self.on_disk[0] != key:
             step, tune, left_out = key
-            scene, pruned, prepared = self.scene, None, self.prepared
-            if left_out:
+            if left_out not in self.prepared:
                 scene, pruned = leave_out(self.scene, self.ranked[:left_out], of=len(self.ranked))
-                prepared = None
+                self.prepared = {0: self.prepared[0], left_out: (scene, pruned, self.prepare(scene)
+                                                                 if self.prepare is not None else None)}
+            scene, pruned, prepared = self.prepared[left_out]
             self.on_disk = key, write(scene, self.path, precision=step, tune=tune, force=True, prepared=prepared,
                                       **self.options), pruned
             self.sizes[key] = os.path.getsize(self.path)
@@ -131,11 +138,23 @@ class _Candidates:
         return self.sizes[key]
 
     def proof(self, key):
-        if key not in self.proofs:
+        """Candidate ``key``'s proof, every frame drawn."""
+        if key not in self.proofs or not self.proofs[key].complete:
             self.put(key)
             self.proofs[key] = self.prover.prove(self.path)
             self.advance()
         return self.proofs[key]
+
+    def holds(self, key, floor: float, like) -> bool:
+        """Whether candidate ``key`` reaches ``floor``: drawn until a frame falls below it, the worst frames
+        of candidate ``like`` (proved) first, where a coarser candidate fails soonest. A candidate that holds
+        is proved in full; one that fails is known to from the frame that broke the floor."""
+        if key not in self.proofs:
+            self.put(key)
+            first = np.argsort(np.asarray(self.proof(like).values), kind="stable")
+            self.proofs[key] = self.prover.prove(self.path, floor=floor, first=first)
+            self.advance()
+        return self.proofs[key].worst >= floor
 
 
 def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float | None = None,
@@ -194,7 +213,8 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                            "candidate") as advance, \
             Prover(scene, views, times) as prover:
         c = _Candidates(scene, os.path.join(folder, os.path.basename(output)), prover,
-                        {"quality": quality, "sort": sort, "zstd_level": zstd_level}, advance, prepared)
+                        {"quality": quality, "sort": sort, "zstd_level": zstd_level}, advance, fmt.prepare,
+                        prepared)
         if max_bytes is not None:
             coarsest = c.size((steps[0], (), 0))
             fits = [p for p in steps if c.size((p, (), 0)) <= max_bytes] if coarsest <= max_bytes else []
@@ -214,9 +234,10 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                 raise OutputError(f"reaches at best {b.worst:.2f} dB in its worst frame ({b.where}, at "
                                   f"{precision_text(name, chosen)}), below the {whose} (--best-effort writes it "
                                   "all the same)", output)
-        elif tunes:
-            tune = _tuned(c, fmt.tunings, chosen, floor)
-        left_out = _pruned(c, chosen, tune, floor, views, times) if prune and short is None else 0
+        # Pruning first: leaving out a splat saves more bytes for the dB it costs than any notch.
+        left_out = _pruned(c, chosen, floor, views, times) if prune and short is None else 0
+        if tunes and short is None:
+            tune = _tuned(c, fmt.tunings, chosen, left_out, floor)
         proof = c.proof((chosen, tune, left_out))
         report, pruned = c.put((chosen, tune, left_out))
         # The output is the very file measured, copied into place.
@@ -299,8 +320,9 @@ def precision_text(name: str, step: int) -> str:
            f"{'finer' if step > 0 else 'coarser'}"
 
 
-def _tuned(c: _Candidates, tunings: tuple, step: int, floor: float) -> tuple:
-    """The quantizers ``step`` can take a notch coarser each and still reach ``floor``: a tuning to the scene.
+def _tuned(c: _Candidates, tunings: tuple, step: int, left_out: int, floor: float) -> tuple:
+    """The quantizers ``step`` (with ``left_out`` splats pruned) can take a notch coarser each and still reach
+    ``floor``: a tuning to the scene.
 
     The setting's numbers were chosen over many scenes; a scene often has
     precision to spare in some quantizers (few moving splats, temporal centres on
@@ -308,22 +330,24 @@ def _tuned(c: _Candidates, tunings: tuple, step: int, floor: float) -> tuple:
     that cost least for the bytes they save on real scenes first), each quantizer
     is taken a notch coarser where that makes the file smaller and the candidate
     still reaches the floor; one that breaks it is not tried again. Pass after
-    pass, at most :data:`TUNE_PROOFS` proofs. Every candidate is proved in full:
-    a proof from fewer frames misleads, since a notch can move the viewer's depth
-    sort and spoil a frame that was among the best (on a real scene, one position
-    notch took a view from 51 dB to 44.5 while its worst frame held).
+    pass, at most :data:`TUNE_PROOFS` proofs. A notch is kept only on a proof of
+    every frame: a proof from fewer frames misleads, since a notch can move the
+    viewer's depth sort and spoil a frame that was among the best (on a real scene,
+    one position notch took a view from 51 dB to 44.5 while its worst frame held).
+    A notch that breaks the floor is known to from the first frame below it
+    (:meth:`_Candidates.holds`), so a failed notch costs a frame or two.
     """
     tune, left, proofs = (), list(tunings), 0
     while left and proofs < TUNE_PROOFS:
         for name in list(left):
             if proofs >= TUNE_PROOFS:
                 break
-            key = (step, tune + (name,), 0)
-            if c.size(key) >= c.size((step, tune, 0)):  # at its limit, or nothing to gain
+            key = (step, tune + (name,), left_out)
+            if c.size(key) >= c.size((step, tune, left_out)):  # at its limit, or nothing to gain
                 left.remove(name)
                 continue
             proofs += 1
-            if c.proof(key).worst >= floor:
+            if c.holds(key, floor, like=(step, tune, left_out)):
                 tune = key[1]
             else:
                 left.remove(name)
@@ -339,9 +363,8 @@ def tuning_text(tune) -> str:
     return ", ".join(f"{name} {n} {'notch' if n == 1 else 'notches'} coarser" for name, n in counts.items())
 
 
-def _pruned(c: _Candidates, step: int, tune: tuple, floor: float, views: list, times) -> int:
-    """How many of the least contributing drawable splats ``step`` (tuned by ``tune``) can leave out and still
-    reach ``floor``.
+def _pruned(c: _Candidates, step: int, floor: float, views: list, times) -> int:
+    """How many of the least contributing drawable splats ``step`` can leave out and still reach ``floor``.
 
     A bisection over the share left out, :data:`PRUNE_PROOFS` proofs at most:
     none left out holds (proved), all cannot (a file holds a splat).
@@ -352,7 +375,7 @@ def _pruned(c: _Candidates, step: int, tune: tuple, floor: float, views: list, t
         if breaks - holds <= max(1, len(c.ranked) // PRUNE_RESOLUTION):
             break
         mid = (holds + breaks) // 2
-        if c.proof((step, tune, mid)).worst >= floor:
+        if c.holds((step, (), mid), floor, like=(step, (), holds)):
             holds = mid
         else:
             breaks = mid

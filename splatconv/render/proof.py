@@ -76,6 +76,12 @@ class Proof:
         Frames compared.
     times : tuple of float
         The times drawn, at each view.
+    values : tuple of float
+        Each frame's PSNR, in the prover's frame order (NaN for a frame not drawn).
+    complete : bool
+        False where the proof stopped at a frame below its floor (:meth:`Prover.prove`):
+        ``worst`` is then that frame's, below the floor but not always the least, and ``mean``
+        is of the frames drawn.
     """
 
     worst: float
@@ -83,6 +89,8 @@ class Proof:
     where: str
     frames: int
     times: tuple
+    values: tuple = ()
+    complete: bool = True
 
 
 def proof_views(scene: Scene) -> list:
@@ -170,29 +178,37 @@ class Prover:
             self.close()
             raise
 
-    def prove(self, candidate, *, progress: Progress = SILENT) -> Proof:
+    def prove(self, candidate, *, floor: float | None = None, first=None, progress: Progress = SILENT) -> Proof:
         """Draw ``candidate`` from each view at each time, as the viewer draws it, against the source.
 
         ``candidate``: a Scene, or the path of a file, read back as any reader would
-        (:func:`load_candidate`).
+        (:func:`load_candidate`). With ``floor``, the proof stops at the first frame
+        below it (a candidate that breaks a floor is known to from one frame), drawing
+        the frames in the order ``first`` gives (indices into :attr:`Proof.values`; the
+        worst frames of a like candidate first, where a failure shows soonest).
         """
         if isinstance(candidate, Scene):
             self.renderer.load(Source("<candidate>", candidate).texture())
         else:
             load_candidate(self.renderer, candidate)
-        psnrs, where = [], []
+        plan = [(name, view, t) for name, view in self.views for t in self.times]
+        order = list(range(len(plan))) if first is None else list(first)
+        values = np.full(len(plan), np.nan)
         with progress.stage("drawing", len(self.frames), "frame") as advance:
-            frames = iter(self.frames)
-            for name, view in self.views:
-                for t in self.times:
-                    psnrs.append(imgdiff.compare(next(frames), self.renderer.draw(view, float(t))).psnr)
-                    where.append(f"{name} at t={t:g}")
-                    advance()
-        values = np.asarray(psnrs, np.float64)
-        worst = int(np.argmin(values))
-        finite = values[np.isfinite(values)]  # identical frames (inf) are left out of the mean
+            for i in order:
+                name, view, t = plan[i]
+                values[i] = imgdiff.compare(self.frames[i], self.renderer.draw(view, float(t))).psnr
+                advance()
+                if floor is not None and values[i] < floor:
+                    break
+        drawn = np.flatnonzero(~np.isnan(values))
+        complete = len(drawn) == len(plan)
+        worst = int(drawn[np.argmin(values[drawn])])
+        finite = values[drawn][np.isfinite(values[drawn])]  # identical frames (inf) are left out of the mean
         mean = float(finite.mean()) if len(finite) else float("inf")
-        return Proof(float(values[worst]), mean, where[worst], len(values), self.times)
+        name, _view, t = plan[worst]
+        return Proof(float(values[worst]), mean, f"{name} at t={t:g}", len(drawn), self.times,
+                     tuple(float(v) for v in values), complete)
 
     def close(self) -> None:
         if self.renderer is not None:
