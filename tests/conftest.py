@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import signal
 
 import numpy as np
 import plyfile
@@ -12,6 +13,11 @@ from splatconv import model
 from splatconv.formats import ply
 
 from .scenes import gs_columns, random_columns
+
+# Tests send SIGINT to the commands they start. A suite started with SIGINT ignored (a background
+# job of a non-interactive shell) would pass that on to every child, which then never sees it.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 
 GS_PROPS = ("x", "y", "z", "nx", "ny", "nz", "f_dc_0", "f_dc_1", "f_dc_2") + tuple(
     f"f_rest_{i}" for i in range(45)) + ("opacity", "scale_0", "scale_1", "scale_2",
