@@ -377,3 +377,16 @@ def test_a_proof_with_a_floor_stops_at_the_first_frame_below_it():
         assert np.array_equal(np.isnan(drawn), ~np.isin(np.arange(len(values)), first[:at + 1]))
         held = prover.prove(moved, floor=full.worst, first=first)
         assert held.complete and held.values == full.values and held.worst == full.worst
+
+
+def test_the_tuning_limit_counts_the_splats_a_proof_draws():
+    """Real scenes hold many splats the viewer never draws (zero rotations): the tuning's limit counts the
+    drawable ones, which are what a proof's frames cost."""
+    from splatconv.jobs import prove
+    scene = _shaped("large")
+    drawable = int(np.count_nonzero(~viewer.undrawable(scene.columns)))
+    c = {k: np.concatenate([np.array(v), np.zeros(300, np.float32)]) for k, v in scene.columns.items()}
+    padded = Scene(c, cameras=scene.cameras)  # 300 more, each of zero rotation
+    assert int(np.count_nonzero(~viewer.undrawable(padded.columns))) == drawable > 100
+    assert prove._drawable_at_most(padded, drawable) and not prove._drawable_at_most(padded, drawable - 1)
+    assert prove._drawable_at_most(padded, padded.count)

@@ -28,6 +28,7 @@ from ..progress import SILENT
 from ..ops.prune import leave_out
 from ..publish import PAGE
 from ..render.proof import PROOF_TIMES, Prover, proof_plan, proof_views, ranked
+from ..viewer import undrawable
 from ..wording import plural
 from .convert import PROVE_MEMORY_BYTES, convert
 
@@ -40,8 +41,8 @@ DB_PER_HALF_STEP = 1.5
 #: Candidates ``--prune`` proves at most, and the share of the drawable splats it stops at (1/128).
 PRUNE_PROOFS = 7
 PRUNE_RESOLUTION = 128
-#: Tuning (:func:`_tuned`): candidates it proves at most, and the scenes it is tried on (splats
-#: read), where a proof is quick.
+#: Tuning (:func:`_tuned`): candidates it proves at most, and the scenes it is tried on (drawable
+#: splats: what a proof draws), where a proof is quick.
 TUNE_PROOFS = 8
 TUNE_MAX_SPLATS = 100_000
 
@@ -204,7 +205,7 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     started = time.perf_counter()
     # What every candidate's write shares, computed once (and before the renderer holds its memory).
     prepared = fmt.prepare(scene) if fmt.prepare is not None else None
-    tunes = floor is not None and bool(fmt.tunings) and scene.count <= TUNE_MAX_SPLATS
+    tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS)
     every = proof_views(scene)
     views, times = proof_plan(scene, every)
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
@@ -262,6 +263,12 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     if short is not None:
         notes.append(f"{short:.2f} dB short of the {whose} (--best-effort)")
     return report, notes
+
+
+def _drawable_at_most(scene: Scene, limit: int) -> bool:
+    """Whether ``scene`` holds at most ``limit`` splats the viewer can draw (counted only past ``limit`` read:
+    real scenes hold many it never draws)."""
+    return scene.count <= limit or int(np.count_nonzero(~undrawable(scene.columns))) <= limit
 
 
 def _searched(c: _Candidates, steps: list, floor: float, large: bool = False) -> int | None:
