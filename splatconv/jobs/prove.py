@@ -41,9 +41,9 @@ DB_PER_HALF_STEP = 1.5
 #: Candidates ``--prune`` proves at most, and the share of the drawable splats it stops at (1/128).
 PRUNE_PROOFS = 7
 PRUNE_RESOLUTION = 128
-#: Tuning (:func:`_tuned`): candidates it proves at most, and the scenes it is tried on (drawable
-#: splats: what a proof draws), where a proof is quick.
-TUNE_PROOFS = 8
+#: Tuning (:func:`_tuned`): notches it keeps at most (each a full proof), and the scenes it is tried
+#: on (drawable splats: what a proof draws), where a proof is quick.
+TUNE_NOTCHES = 8
 TUNE_MAX_SPLATS = 100_000
 
 
@@ -210,7 +210,7 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     views, times = proof_plan(scene, every)
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
             progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0)
-                           + (TUNE_PROOFS if tunes else 0),
+                           + (TUNE_NOTCHES + len(fmt.tunings) if tunes else 0),
                            "candidate") as advance, \
             Prover(scene, views, times) as prover:
         c = _Candidates(scene, os.path.join(folder, os.path.basename(output)), prover,
@@ -337,25 +337,26 @@ def _tuned(c: _Candidates, tunings: tuple, step: int, left_out: int, floor: floa
     that cost least for the bytes they save on real scenes first), each quantizer
     is taken a notch coarser where that makes the file smaller and the candidate
     still reaches the floor; one that breaks it is not tried again. Pass after
-    pass, at most :data:`TUNE_PROOFS` proofs. A notch is kept only on a proof of
+    pass, at most :data:`TUNE_NOTCHES` notches kept. A notch is kept only on a proof of
     every frame: a proof from fewer frames misleads, since a notch can move the
     viewer's depth sort and spoil a frame that was among the best (on a real scene,
     one position notch took a view from 51 dB to 44.5 while its worst frame held).
     A notch that breaks the floor is known to from the first frame below it
-    (:meth:`_Candidates.holds`), so a failed notch costs a frame or two.
+    (:meth:`_Candidates.holds`), so a failed notch costs a frame or two and is not
+    counted: each quantizer fails once at most.
     """
-    tune, left, proofs = (), list(tunings), 0
-    while left and proofs < TUNE_PROOFS:
+    tune, left, kept = (), list(tunings), 0
+    while left and kept < TUNE_NOTCHES:
         for name in list(left):
-            if proofs >= TUNE_PROOFS:
+            if kept >= TUNE_NOTCHES:
                 break
             key = (step, tune + (name,), left_out)
             if c.size(key) >= c.size((step, tune, left_out)):  # at its limit, or nothing to gain
                 left.remove(name)
                 continue
-            proofs += 1
             if c.holds(key, floor, like=(step, tune, left_out)):
                 tune = key[1]
+                kept += 1
             else:
                 left.remove(name)
     return tune
