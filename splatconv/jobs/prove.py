@@ -110,10 +110,9 @@ class _Candidates:
     def __init__(self, scene: Scene, path: str, prover: Prover, options: dict, advance, prepare=None,
                  prepared=None):
         self.scene, self.path, self.prover, self.options, self.advance = scene, path, prover, options, advance
-        # The format's prepare() (``prepared``: of the scene) and what it gave for the scene and for the
-        # scene pruned last: what the candidates of each share.
-        self.prepare = prepare
-        self.prepared = {0: (scene, None, prepared)}
+        # The format's prepare() and what it gave for the scene: what every unpruned candidate shares.
+        self.prepare, self.prepared = prepare, prepared
+        self.pruned_last = None  # (left out, the pruned scene, its pruning report, its prepare()): its candidates'
         self.ranked = None
         self.sizes, self.proofs = {}, {}
         self.on_disk = None, None, None  # the candidate the file holds, its write report, its pruning report
@@ -123,11 +122,12 @@ class _Candidates:
         reports."""
         if self.on_disk[0] != key:
             step, tune, left_out = key
-            if left_out not in self.prepared:
-                scene, pruned = leave_out(self.scene, self.ranked[:left_out], of=len(self.ranked))
-                self.prepared = {0: self.prepared[0], left_out: (scene, pruned, self.prepare(scene)
-                                                                 if self.prepare is not None else None)}
-            scene, pruned, prepared = self.prepared[left_out]
+            scene, pruned, prepared = self.scene, None, self.prepared
+            if left_out:
+                if self.pruned_last is None or self.pruned_last[0] != left_out:
+                    scene, pruned = leave_out(self.scene, self.ranked[:left_out], of=len(self.ranked))
+                    self.pruned_last = left_out, scene, pruned, self.prepare(scene) if self.prepare else None
+                _, scene, pruned, prepared = self.pruned_last
             self.on_disk = key, write(scene, self.path, precision=step, tune=tune, force=True, prepared=prepared,
                                       **self.options), pruned
             self.sizes[key] = os.path.getsize(self.path)

@@ -192,17 +192,19 @@ class Prover:
         else:
             load_candidate(self.renderer, candidate)
         plan = [(name, view, t) for name, view in self.views for t in self.times]
-        order = list(range(len(plan))) if first is None else list(first)
+        order = range(len(plan)) if first is None else first
         values = np.full(len(plan), np.nan)
+        drawn = []
         with progress.stage("drawing", len(self.frames), "frame") as advance:
             for i in order:
                 name, view, t = plan[i]
                 values[i] = imgdiff.compare(self.frames[i], self.renderer.draw(view, float(t))).psnr
+                drawn.append(i)
                 advance()
                 if floor is not None and values[i] < floor:
                     break
-        drawn = np.flatnonzero(~np.isnan(values))
         complete = len(drawn) == len(plan)
+        drawn = np.sort(drawn)  # the worst of equals is the first in frame order, as without ``first``
         worst = int(drawn[np.argmin(values[drawn])])
         finite = values[drawn][np.isfinite(values[drawn])]  # identical frames (inf) are left out of the mean
         mean = float(finite.mean()) if len(finite) else float("inf")
