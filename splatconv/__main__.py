@@ -3,11 +3,13 @@
 Importing the command line (click, zstandard) and a command (numpy, ...) takes a
 moment; a Ctrl-C, SIGTERM or SIGHUP in it ends the run as it does later on, with
 no traceback, because the handlers are set before anything else is imported.
+A run a signal ended leaves without waiting for its threads
+(:func:`~splatconv.files.signals.exit_at_once`).
 """
 
 import sys
 
-from .files.signals import exit_on_signals
+from .files.signals import asked_to_end, exit_at_once, exit_on_signals, status_for_signal
 
 
 def run() -> None:
@@ -18,7 +20,17 @@ def run() -> None:
     except KeyboardInterrupt:
         sys.stderr.write("\nAborted!\n")  # what click says of a Ctrl-C once it runs
         sys.exit(1)
-    main(prog_name="splatconv")
+    try:
+        main(prog_name="splatconv")
+    except BaseException as e:
+        if not asked_to_end():
+            raise
+        # The clean-ups ran on the way here. A signal that landed in the threading
+        # module's own code can surface as its RuntimeError, and leave a thread
+        # that never ends: the signal's status, no traceback, no wait.
+        if not isinstance(e, SystemExit) and status_for_signal() == 1:
+            sys.stderr.write("\nAborted!\n")
+        exit_at_once(e.code if isinstance(e, SystemExit) else status_for_signal())
 
 
 if __name__ == "__main__":

@@ -27,9 +27,13 @@ def library_errors(fn):
     @functools.wraps(fn)
     def wrapper(*args, **kwargs):
         try:
-            with noting_undrawable(_UndrawableNote()):
-                result = fn(*args, **kwargs)
-            check_signals()  # a signal whose exception was swallowed on the way still ends the run
+            try:
+                with noting_undrawable(_UndrawableNote()):
+                    result = fn(*args, **kwargs)
+            finally:
+                # A signal whose exception was swallowed on the way, or turned into
+                # another error, still ends the run as that signal.
+                check_signals()
             return result
         except UsageError as e:
             raise Failure(str(e), 2) from None

@@ -11,13 +11,17 @@ in, and C code that calls Python and then clears the error it got back (numpy's
 swallows it, and the run went on to write its output and exit 0. So a signal is
 also remembered: :func:`check_signals` raises its exception again, and every
 output is put in place only after that check (``files.output``), and the
-command line checks once more before it exits.
+command line checks once more before it exits, whatever error the exception
+became. A run a signal ended then leaves at once (:func:`exit_at_once`): the
+threading module's own locks are not safe against it.
 """
 
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
+import sys
 
 #: Signals that end a run the way Ctrl-C does: with the clean-up of every
 #: ``finally`` (part files, decompressed temporaries). SIGKILL cannot be caught;
@@ -92,6 +96,32 @@ def check_signals() -> None:
     """
     if _received is not None:
         _raise_for(_received)
+
+
+def asked_to_end() -> bool:
+    """Whether a signal asked this run to end (and was not consumed on purpose)."""
+    return _received is not None
+
+
+def status_for_signal() -> int:
+    """The exit status of a run the signal :func:`asked_to_end`: 128 + N, or 1 for Ctrl-C (click's)."""
+    return 1 if _received == signal.SIGINT else 128 + _received
+
+
+def exit_at_once(code) -> None:
+    """End the process with ``code`` without waiting for its threads: for a run a signal ended.
+
+    Call it once the exception has unwound every ``finally`` (the clean-ups are
+    done). A signal can land inside the threading module's own ``with`` blocks
+    (``Thread.start`` waiting for the new thread to start, as a thread pool grows),
+    where Python cannot promise to release the lock it just took; the new thread
+    then waits for that lock forever, and so would the interpreter's exit, which
+    joins every thread. Standard output and error are flushed first.
+    """
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(code if isinstance(code, int) else 1)
 
 
 def consume_signals() -> None:
