@@ -181,6 +181,27 @@ def test_a_block_of_raw_records_decodes_in_importance_order():
     assert np.array_equal(out, raw[list(damage.ODD_KEYS_ORDER)])
 
 
+def test_a_small_block_joins_planes_into_fewer_deflate_blocks(tmp_path, real, monkeypatch):
+    """A few hundred splats: their planes share Huffman codes where that is smaller; the records are the same."""
+    scene = Scene(real[0].take(np.flatnonzero(~undrawable(real[0].columns))[:400]), cameras=real[0].cameras)
+    joined, _ = written(tmp_path, scene, "joined.splatvq", "default")
+    monkeypatch.setattr(codec, "deflate_groups", lambda parts, level=9: [[part] for part in parts])
+    alone, _ = written(tmp_path, scene, "alone.splatvq", "default")
+    assert joined.stat().st_size < alone.stat().st_size - 100
+    assert np.array_equal(splatvq.decode(joined), splatvq.decode(alone))
+
+
+def test_deflate_groups_keep_every_part_in_order_and_large_ones_alone():
+    rng = np.random.default_rng(0)
+    parts = [rng.integers(0, k, size, dtype=np.uint8).tobytes()
+             for size, k in [(30, 3), (20, 3), (3000, 200), (40, 4), (500, 9), (14, 2), (5000, 50), (60, 60)]]
+    groups = codec.deflate_groups(parts)
+    assert [part for group in groups for part in group] == parts
+    assert [parts[2]] in groups and [parts[6]] in groups
+    assert all(sum(map(len, group)) <= codec.GROUP_BYTES for group in groups if len(group) > 1)
+    assert len(groups) < len(parts)
+
+
 @pytest.fixture(scope="module")
 def overlapping():
     """Many equal importance keys (among them raw records'), in blocks of 256 splats: a .splatvq's path."""
