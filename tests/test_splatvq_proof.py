@@ -354,6 +354,28 @@ def test_a_large_scene_skips_the_half_step_its_neighbours_put_short():
     assert {key[0] for key in c.proofs} == {0, 1, 2}
 
 
+def test_a_search_whose_jump_reaches_a_step_proved_short_halves_the_gap():
+    """Worst frames measured on the suite's generated 900-splat scene at the default setting, floor 40: the
+    setting 19.36 dB, the finest step 58.78. Jumping back by the dB to spare lands on the setting, proved
+    short: the search halves the gap instead of stepping back one half step a proof."""
+    from types import SimpleNamespace
+
+    from splatconv.jobs import prove as job
+
+    class Measured:
+        def __init__(self, worst):
+            self.worst, self.proofs = worst, {}
+
+        def proof(self, key):
+            return self.proofs.setdefault(key, SimpleNamespace(worst=self.worst[key[0]]))
+
+    steps = list(codec.PRECISIONS)
+    worst = {0: 19.36, 1: 19.34, 2: 45.86, 3: 46.65, 6: 51.55, 9: 52.85, 10: 56.31, 11: 57.63, 12: 58.78}
+    c = Measured(worst)
+    assert job._searched(c, steps, 40.0) == 3
+    assert [key[0] for key in c.proofs] == [0, steps[-1], 6, 3, 1]
+
+
 def test_a_proof_with_a_floor_stops_at_the_first_frame_below_it():
     """A candidate that breaks a floor is known to from one frame, drawn in the order asked (the worst frames
     of a like candidate first); one that holds is drawn in full, as a proof without a floor draws it."""
