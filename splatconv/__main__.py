@@ -9,7 +9,7 @@ A run a signal ended leaves without waiting for its threads
 
 import sys
 
-from .files.signals import asked_to_end, exit_at_once, exit_on_signals, status_for_signal
+from .files.signals import asked_to_end, exit_at_once, exit_on_signals, hold_signals, status_for_signal
 
 
 def run() -> None:
@@ -25,12 +25,13 @@ def run() -> None:
     except BaseException as e:
         if not asked_to_end():
             raise
+        hold_signals()  # a second signal from here on is only remembered: the run is ending
         # The clean-ups ran on the way here. A signal that landed in the threading
         # module's own code can surface as its RuntimeError, and leave a thread
         # that never ends: the signal's status, no traceback, no wait.
         if not isinstance(e, SystemExit) and status_for_signal() == 1:
-            sys.stderr.write("\nAborted!\n")
-        exit_at_once(e.code if isinstance(e, SystemExit) else status_for_signal())
+            sys.stderr.write("\nAborted!\n")  # click says it of a Ctrl-C it caught itself
+        exit_at_once(status_for_signal())
 
 
 if __name__ == "__main__":

@@ -177,6 +177,10 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     as many as a bisection of :data:`PRUNE_PROOFS` candidates finds while the
     worst frame still reaches the floor.
 
+    A setting below the best (``small``) whose step climbed past 0 on a tuned
+    scene also finds the best setting's file (:func:`_other_family`), and writes
+    it where it is smaller.
+
     Returns
     -------
     (WriteReport, list of str)
@@ -311,7 +315,7 @@ def _searched(c: _Candidates, steps: list, floor: float, large: bool = False) ->
               default=steps[0] - 1)
     for _ in range(MAX_COARSER):
         spare = min(c.proof((chosen, (), 0)).worst - floor, 100.0)  # identical frames: inf
-        q = chosen - max(1, int(spare // DB_PER_HALF_STEP))
+        q = max(steps[0], chosen - max(1, int(spare // DB_PER_HALF_STEP)))
         if q <= low:
             q = (low + chosen) // 2  # the jump reaches a step known short: halve the gap instead
         if q <= low or q >= chosen:
