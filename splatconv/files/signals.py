@@ -76,10 +76,14 @@ def _exit_for_signal(signum, _frame):
 
 
 def _raise_for(signum):
-    # 128 + N is the status a shell gives a process killed by N; Ctrl-C is click's "Aborted!".
     if signum == signal.SIGINT:
-        raise KeyboardInterrupt
-    raise SystemExit(128 + signum)
+        raise KeyboardInterrupt  # click's "Aborted!", status 1
+    raise SystemExit(_status(signum))
+
+
+def _status(signum) -> int:
+    # 128 + N is the status a shell gives a process killed by N; Ctrl-C is click's 1.
+    return 1 if signum == signal.SIGINT else 128 + signum
 
 
 def check_signals() -> None:
@@ -105,10 +109,10 @@ def asked_to_end() -> bool:
 
 def status_for_signal() -> int:
     """The exit status of a run the signal :func:`asked_to_end`: 128 + N, or 1 for Ctrl-C (click's)."""
-    return 1 if _received == signal.SIGINT else 128 + _received
+    return _status(_received)
 
 
-def exit_at_once(code) -> None:
+def exit_at_once(code: int) -> None:
     """End the process with ``code`` without waiting for its threads: for a run a signal ended.
 
     Call it once the exception has unwound every ``finally`` (the clean-ups are
@@ -121,7 +125,7 @@ def exit_at_once(code) -> None:
     for stream in (sys.stdout, sys.stderr):
         with contextlib.suppress(Exception):
             stream.flush()
-    os._exit(code if isinstance(code, int) else 1)
+    os._exit(code)
 
 
 def consume_signals() -> None:

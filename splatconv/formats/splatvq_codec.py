@@ -647,7 +647,7 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9,
     # times faster than level 9's search for 1.3% more bytes (bench/README.md).
     # Each group of planes ends a deflate block (Z_BLOCK: no padding, no marker), so each
     # gets Huffman codes of its own (deflate_groups).
-    comp = zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
+    comp = _compressor(level)
     out = []
     for group in deflate_groups(parts, level):
         out.append(comp.compress(b"".join(group)))
@@ -688,8 +688,13 @@ def deflate_groups(parts: list, level: int = 9) -> list:
 
 def _deflated_size(data: bytes, level: int) -> int:
     """Bytes ``data`` takes as a deflate block of its own, coded as the writer codes it."""
-    comp = zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
+    comp = _compressor(level)
     return len(comp.compress(data)) + len(comp.flush(zlib.Z_BLOCK))
+
+
+def _compressor(level: int):
+    """The writer's raw deflate: run-length matching only (see :func:`encode_block`)."""
+    return zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
 
 
 def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
