@@ -115,6 +115,19 @@ def declaring(blocks: int, last: int = codec.BLOCK) -> bytes:
     return head + meta + table + b"".join(stored[n] for n in sizes)
 
 
+def repeated(data: bytes, times: int, corrupt: int | None = None) -> bytes:
+    """A one-block file's block ``times`` times over: a valid file of that many blocks, its count
+    ``times`` the block's splats. With ``corrupt``, that block's (0-based) first byte makes it a
+    stored deflate block of the reserved type, which no inflater accepts."""
+    table_at, (entry,), start = layout(data)
+    head = splatvq.PREAMBLE.unpack_from(data)
+    block = data[start:start + entry[3]]
+    blocks = [bytes([0x07]) + block[1:] if i == corrupt else block for i in range(times)]
+    whole = (splatvq.PREAMBLE.pack(*head[:-1], times) + data[splatvq.PREAMBLE.size:table_at]
+             + splatvq.BLOCK_ENTRY.pack(*entry) * times + b"".join(blocks))
+    return with_count(whole, times * (entry[0] + entry[1]))
+
+
 #: Raw records whose importance keys take every path of a decoder's order: (scale halves, alpha byte) each,
 #: and the order they decode in (ties, -0, negative and NaN keys, the largest key there is).
 ODD_KEYS = ((0x3C00, 0x3C00, 0x3C00, 10), (0x8000, 0x3C00, 0x3C00, 200), (0x7E00, 0x3C00, 0x3C00, 255),

@@ -103,6 +103,32 @@ def test_served_page_decodes_the_words_python_decodes(browser, request, fixture)
         page.close()
 
 
+def test_more_blocks_than_helpers_come_back_in_file_order(browser, small, tmp_path):
+    """Five blocks on the helpers, each given the next block when it is free: the page still holds
+    them in file order, word for word."""
+    path = tmp_path / "five.splatvq"
+    path.write_bytes(damage.repeated(small.read_bytes(), 5))
+    with serving([path]) as server:
+        page = open_page(browser, server.url + "#t=0.5&ui=0", W, H)
+        assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
+        assert_same_words(page, path)
+        page.close()
+
+
+def test_a_corrupt_block_among_many_is_named(browser, small, tmp_path):
+    data = damage.repeated(small.read_bytes(), 5, corrupt=3)
+    bad = tmp_path / "bad.splatvq"
+    bad.write_bytes(data)
+    with pytest.raises(FormatError):
+        splatvq.read_records(bad)
+    page_path = tmp_path / "bad.html"
+    page_path.write_bytes(build_page([SceneRef(name="bad.splatvq", data=data)]))
+    page = open_page(browser, page_path.as_uri(), W, H)
+    text = page.locator("#message").text_content()
+    page.close()
+    assert text.startswith("Cannot show bad.splatvq: block 4 of 5 is corrupt"), text
+
+
 @pytest.mark.parametrize("time", [0.2, 0.5, 0.9])
 def test_splatvq_frame_matches_render(browser, small, time):
     with serving([small]) as server:

@@ -53,7 +53,7 @@ const SPLAT_BYTES_MAX = sumFields((coding) => (coding === BYTE ? 1 : MAX_WIDTH +
 // planes after motion_0 are stored in the stable order of the splats by the class of
 // the motion codes decoded before them (CLASSED_BY in splatvq_codec.py).
 const CLASS_LIMITS = [8, 32, 128, 512];
-const CLASS_TOP = CLASS_LIMITS[CLASS_LIMITS.length - 1];
+const CLASS_TOP = CLASS_LIMITS[CLASS_LIMITS.length - 1], TOP_CLASS = CLASS_LIMITS.length;
 const CLASS_OF = new Uint8Array(CLASS_TOP);  // the class of each code below the last limit
 CLASS_LIMITS.forEach((limit) => { for (let u = limit; u < CLASS_TOP; u++) CLASS_OF[u]++; });
 // window_index = (e + WINDOW_BIAS) * 4 + the dropped quaternion component, e <= WINDOW_MAX.
@@ -192,8 +192,12 @@ function advance() {
 
 // ------------------------------------------------------------------ helpers: blocks decoded in parallel
 
-let source = null, helpers = null, nextHelper = 0, jobs = new Map(), jobId = 0;
-const MAX_HELPERS = 4;
+let source = null, helpers = null, jobs = new Map(), jobId = 0, waiting = [];
+// A helper is given a block when it has fewer than this many: the blocks go to whichever helper
+// is free, not in turn. A helper's first blocks run slower (its code is compiled as it runs, on
+// a machine whose cores are busy), and one that was dealt every other block kept the other
+// waiting at the end: on two cores, a tenth of the decode.
+const MAX_HELPERS = 4, IN_FLIGHT = 1;
 
 function startHelpers(blocks) {
   const cores = (self.navigator && self.navigator.hardwareConcurrency) || 1;
@@ -204,9 +208,12 @@ function startHelpers(blocks) {
     helpers = [];
     for (let i = 0; i < count; i++) {
       const helper = new Worker(url);
+      helper.busy = 0;
       helper.onmessage = (event) => {
         const msg = event.data, job = jobs.get(msg.id);
         jobs.delete(msg.id);
+        helper.busy--;
+        dispatch();
         if (msg.error !== undefined) job.reject(new Refusal(msg.error));
         else job.resolve({words: msg.words, order: msg.order, ms: msg.ms, inflateMs: msg.inflateMs});
       };
@@ -222,6 +229,16 @@ function startHelpers(blocks) {
   }
 }
 
+function dispatch() {
+  while (waiting.length && !failed) {
+    const helper = helpers.reduce((a, h) => (h.busy < a.busy ? h : a));
+    if (helper.busy >= IN_FLIGHT) return;
+    helper.busy++;
+    const job = waiting.shift();
+    helper.postMessage(job, [job.stored.buffer]);
+  }
+}
+
 function schedule(block, stored, i) {
   const which = `block ${i + 1} of ${file.blocks.length}`;
   let result;
@@ -229,9 +246,9 @@ function schedule(block, stored, i) {
     const id = ++jobId;
     const own = stored.byteOffset === 0 && stored.byteLength === stored.buffer.byteLength ? stored : stored.slice();
     result = new Promise((resolve, reject) => jobs.set(id, {resolve, reject}));
-    helpers[nextHelper++ % helpers.length].postMessage(
-      {type: "decode", id, stored: own, coded: block.coded, raw: block.raw, payload: block.payload,
-       setting: file.setting, which}, [own.buffer]);
+    waiting.push({type: "decode", id, stored: own, coded: block.coded, raw: block.raw, payload: block.payload,
+                  setting: file.setting, which});
+    dispatch();
     result.catch(() => {}); // reported in order below
   }
   posted = posted.then(async () => {
@@ -261,6 +278,7 @@ function fail(message) {
   failed = true;
   pieces = [];
   available = 0;
+  waiting = [];
   if (helpers) helpers.forEach((h) => h.terminate());
   self.postMessage({type: "error", message});
 }
@@ -511,6 +529,24 @@ function assignRanks(cls, n, next, rank) {
   for (let i = 0; i < n; i++) rank[i] = next[cls[i]]++;
 }
 
+// Working arrays of at least n elements, kept from block to block (a worker decodes one block
+// at a time), so that a block allocates only what it hands back: each splat's step exponent k,
+// window exponent e and alpha coarsening c; a column's values, a few columns at a time (plain:
+// the rotation's three together); the motion classes and ranks; the importance sort's keys.
+let scratch = null;
+function workspace(n) {
+  if (!scratch || scratch.size < n) {
+    scratch = {
+      size: n, k: new Int32Array(n), e: new Int32Array(n), c: new Int32Array(n),
+      plain: [new Uint32Array(n), new Uint32Array(n), new Uint32Array(n)], values: new Float64Array(n),
+      values1: new Float64Array(n), values2: new Float64Array(n), values3: new Float64Array(n),
+      cls: new Uint8Array(n), rank: new Int32Array(n), keys: new Float64Array(n), low: new Uint32Array(n),
+      high: new Uint32Array(n), count: new Uint32Array(DIGITS * RADIX),
+    };
+  }
+  return scratch;
+}
+
 // A block payload -> its records. Field by field over all splats (short loops over
 // contiguous byte planes run several times faster than one loop doing everything),
 // a function a field (each gets its own type feedback, so that the first blocks a
@@ -532,11 +568,7 @@ function decodePayload(p, n, raw, s, which) {
     trbfBase: new Uint16Array(p.buffer, p.byteOffset + 30 * chunks, chunks),
     floats: new Float32Array(out.buffer, 0, n * WORDS),
     halves: new Uint16Array(out.buffer, 0, n * WORDS * 2),
-    // Each splat's step exponent k, window exponent e and alpha coarsening c.
-    k: new Int32Array(n), e: new Int32Array(n), c: new Int32Array(n),
-    // A column's values, one column at a time (the rotation's three together).
-    plain: [new Uint32Array(n), new Uint32Array(n), new Uint32Array(n)], values: new Float64Array(n),
-    values1: new Float64Array(n), values2: new Float64Array(n),
+    ...workspace(n),
   };
   scalesAndSteps(b);
   positions(b);
@@ -556,12 +588,12 @@ function colourWords(words, p, r, g, b, a, n) {
 
 // ------------------------------------------------------------------ importance order
 
-// The value of each half (exact in a float32).
-const HALF_VALUE = new Float32Array(65536);
-for (let h = 0; h < 65536; h++) {
+// The value of a half (exact in a double). Worked out where it is needed: a table of all
+// 65,536 took some 10 ms to fill in each worker as it started, before its first block.
+function halfValue(h) {
   const e = (h >> 10) & 0x1f, m = h & 0x3ff;
   const v = e === 0x1f ? (m ? NaN : Infinity) : (e === 0 ? m : m + 1024) * POW2[POW2_BIAS + Math.max(e, 1) - 25];
-  HALF_VALUE[h] = h & 0x8000 ? -v : v;
+  return h & 0x8000 ? -v : v;
 }
 const DIGIT_BITS = 13, DIGITS = 4, RADIX = 1 << DIGIT_BITS, DIGIT = RADIX - 1;
 
@@ -577,8 +609,8 @@ const DIGIT_BITS = 13, DIGITS = 4, RADIX = 1 << DIGIT_BITS, DIGIT = RADIX - 1;
 // LSD radix sort of four 13-bit digits (a digit all records share is skipped), all four
 // counts made in one pass.
 function importanceOrder(words, n) {
-  const keys = new Float64Array(n), low = new Uint32Array(n), high = new Uint32Array(n);
-  const count = new Uint32Array(DIGITS * RADIX);
+  const {keys, low, high, count} = workspace(n);
+  count.fill(0);
   importanceKeys(new Uint16Array(words.buffer, words.byteOffset, n * WORDS * 2), words, keys, n);
   sortCodes(keys, new Uint32Array(keys.buffer), low, high, count, n);
   let order = null, spare = new Uint32Array(n);
@@ -599,7 +631,7 @@ function importanceOrder(words, n) {
 
 function importanceKeys(halves, words, keys, n) {
   for (let i = 0; i < n; i++) {
-    const key = HALF_VALUE[halves[32 * i + 10]] * HALF_VALUE[halves[32 * i + 11]] * HALF_VALUE[halves[32 * i + 12]] *
+    const key = halfValue(halves[32 * i + 10]) * halfValue(halves[32 * i + 11]) * halfValue(halves[32 * i + 12]) *
                 (words[WORDS * i + 7] >>> 24);
     keys[i] = key === 0 ? 0 : key;
   }
@@ -781,44 +813,70 @@ function rotationTables(M, rotValue, rotHalf) {
 // cls holds each splat's class so far (the class of a maximum is the largest of the classes),
 // rank where its value lies in the plane.
 function motionAndOmega(b) {
-  const {p, n, s, k, e, c, columns, values, halves} = b;
-  const cls = new Uint8Array(n), rank = new Int32Array(n);
+  const {p, n, s, k, e, c, columns, values, values1, values2, values3, halves, cls, rank} = b;
+  cls.fill(0, 0, n);
   identity(rank, n);
-  for (let j = 0; j < 9; j++) {
-    const d = 1 + ((j / 3) | 0), x = POW2_BIAS + s.motion_shift + [0, s.acceleration_shift, s.jerk_shift][d - 1];
-    if (j >= 1 && j <= 3) classRanks(cls, n, rank);
+  const x = [0, s.acceleration_shift, s.jerk_shift].map((shift) => POW2_BIAS + s.motion_shift + shift);
+  // motion_0..2 one at a time: each raises the classes the next plane is ordered by.
+  for (let j = 0; j < 3; j++) {
+    if (j >= 1) classRanks(cls, n, rank);
     // Every column's values as doubles (a saturating value may pass 2^32): one element type
-    // for every call of termAt, so that it stays optimized.
+    // for every call, so that each stays optimized.
     saturatingValues(p, n, columns.motion[j], values);
-    if (j < 3) termAndClass(halves, values, rank, 16 + j, x, k, e, d, cls, n);
-    else termAt(halves, values, rank, 16 + j, x, k, e, d, n);
+    termAndClass(halves, values, rank, 16 + j, x[0], k, e, cls, n);
   }
-  for (let j = 0; j < 4; j++) {
-    saturatingValues(p, n, columns.omega[j], values);
-    termAt(halves, values, rank, 26 + j, POW2_BIAS - s.omega_shift, c, e, 1, n);
+  classRanks(cls, n, rank);
+  // The rest share that order: the three axes of a degree together, then omega's four.
+  for (let d = 2; d <= 3; d++) {
+    const first = 3 * (d - 1);
+    saturatingValues(p, n, columns.motion[first], values);
+    saturatingValues(p, n, columns.motion[first + 1], values1);
+    saturatingValues(p, n, columns.motion[first + 2], values2);
+    threeTerms(halves, values, values1, values2, rank, 16 + first, x[d - 1], k, e, d, n);
   }
+  saturatingValues(p, n, columns.omega[0], values);
+  saturatingValues(p, n, columns.omega[1], values1);
+  saturatingValues(p, n, columns.omega[2], values2);
+  saturatingValues(p, n, columns.omega[3], values3);
+  omegaTerms(halves, values, values1, values2, values3, rank, POW2_BIAS - s.omega_shift, c, e, n);
 }
 
 function identity(rank, n) {
   for (let i = 0; i < n; i++) rank[i] = i;
 }
 
-// One motion or omega column into half slot `slot`: half(unzigzag(code) * 2^(x - POW2_BIAS +
-// k[i] - d e[i])) for splat i, its code at values[rank[i]].
-function termAt(halves, values, rank, slot, x, k, e, d, n) {
+// Three motion columns of degree d into half slots slot..slot + 2: half(unzigzag(code) *
+// 2^(x - POW2_BIAS + k[i] - d e[i])) for splat i, its codes at v0..v2[rank[i]].
+function threeTerms(halves, v0, v1, v2, rank, slot, x, k, e, d, n) {
   for (let i = 0; i < n; i++) {
-    const v = values[rank[i]];
-    if (v !== 0) halves[32 * i + slot] = half(unzigzag(v) * POW2[x + k[i] - d * e[i]]);
+    const r = rank[i], step = POW2[x + k[i] - d * e[i]], q = 32 * i + slot;
+    const a = v0[r], b = v1[r], c = v2[r];
+    if (a !== 0) halves[q] = half(unzigzag(a) * step);
+    if (b !== 0) halves[q + 1] = half(unzigzag(b) * step);
+    if (c !== 0) halves[q + 2] = half(unzigzag(c) * step);
   }
 }
 
-// termAt, and each splat's class raised to the class of its code in this column if larger.
-function termAndClass(halves, values, rank, slot, x, k, e, d, cls, n) {
+// Omega's four columns into half slots 26..29, on the lattice 2^(x - POW2_BIAS + c[i] - e[i]).
+function omegaTerms(halves, v0, v1, v2, v3, rank, x, c, e, n) {
+  for (let i = 0; i < n; i++) {
+    const r = rank[i], step = POW2[x + c[i] - e[i]], q = 32 * i + 26;
+    const a = v0[r], b = v1[r], f = v2[r], g = v3[r];
+    if (a !== 0) halves[q] = half(unzigzag(a) * step);
+    if (b !== 0) halves[q + 1] = half(unzigzag(b) * step);
+    if (f !== 0) halves[q + 2] = half(unzigzag(f) * step);
+    if (g !== 0) halves[q + 3] = half(unzigzag(g) * step);
+  }
+}
+
+// One velocity column into half slot `slot`: half(unzigzag(code) * 2^(x - POW2_BIAS + k[i] - e[i]))
+// for splat i, its code at values[rank[i]]; and each splat's class raised to its code's if larger.
+function termAndClass(halves, values, rank, slot, x, k, e, cls, n) {
   for (let i = 0; i < n; i++) {
     const v = values[rank[i]];
     if (v !== 0) {
-      halves[32 * i + slot] = half(unzigzag(v) * POW2[x + k[i] - d * e[i]]);
-      const vc = v >= CLASS_TOP ? CLASS_LIMITS.length : CLASS_OF[v];
+      halves[32 * i + slot] = half(unzigzag(v) * POW2[x + k[i] - e[i]]);
+      const vc = v >= CLASS_TOP ? TOP_CLASS : CLASS_OF[v];
       if (vc > cls[i]) cls[i] = vc;
     }
   }
