@@ -629,10 +629,21 @@ function importanceOrder(words, n) {
   return order;
 }
 
+// Where all three scales are normal halves (nearly always), the key is the product of their
+// 11-bit integer significands, the alpha and one power of two: exact, so the same number as the
+// product of the values.
 function importanceKeys(halves, words, keys, n) {
   for (let i = 0; i < n; i++) {
-    const key = halfValue(halves[32 * i + 10]) * halfValue(halves[32 * i + 11]) * halfValue(halves[32 * i + 12]) *
-                (words[WORDS * i + 7] >>> 24);
+    const h0 = halves[32 * i + 10], h1 = halves[32 * i + 11], h2 = halves[32 * i + 12];
+    const e0 = (h0 >> 10) & 0x1f, e1 = (h1 >> 10) & 0x1f, e2 = (h2 >> 10) & 0x1f, alpha = words[WORDS * i + 7] >>> 24;
+    let key;
+    if (((e0 - 1) >>> 0) < 30 && ((e1 - 1) >>> 0) < 30 && ((e2 - 1) >>> 0) < 30) {
+      key = ((h0 & 0x3ff) + 1024) * ((h1 & 0x3ff) + 1024) * ((h2 & 0x3ff) + 1024) * alpha *
+            POW2[POW2_BIAS + e0 + e1 + e2 - 75];
+      if ((h0 ^ h1 ^ h2) & 0x8000) key = -key;
+    } else {
+      key = halfValue(h0) * halfValue(h1) * halfValue(h2) * alpha;
+    }
     keys[i] = key === 0 ? 0 : key;
   }
 }
