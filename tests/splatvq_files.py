@@ -115,17 +115,19 @@ def declaring(blocks: int, last: int = codec.BLOCK) -> bytes:
     return head + meta + table + b"".join(stored[n] for n in sizes)
 
 
-def repeated(data: bytes, times: int, corrupt: int | None = None) -> bytes:
-    """A one-block file's block ``times`` times over: a valid file of that many blocks, its count
-    ``times`` the block's splats. With ``corrupt``, that block's (0-based) first byte makes it a
-    stored deflate block of the reserved type, which no inflater accepts."""
-    table_at, (entry,), start = layout(data)
+def rearranged(data: bytes, picks, corrupt: int | None = None) -> bytes:
+    """A valid file of ``data``'s blocks in the order of ``picks`` (indices of its blocks, each as
+    often as named), its count their splats. With ``corrupt``, the first byte of the block at that
+    place in ``picks`` makes it a stored deflate block of the reserved type, which no inflater accepts."""
+    table_at, entries, start = layout(data)
     head = splatvq.PREAMBLE.unpack_from(data)
-    block = data[start:start + entry[3]]
-    blocks = [bytes([0x07]) + block[1:] if i == corrupt else block for i in range(times)]
-    whole = (splatvq.PREAMBLE.pack(*head[:-1], times) + data[splatvq.PREAMBLE.size:table_at]
-             + splatvq.BLOCK_ENTRY.pack(*entry) * times + b"".join(blocks))
-    return with_count(whole, times * (entry[0] + entry[1]))
+    ends = np.cumsum([0] + [entry[3] for entry in entries]) + start
+    body = [data[ends[i]:ends[i + 1]] for i in picks]
+    if corrupt is not None:
+        body[corrupt] = bytes([0x07]) + body[corrupt][1:]
+    whole = (splatvq.PREAMBLE.pack(*head[:-1], len(picks)) + data[splatvq.PREAMBLE.size:table_at]
+             + b"".join(splatvq.BLOCK_ENTRY.pack(*entries[i]) for i in picks) + b"".join(body))
+    return with_count(whole, sum(entries[i][0] + entries[i][1] for i in picks))
 
 
 #: Raw records whose importance keys take every path of a decoder's order: (scale halves, alpha byte) each,

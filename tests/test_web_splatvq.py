@@ -103,11 +103,12 @@ def test_served_page_decodes_the_words_python_decodes(browser, request, fixture)
         page.close()
 
 
-def test_more_blocks_than_helpers_come_back_in_file_order(browser, small, tmp_path):
-    """Five blocks on the helpers, each given the next block when it is free: the page still holds
-    them in file order, word for word."""
+def test_more_blocks_than_helpers_come_back_in_file_order(browser, large, tmp_path):
+    """Five blocks, of two kinds in no regular turn, on the page's helper workers (two on a two-core
+    machine), each helper given the next block when it is free: the page holds them in file order,
+    word for word."""
     path = tmp_path / "five.splatvq"
-    path.write_bytes(damage.repeated(small.read_bytes(), 5))
+    path.write_bytes(damage.rearranged(large.read_bytes(), [0, 1, 1, 0, 1]))
     with serving([path]) as server:
         page = open_page(browser, server.url + "#t=0.5&ui=0", W, H)
         assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
@@ -258,7 +259,7 @@ BAD = [
     ("bytes after the last block", lambda d: d + b"\0" * 7, "bytes after its last block"),
     ("corrupt deflate data", _corrupt_deflate, "block 1 of 1 is corrupt"),
     # Five blocks: decoded in the helper workers, the fourth refused there.
-    ("a corrupt block among many", lambda d: damage.repeated(d, 5, corrupt=3), "block 4 of 5 is corrupt"),
+    ("a corrupt block among many", lambda d: damage.rearranged(d, [0] * 5, corrupt=3), "block 4 of 5 is corrupt"),
     ("a block shorter than declared", _wrong_size_block, "block 1 of 1 is damaged: it decodes to"),
     ("a block that inflates to far more than declared",
      lambda d: damage.with_payload(d, damage.payload(d) + bytes(8 << 20), declared=len(damage.payload(d))),
