@@ -664,23 +664,24 @@ def deflate_groups(parts: list, level: int = 9) -> list:
     splats and the width table do not (a real scene of 477 drawable splats: 127
     parts, about 540 bytes smaller cut so). Each part joins the run before it where
     the two deflate smaller together than apart (each deflated alone as the
-    estimate: two deflates a part, a few milliseconds a block), while the run
+    estimate: at most two deflates a part, a few milliseconds a block), while the run
     holds at most :data:`GROUP_BYTES` bytes; a larger part is a run of its own, as
     every plane of a large block is. An encoder's choice: any cut inflates to the
     same payload.
     """
     groups, run, held, cost = [], [], 0, 0
     for part in parts:
+        # Deflated alone once: the estimate for joining, and the cost of a run it starts.
+        alone = _deflated_size(part, level) if len(part) <= GROUP_BYTES else 0
         if run and held + len(part) <= GROUP_BYTES:
-            alone, joined = _deflated_size(part, level), _deflated_size(b"".join(run) + part, level)
+            joined = _deflated_size(b"".join(run) + part, level)
             if joined <= cost + alone:
                 run.append(part)
                 held, cost = held + len(part), joined
                 continue
         if run:
             groups.append(run)
-        run, held = [part], len(part)
-        cost = _deflated_size(part, level) if held <= GROUP_BYTES else 0
+        run, held, cost = [part], len(part), alone
     if run:
         groups.append(run)
     return groups

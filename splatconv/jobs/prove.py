@@ -297,9 +297,9 @@ def _searched(c: _Candidates, steps: list, floor: float, large: bool = False) ->
     """The coarsest step found to reach ``floor``, or None: the setting (step 0) first, then finer by the
     half steps the dB it lacks ask for (:data:`DB_PER_HALF_STEP`, at least one), until a step holds; then
     coarser by the dB it has to spare, at most :data:`MAX_COARSER` proofs, halving the gap to the finest
-    step proved short instead where the jump would reach it. On a ``large`` scene (proved from fewer frames, each proof some ten seconds a
-    million splats), never to the step between the one chosen and one proved short where the mean of
-    the two falls short (:func:`_short_between`)."""
+    step proved short instead where the jump would reach it. On a ``large`` scene (proved from fewer
+    frames, each proof some ten seconds a million splats), never to the step between the one chosen and
+    one proved short where the mean of the two falls short (:func:`_short_between`)."""
     last = steps[-1]
     p = 0
     while True:
