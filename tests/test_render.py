@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import moderngl
 import numpy as np
 import pytest
 
@@ -16,8 +17,11 @@ from splatconv import packing
 from splatconv.model import COLUMNS
 from splatconv.render import camera as cam
 from splatconv.render.gl import create_context
+from splatconv.render import preview
+from splatconv.render.frames import Source
 from splatconv.render.preview import Renderer, View
 from tests import reference
+from tests.scenes import moving_scene
 from splatconv.formats.base import WriteReport
 
 W, H = 64, 48
@@ -309,3 +313,44 @@ def test_screen_axes_are_capped_at_1024_pixels_as_in_the_viewer(ctx):
         ratio = alpha[[1024 - d - 1, 1024 + d]].mean() / centre
         assert ratio == pytest.approx(capped, abs=0.02), d
         assert abs(ratio - uncapped) > 0.3
+
+
+def test_the_renderer_draws_what_the_viewers_instanced_draw_draws(ctx, monkeypatch):
+    # The renderer draws without instances (splat_indexed.glsl), a chunk of splats a call;
+    # the viewer and the page draw one instance a splat. Same pixels, bit for bit: over
+    # several chunks (here 1,000 splats each) and rows of the draw order (4,096 each).
+    monkeypatch.setattr(preview, "DRAW_CHUNK", 1000)
+    scene = moving_scene(5000, seed=3)
+    records = Source("<moving>", scene).texture()
+    frag = preview.shader_source("splat.frag")
+    instanced = ctx.program(vertex_shader="\n".join(preview.shader_source(n) for n in (
+        "splat_head.glsl", "splat_instanced.glsl", "fetch_splatv.glsl", "splat_main.glsl")), fragment_shader=frag)
+    quad = ctx.buffer(np.array([-2, -2, 2, -2, 2, 2, -2, 2], "f4").tobytes())
+    camera = scene.cameras[0]
+    views = [View(cam.view_matrix(camera), fx, fx, 96, 72) for fx in (80.0, 200.0)]
+    r = Renderer(96, 72, ctx=ctx)
+    try:
+        r.load_records(records)
+        assert len(records) > 4096
+        for view in views:
+            for t in (0.1, 0.5, 0.9):
+                mine = r.draw(view, t)
+                index = ctx.buffer(r.last_order.astype(np.int32).tobytes())
+                vao = ctx.vertex_array(instanced, [(quad, "2f", "position"), (index, "i/i", "index")])
+                instanced["projection"].write(np.array(cam.projection_matrix(view.fx, view.fy, 96, 72), "f4"))
+                instanced["view"].write(np.array(view.matrix, "f4"))
+                instanced["focal"].value = (view.fx, view.fy)
+                instanced["viewport"].value = (96, 72)
+                instanced["time"].value = t
+                r.fbo.use()
+                r.fbo.clear(0.0, 0.0, 0.0, 0.0)
+                vao.render(moderngl.TRIANGLE_FAN, vertices=4, instances=len(r.last_order))
+                theirs = np.frombuffer(r.fbo.read(components=4, alignment=1), np.uint8).reshape(72, 96, 4)[::-1]
+                vao.release()
+                index.release()
+                assert mine[..., 3].astype(bool).mean() > 0.2  # the scene fills the frame
+                assert np.array_equal(mine, theirs), (view.fx, t)
+    finally:
+        r.release()
+        quad.release()
+        instanced.release()

@@ -22,7 +22,10 @@ from .gl import create_context
 from .layout import FLOAT_SPLATS_PER_ROW, FLOAT_WORDS
 from .sort import viewer_order
 
-_QUAD = np.array([-2, -2, 2, -2, 2, 2, -2, 2], dtype="f4")
+#: Splats drawn by one draw call (:meth:`Renderer.draw`): the element buffer's, its two triangles each.
+DRAW_CHUNK = 65536
+#: Splat indices a row of the draw order texture (``splat_indexed.glsl``).
+ORDER_ROW = 4096
 
 
 def shader_source(name: str) -> str:
@@ -31,9 +34,13 @@ def shader_source(name: str) -> str:
 
 
 def vertex_source(path: str) -> str:
-    """The vertex shader for ``path`` ``"texture"`` (the stored, quantized texture) or ``"float"``."""
+    """The vertex shader for ``path`` ``"texture"`` (the stored, quantized texture) or ``"float"``.
+
+    The viewer's program, its inputs worked out from the vertex's number
+    (``splat_indexed.glsl``), not given per instance as the page does: see :meth:`Renderer.draw`.
+    """
     fetch = {"texture": "fetch_splatv.glsl", "float": "fetch_float.glsl"}[path]
-    return "\n".join(shader_source(n) for n in ("splat_head.glsl", fetch, "splat_main.glsl"))
+    return "\n".join(shader_source(n) for n in ("splat_head.glsl", "splat_indexed.glsl", fetch, "splat_main.glsl"))
 
 
 @dataclass
@@ -80,12 +87,12 @@ class Renderer:
         frag = shader_source("splat.frag")
         self._programs = {p: self.ctx.program(vertex_shader=vertex_source(p), fragment_shader=frag)
                           for p in ("texture", "float")}
-        self._quad = self.ctx.buffer(_QUAD.tobytes())
-        self._index = None
+        corners = np.arange(DRAW_CHUNK, dtype=np.uint32)[:, None] * 4 + np.array([0, 1, 2, 0, 2, 3], np.uint32)
+        self._elements = self.ctx.buffer(corners.tobytes())
+        self._order = None  # the draw order texture, ORDER_ROW indices a row
         self._texture = None
         self._path = None
         self._positions = None
-        self._count = 0
         #: The texture record drawn for each splat index (None: the index itself): see :meth:`load_pieces`.
         self._record_of = None
         #: The draw order of the last frame (splat indices, front to back).
@@ -125,7 +132,6 @@ class Renderer:
         rows = len(records) // SPLATS_PER_ROW
         self._set_texture((TEXWIDTH, rows), records, "u4")
         self._positions = records[:, 0:3].view(np.float32).copy()
-        self._count = len(records)
         self._record_of = None
         self._path = "texture"
         return _time.perf_counter() - t0
@@ -180,7 +186,6 @@ class Renderer:
             self._record_of = np.arange(total, dtype=np.int32)
             self._record_of[:count] = order
         self._positions = positions
-        self._count = total
         self._path = "texture"
         return _time.perf_counter() - t0
 
@@ -200,7 +205,6 @@ class Renderer:
             padded[:n] = texels
         self._set_texture((TEXWIDTH, rows), padded, "f4")
         self._positions = np.ascontiguousarray(texels[:, 0:3], dtype=np.float32)
-        self._count = n
         self._record_of = None
         self._path = "float"
         return _time.perf_counter() - t0
@@ -249,13 +253,20 @@ class Renderer:
         order = viewer_order(self._positions, view.view_proj()) if order is None else order
         self.last_order = order
         t1 = _time.perf_counter()
-        if self._index is None or self._index.size != order.nbytes:
-            if self._index is not None:
-                self._index.release()
-            self._index = self.ctx.buffer(reserve=max(order.nbytes, 4), dynamic=True)
-        self._index.write((order if self._record_of is None else self._record_of[order]).tobytes())
+        drawn = np.ascontiguousarray(order if self._record_of is None else self._record_of[order], dtype=np.int32)
+        rows = max(1, -(-len(drawn) // ORDER_ROW))
+        if self._order is None or self._order.height != rows:
+            if self._order is not None:
+                self._order.release()
+            self._order = self.ctx.texture((ORDER_ROW, rows), 1, dtype="i4")
+            self._order.filter = (mgl.NEAREST, mgl.NEAREST)
+        whole, rest = divmod(len(drawn), ORDER_ROW)
+        if whole:
+            self._order.write(memoryview(drawn[:whole * ORDER_ROW]).cast("B"), viewport=(0, 0, ORDER_ROW, whole))
+        if rest:
+            self._order.write(memoryview(drawn[whole * ORDER_ROW:]).cast("B"), viewport=(0, whole, rest, 1))
         prog = self._programs[self._path]
-        vao = self.ctx.vertex_array(prog, [(self._quad, "2f", "position"), (self._index, "i/i", "index")])
+        vao = self.ctx.vertex_array(prog, [], index_buffer=self._elements, index_element_size=4)
         prog["projection"].write(np.array(cam.projection_matrix(view.fx, view.fy, view.width, view.height), "f4"))
         prog["view"].write(np.array(view.matrix, "f4"))
         prog["focal"].value = (view.fx, view.fy)
@@ -264,6 +275,8 @@ class Renderer:
         self._texture.use(0)
         sampler = "u_texture" if self._path == "texture" else "u_ftexture"
         prog[sampler].value = 0
+        self._order.use(1)
+        prog["u_order"].value = 1
         self.ctx.finish()
         t2 = _time.perf_counter()
         self.fbo.use()
@@ -273,7 +286,10 @@ class Renderer:
         self.ctx.blend_func = (mgl.ONE_MINUS_DST_ALPHA, mgl.ONE, mgl.ONE_MINUS_DST_ALPHA, mgl.ONE)
         self.ctx.blend_equation = mgl.FUNC_ADD
         self.fbo.clear(0.0, 0.0, 0.0, 0.0)
-        vao.render(mgl.TRIANGLE_FAN, vertices=4, instances=self._count)
+        # Without instancing (llvmpipe draws each instance apart), a chunk of splats a call, in order.
+        for first in range(0, len(drawn), DRAW_CHUNK):
+            prog["u_first"].value = first
+            vao.render(mgl.TRIANGLES, vertices=6 * min(DRAW_CHUNK, len(drawn) - first))
         data = self.fbo.read(components=4, alignment=1)
         t3 = _time.perf_counter()
         vao.release()
@@ -286,7 +302,7 @@ class Renderer:
         # Rebind the default framebuffer first: moderngl restores the last bound one
         # when it makes the next framebuffer, and a deleted one is a GL error.
         self.ctx.detect_framebuffer(0).use()
-        for obj in (self._index, self._texture, self._quad, *self.fbo.color_attachments, self.fbo,
+        for obj in (self._order, self._texture, self._elements, *self.fbo.color_attachments, self.fbo,
                     *self._programs.values()):
             if obj is not None:
                 obj.release()

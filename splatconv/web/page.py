@@ -20,8 +20,9 @@ from importlib import resources
 from ..errors import UsageError
 from ..wording import plural
 
-#: The vertex shader is these three files joined, as ``render.preview.vertex_source("texture")``.
-SHADERS = ("splat_head.glsl", "fetch_splatv.glsl", "splat_main.glsl", "splat.frag")
+#: The vertex shader is the first four files joined: ``render.preview.vertex_source("texture")``'s
+#: program with the viewer's instanced inputs.
+SHADERS = ("splat_head.glsl", "splat_instanced.glsl", "fetch_splatv.glsl", "splat_main.glsl", "splat.frag")
 _TEMPLATE_FIELD = re.compile(r"\{\{([A-Z]+)\}\}")
 
 

@@ -1,7 +1,10 @@
 #version 300 es
 // splaTV's splat program, written out for splatconv: the same inputs, uniforms and
 // arithmetic as the viewer's vertex shader, with the texture fetch split off into
-// a function so a float reference path can feed unquantized attributes.
+// a function so a float reference path can feed unquantized attributes. The
+// viewer's two inputs, `position` (the quad's corner) and `index` (the splat
+// drawn), follow in splat_instanced.glsl (the page, as the viewer: one instance
+// a splat) or splat_indexed.glsl (splatconv's renderer).
 precision highp float;
 precision highp int;
 
@@ -9,9 +12,6 @@ uniform mat4 projection, view;
 uniform vec2 focal;
 uniform vec2 viewport;
 uniform float time;
-
-in vec2 position;
-in int index;
 
 out vec4 vColor;
 out vec2 vPosition;

@@ -136,7 +136,7 @@
   let program = null, quadBuffer = null, uniforms = {};
 
   function setUpGL() {
-    const vertexSource = ["splat_head.glsl", "fetch_splatv.glsl", "splat_main.glsl"].map(embedded).join("\n");
+    const vertexSource = ["splat_head.glsl", "splat_instanced.glsl", "fetch_splatv.glsl", "splat_main.glsl"].map(embedded).join("\n");
     const compile = (type, source) => {
       const shader = gl.createShader(type);
       gl.shaderSource(shader, source);
