@@ -170,6 +170,8 @@ DEPTH_ENDS = 2
 def js_int32(x) -> np.ndarray:
     """JavaScript's ``x | 0``: truncate, wrap modulo 2^32 into int32; NaN and infinities give 0. ``int64``."""
     x = np.asarray(x, dtype=np.float64)
+    if x.size and -2.0**31 < x.min() and x.max() < 2.0**31:  # no NaN, nothing to wrap: truncation alone
+        return x.astype(np.int64)
     finite = np.isfinite(x)
     t = np.fmod(np.trunc(np.where(finite, x, 0.0)), 2.0**32)
     t = np.where(t < 0, t + 2.0**32, t)
