@@ -13,7 +13,7 @@ import moderngl
 import numpy as np
 import pytest
 
-from splatconv import packing
+from splatconv import packing, viewer
 from splatconv.model import COLUMNS
 from splatconv.render import camera as cam
 from splatconv.render.gl import create_context
@@ -135,6 +135,15 @@ def js_int32(v: float) -> int:
         return 0
     v = int(v) % 2**32  # int() truncates toward zero
     return v - 2**32 if v >= 2**31 else v
+
+
+@pytest.mark.parametrize("values", [
+    [0.7, -0.7, -0.0, 1e9, -1e9, 2.0**31 - 0.5, -2.0**31 + 0.5, 123456.9],  # truncation alone
+    [2.0**31, -2.0**31 - 0.5, 5e9, -5e9, 2.0**40 + 3, 1.5],  # wrapped modulo 2^32
+    [float("nan"), float("inf"), float("-inf"), 3.9, -3.9],  # 0 where not finite
+])
+def test_js_int32_matches_javascripts_x_or_0(values):
+    assert viewer.js_int32(np.array(values)).tolist() == [js_int32(v) for v in values]
 
 
 def reference_order(recs, view: View) -> list:
