@@ -209,12 +209,13 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     started = time.perf_counter()
     # What every candidate's write shares, computed once (and before the renderer holds its memory).
     prepared = fmt.prepare(scene) if fmt.prepare is not None else None
-    tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS)
+    drawn = ~undrawable(scene.columns)
+    tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS, drawn)
     # A setting below the best must not write a larger file than the best's: where a scene is tuned
     # and the setting's ladder climbed past it (the ladders part ways), the best setting's file is
     # found too (_other_family).
     other = fmt.qualities[0] if tunes and not prune and max_bytes is None and name != fmt.qualities[0] else None
-    every = proof_views(scene)
+    every = proof_views(scene, drawn)
     views, times = proof_plan(scene, every)
     large = len(views) < len(every) or len(times) < len(PROOF_TIMES)
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
@@ -287,10 +288,11 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     return report, notes
 
 
-def _drawable_at_most(scene: Scene, limit: int) -> bool:
+def _drawable_at_most(scene: Scene, limit: int, drawn: np.ndarray | None = None) -> bool:
     """Whether ``scene`` holds at most ``limit`` splats the viewer can draw (counted only past ``limit`` read:
-    real scenes hold many it never draws)."""
-    return scene.count <= limit or int(np.count_nonzero(~undrawable(scene.columns))) <= limit
+    real scenes hold many it never draws); ``drawn``: ``~undrawable(scene.columns)`` where known."""
+    return scene.count <= limit or int(np.count_nonzero(~undrawable(scene.columns) if drawn is None else drawn)) \
+        <= limit
 
 
 def _searched(c: _Candidates, steps: list, floor: float, large: bool = False) -> int | None:

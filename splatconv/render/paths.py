@@ -19,12 +19,14 @@ from ..cameras import framing_box
 from ..model import Scene
 
 
-def drawn_box(scene: Scene) -> tuple:
+def drawn_box(scene: Scene, drawn: np.ndarray | None = None) -> tuple:
     """The 2nd..98th percentile box of the splats the viewer can draw: ``(lo, hi)``, each ``(3,) float64``.
 
     Zeros for a scene with nothing drawable (see :func:`splatconv.cameras.framing_box`).
+    ``drawn``: ``~viewer.undrawable(scene.columns)`` where the caller has it.
     """
-    drawn = ~viewer.undrawable(scene.columns) if scene.count else np.zeros(0, bool)
+    if drawn is None:
+        drawn = ~viewer.undrawable(scene.columns) if scene.count else np.zeros(0, bool)
     if not drawn.any():
         return np.zeros(3), np.zeros(3)
     lo, hi = framing_box(*(np.asarray(scene.columns[a])[drawn] for a in "xyz"))

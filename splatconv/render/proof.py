@@ -93,7 +93,7 @@ class Proof:
     complete: bool = True
 
 
-def proof_views(scene: Scene) -> list:
+def proof_views(scene: Scene, drawn: np.ndarray | None = None) -> list:
     """(name, View) pairs a proof draws ``scene`` from (see the module docstring).
 
     Parameters
@@ -101,9 +101,11 @@ def proof_views(scene: Scene) -> list:
     scene : Scene
         Its cameras (a framing camera when it has none) and its drawable splats'
         centre (the middle of their 2nd..98th percentile box) place the near views.
+    drawn : (N,) bool ndarray, optional
+        ``~viewer.undrawable(scene.columns)``, where the caller has it.
     """
     cameras = list((scene.cameras or [])[:MAX_CAMERAS])
-    lo, hi = drawn_box(scene)
+    lo, hi = drawn_box(scene, drawn)
     centre = (lo + hi) / 2
     if not cameras:
         cameras = [camera_for_box(lo, hi)]
