@@ -324,36 +324,54 @@ def test_screen_axes_are_capped_at_1024_pixels_as_in_the_viewer(ctx):
         assert abs(ratio - uncapped) > 0.3
 
 
-def test_the_renderer_draws_what_the_viewers_instanced_draw_draws(ctx, monkeypatch):
+@pytest.mark.parametrize("path", ["texture", "float", "pieces"])
+def test_the_renderer_draws_what_the_viewers_instanced_draw_draws(ctx, monkeypatch, path):
     # The renderer draws without instances (splat_indexed.glsl), a chunk of splats a call;
     # the viewer and the page draw one instance a splat. Same pixels, bit for bit: over
-    # several chunks (here 1,000 splats each) and rows of the draw order (4,096 each).
+    # several chunks (here 1,000 splats each) and rows of the draw order (4,096 each), from
+    # the stored texture, the float reference rows, and records given a piece at a time in
+    # another order (each drawn index mapped to its record).
     monkeypatch.setattr(preview, "DRAW_CHUNK", 1000)
     scene = moving_scene(5000, seed=3)
-    records = Source("<moving>", scene).texture()
-    frag = preview.shader_source("splat.frag")
+    source = Source("<moving>", scene)
+    fetch = "fetch_float.glsl" if path == "float" else "fetch_splatv.glsl"
     instanced = ctx.program(vertex_shader="\n".join(preview.shader_source(n) for n in (
-        "splat_head.glsl", "splat_instanced.glsl", "fetch_splatv.glsl", "splat_main.glsl")), fragment_shader=frag)
+        "splat_head.glsl", "splat_instanced.glsl", fetch, "splat_main.glsl")),
+        fragment_shader=preview.shader_source("splat.frag"))
     quad = ctx.buffer(np.array([-2, -2, 2, -2, 2, 2, -2, 2], "f4").tobytes())
     camera = scene.cameras[0]
     views = [View(cam.view_matrix(camera), fx, fx, 96, 72) for fx in (80.0, 200.0)]
     r = Renderer(96, 72, ctx=ctx)
-    try:
+    records = source.texture()
+    assert len(records) > 4096
+    if path == "float":
+        r.load_float(source.reference())
+    elif path == "pieces":
+        shuffled = np.random.default_rng(0).permutation(len(records))
+        stored = records[np.argsort(shuffled)]  # the file's order: stored[shuffled] is the texture
+
+        def fill(put):
+            for at in range(0, len(stored), 700):
+                put(stored[at:at + 700])
+            return shuffled
+        r.load_pieces(len(records), fill)
+    else:
         r.load_records(records)
-        assert len(records) > 4096
+    try:
         for view in views:
             for t in (0.1, 0.5, 0.9):
                 mine = r.draw(view, t)
-                index = ctx.buffer(r.last_order.astype(np.int32).tobytes())
+                drawn = r.last_order if path != "pieces" else shuffled[r.last_order]
+                index = ctx.buffer(drawn.astype(np.int32).tobytes())
                 vao = ctx.vertex_array(instanced, [(quad, "2f", "position"), (index, "i/i", "index")])
                 instanced["projection"].write(np.array(cam.projection_matrix(view.fx, view.fy, 96, 72), "f4"))
                 instanced["view"].write(np.array(view.matrix, "f4"))
                 instanced["focal"].value = (view.fx, view.fy)
                 instanced["viewport"].value = (96, 72)
                 instanced["time"].value = t
-                r.fbo.use()
+                r.fbo.use()  # the renderer's texture is still bound to unit 0, where both programs read
                 r.fbo.clear(0.0, 0.0, 0.0, 0.0)
-                vao.render(moderngl.TRIANGLE_FAN, vertices=4, instances=len(r.last_order))
+                vao.render(moderngl.TRIANGLE_FAN, vertices=4, instances=len(drawn))
                 theirs = np.frombuffer(r.fbo.read(components=4, alignment=1), np.uint8).reshape(72, 96, 4)[::-1]
                 vao.release()
                 index.release()

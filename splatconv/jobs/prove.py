@@ -209,13 +209,13 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     started = time.perf_counter()
     # What every candidate's write shares, computed once (and before the renderer holds its memory).
     prepared = fmt.prepare(scene) if fmt.prepare is not None else None
-    drawn = ~undrawable(scene.columns)
-    tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS, drawn)
+    drawable = ~undrawable(scene.columns)
+    tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS, drawable)
     # A setting below the best must not write a larger file than the best's: where a scene is tuned
     # and the setting's ladder climbed past it (the ladders part ways), the best setting's file is
     # found too (_other_family).
     other = fmt.qualities[0] if tunes and not prune and max_bytes is None and name != fmt.qualities[0] else None
-    every = proof_views(scene, drawn)
+    every = proof_views(scene, drawable)
     views, times = proof_plan(scene, every)
     large = len(views) < len(every) or len(times) < len(PROOF_TIMES)
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \

@@ -24,7 +24,7 @@ from .sort import viewer_order
 
 #: Splats drawn by one draw call (:meth:`Renderer.draw`): the element buffer's, its two triangles each.
 DRAW_CHUNK = 65536
-#: Splat indices a row of the draw order texture (``splat_indexed.glsl``).
+#: Splat indices a row of the draw order texture: ``splat_indexed.glsl`` reads it with ``& 4095`` and ``>> 12``.
 ORDER_ROW = 4096
 
 
@@ -87,7 +87,8 @@ class Renderer:
         frag = shader_source("splat.frag")
         self._programs = {p: self.ctx.program(vertex_shader=vertex_source(p), fragment_shader=frag)
                           for p in ("texture", "float")}
-        corners = np.arange(DRAW_CHUNK, dtype=np.uint32)[:, None] * 4 + np.array([0, 1, 2, 0, 2, 3], np.uint32)
+        self._chunk = DRAW_CHUNK  # the splats the element buffer holds, each draw call's
+        corners = np.arange(self._chunk, dtype=np.uint32)[:, None] * 4 + np.array([0, 1, 2, 0, 2, 3], np.uint32)
         self._elements = self.ctx.buffer(corners.tobytes())
         self._order = None  # the draw order texture, ORDER_ROW indices a row
         self._texture = None
@@ -289,9 +290,9 @@ class Renderer:
         # Without instancing (llvmpipe draws each instance apart), a chunk of splats a call, in order;
         # each waited for: else llvmpipe holds the binned triangles of every chunk until the frame is
         # read (a 1M-splat proof peaked 190 MB higher), for 5-10% of the draw's time.
-        for first in range(0, len(drawn), DRAW_CHUNK):
+        for first in range(0, len(drawn), self._chunk):
             prog["u_first"].value = first
-            vao.render(mgl.TRIANGLES, vertices=6 * min(DRAW_CHUNK, len(drawn) - first))
+            vao.render(mgl.TRIANGLES, vertices=6 * min(self._chunk, len(drawn) - first))
             self.ctx.finish()
         data = self.fbo.read(components=4, alignment=1)
         t3 = _time.perf_counter()
