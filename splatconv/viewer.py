@@ -170,13 +170,16 @@ DEPTH_ENDS = 2
 def js_int32(x) -> np.ndarray:
     """JavaScript's ``x | 0``: truncate, wrap modulo 2^32 into int32; NaN and infinities give 0. ``int64``."""
     x = np.asarray(x, dtype=np.float64)
-    if x.size and -2.0**31 < x.min() and x.max() < 2.0**31:  # no NaN, nothing to wrap: truncation alone
+    with np.errstate(invalid="ignore"):
+        inside = np.abs(x) < 2.0**31  # truncation alone; not NaN, the infinities or what wraps
+    if inside.all():
         return x.astype(np.int64)
-    finite = np.isfinite(x)
-    t = np.fmod(np.trunc(np.where(finite, x, 0.0)), 2.0**32)
+    out = np.where(inside, x, 0.0).astype(np.int64)
+    rest = x[~inside]  # few on a real scene: its NaN positions
+    t = np.fmod(np.trunc(np.where(np.isfinite(rest), rest, 0.0)), 2.0**32)
     t = np.where(t < 0, t + 2.0**32, t)
-    t = np.where(t >= 2.0**31, t - 2.0**32, t)
-    return t.astype(np.int64)
+    out[~inside] = np.where(t >= 2.0**31, t - 2.0**32, t).astype(np.int64)
+    return out
 
 
 def depth_extremes(x: np.ndarray, y: np.ndarray, z: np.ndarray, directions: np.ndarray) -> np.ndarray:
