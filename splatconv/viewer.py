@@ -175,10 +175,11 @@ def js_int32(x) -> np.ndarray:
     if inside.all():
         return x.astype(np.int64)
     out = np.where(inside, x, 0.0).astype(np.int64)
-    rest = x[~inside]  # few on a real scene: its NaN positions
+    outside = ~inside
+    rest = x[outside]  # few on a real scene: its NaN positions
     t = np.fmod(np.trunc(np.where(np.isfinite(rest), rest, 0.0)), 2.0**32)
     t = np.where(t < 0, t + 2.0**32, t)
-    out[~inside] = np.where(t >= 2.0**31, t - 2.0**32, t).astype(np.int64)
+    out[outside] = np.where(t >= 2.0**31, t - 2.0**32, t).astype(np.int64)
     return out
 
 
