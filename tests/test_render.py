@@ -308,6 +308,42 @@ def test_padding_records_draw_nothing(ctx):
         assert not img.any()
 
 
+def malloc_live() -> int:
+    """Bytes malloc has handed out and not had back (glibc's mallinfo2): what the driver holds too."""
+    import ctypes
+
+    class Info(ctypes.Structure):
+        _fields_ = [(name, ctypes.c_size_t) for name in ("arena", "ordblks", "smblks", "hblks", "hblkhd", "usmblks",
+                                                         "fsmblks", "uordblks", "fordblks", "keepcost")]
+
+    mallinfo2 = ctypes.CDLL(None).mallinfo2
+    mallinfo2.restype = Info
+    info = mallinfo2()
+    return info.uordblks + info.hblkhd
+
+
+def test_an_unloaded_renderer_lets_go_of_its_texture(ctx):
+    # A proof unloads its source once its frames are drawn, and each candidate once compared,
+    # so that a candidate's encode and decode never sit beside a texture nobody draws. The
+    # driver keeps a deleted texture while it is bound to the last draw: unload draws once more.
+    scene = moving_scene(64 * 1024, seed=5)
+    r = Renderer(W, H, ctx=ctx)
+    try:
+        view = View(cam.view_matrix(scene.cameras[0]), 60.0, 60.0, W, H)
+        r.load(Source("<s>", scene).texture())
+        first = r.draw(view, 0.5)
+        assert first[..., 3].any()
+        before = malloc_live()
+        r.unload()
+        assert before - malloc_live() >= 64 * 1024 * 64  # the texture's 4 MiB, its positions besides
+        with pytest.raises(RuntimeError, match="nothing loaded"):
+            r.draw(view, 0.5)
+        r.load(Source("<s>", scene).texture())
+        assert np.array_equal(r.draw(view, 0.5), first)
+    finally:
+        r.release()
+
+
 def test_screen_axes_are_capped_at_1024_pixels_as_in_the_viewer(ctx):
     # A splat whose major screen axis would be about 3,960 pixels long is drawn with
     # 1,024: its quad ends 1,024 pixels from the centre and the falloff at d pixels is

@@ -301,6 +301,17 @@ class Renderer:
         img = np.frombuffer(data, dtype=np.uint8).reshape(self.height, self.width, 4)
         return img[::-1].copy()
 
+    def unload(self) -> None:
+        """Let go of what was loaded, the texture's memory with it, until the next load.
+
+        The driver keeps a texture bound to a draw until another is drawn with, even
+        once it is deleted: a one-row texture of padding records (none drawn) is loaded
+        and drawn in its place, a frame nobody reads.
+        """
+        self.load_records(np.zeros((SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4"))
+        self.draw(View(list(np.eye(4, dtype=np.float32).ravel()), 1.0, 1.0, self.width, self.height), 0.0)
+        self._path = None
+
     def release(self) -> None:
         """Free GL objects (the context too, when this renderer made it)."""
         # Rebind the default framebuffer first: moderngl restores the last bound one

@@ -176,6 +176,7 @@ class Prover:
                     for t in self.times:
                         self.frames.append(self.renderer.draw(view, float(t)))
                         advance()
+            self.renderer.unload()
         except BaseException:
             self.close()
             raise
@@ -205,6 +206,7 @@ class Prover:
                 advance()
                 if floor is not None and values[i] < floor:
                     break
+        self.renderer.unload()
         complete = len(drawn) == len(plan)
         drawn = np.sort(drawn)  # the worst of equals is the first in frame order, as without ``first``
         worst = int(drawn[np.argmin(values[drawn])])
