@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from splatconv import packing, viewer
+from splatconv.formats import splatv_engine
 from splatconv.model import COLUMNS
 from splatconv.render import camera as cam
 from splatconv.render.gl import create_context
@@ -330,7 +331,7 @@ def test_an_unloaded_renderer_lets_go_of_its_texture(ctx):
     r = Renderer(W, H, ctx=ctx)
     try:
         view = View(cam.view_matrix(scene.cameras[0]), 60.0, 60.0, W, H)
-        r.load(Source("<s>", scene).texture())
+        Source("<s>", scene).load_into(r)
         first = r.draw(view, 0.5)
         assert first[..., 3].any()
         before = malloc_live()
@@ -338,7 +339,7 @@ def test_an_unloaded_renderer_lets_go_of_its_texture(ctx):
         assert before - malloc_live() >= 64 * 1024 * 64  # the texture's 4 MiB, its positions besides
         with pytest.raises(RuntimeError, match="nothing loaded"):
             r.draw(view, 0.5)
-        r.load(Source("<s>", scene).texture())
+        Source("<s>", scene).load_into(r)
         assert np.array_equal(r.draw(view, 0.5), first)
     finally:
         r.release()
@@ -360,14 +361,16 @@ def test_screen_axes_are_capped_at_1024_pixels_as_in_the_viewer(ctx):
         assert abs(ratio - uncapped) > 0.3
 
 
-@pytest.mark.parametrize("path", ["texture", "float", "pieces"])
+@pytest.mark.parametrize("path", ["texture", "float", "pieces", "packed"])
 def test_the_renderer_draws_what_the_viewers_instanced_draw_draws(ctx, monkeypatch, path):
     # The renderer draws without instances (splat_indexed.glsl), a chunk of splats a call;
     # the viewer and the page draw one instance a splat. Same pixels, bit for bit: over
     # several chunks (here 1,000 splats each) and rows of the draw order (4,096 each), from
-    # the stored texture, the float reference rows, and records given a piece at a time in
-    # another order (each drawn index mapped to its record).
+    # the stored texture, the float reference rows, records given a piece at a time in
+    # another order (each drawn index mapped to its record), and the scene packed into the
+    # renderer a block at a time (here 640 records each: Source.load_into).
     monkeypatch.setattr(preview, "DRAW_CHUNK", 1000)
+    monkeypatch.setattr(splatv_engine, "BLOCK", 640)
     scene = moving_scene(5000, seed=3)
     source = Source("<moving>", scene)
     fetch = "fetch_float.glsl" if path == "float" else "fetch_splatv.glsl"
@@ -391,6 +394,9 @@ def test_the_renderer_draws_what_the_viewers_instanced_draw_draws(ctx, monkeypat
                 put(stored[at:at + 700])
             return shuffled
         r.load_pieces(len(records), fill)
+    elif path == "packed":
+        source.load_into(r)
+        assert np.array_equal(r.positions, records[:, :3].view(np.float32))
     else:
         r.load_records(records)
     try:

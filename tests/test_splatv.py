@@ -414,6 +414,12 @@ def test_threaded_block_writer_matches_reference(tmp_path, monkeypatch, compat, 
     assert np.array_equal(splatv_records(data)[: len(want)], want)
     records, report = splatv.encode(scene, compat=compat, sort=sort)
     assert np.array_equal(records[: len(want)], want) and not records[len(want):].any()
+    # The same records a block at a time (a block's memory reused once given), with the same counts.
+    blocks = []
+    given = splatv.pieces(scene, lambda block: blocks.append(block.copy()), compat=compat, sort=sort)
+    assert [len(b) for b in blocks] == [256] * (len(want) // 256) + [len(want) % 256]
+    assert np.array_equal(np.concatenate(blocks), want)
+    assert (given.half, given.notes, given.texheight) == (report.half, report.notes, report.texheight)
     # Counts as the reference converters give them, attribute by attribute, in slot order.
     assert list(report.half) == [name for pair in splatv.HALF_WORDS.values() for name in pair if name]
     for name, c in report.half.items():

@@ -83,6 +83,10 @@ class Texture:
     encode : callable
         ``encode(scene, *, compat=None, sort=None) -> (records, WriteReport)``: the
         ``(N, 16) uint32`` records a write would store, in texture order.
+    pieces : callable
+        ``pieces(scene, put, *, compat=None, sort=None) -> WriteReport``: the same records
+        a block at a time, ``put(block)`` with each in order (padding left out), never
+        held whole.
     decode : callable
         ``decode(records) -> (columns, notes)``: the model's columns back from records.
     header : callable
@@ -93,6 +97,7 @@ class Texture:
     """
 
     encode: Callable
+    pieces: Callable
     decode: Callable
     header: Callable
     read: Callable

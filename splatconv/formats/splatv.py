@@ -34,7 +34,7 @@ from .splatv_layout import (ALPHA_LOGIT_LIMIT, COLOR_OF_BYTE, COUNT_KEY, LOG_OF_
 STORAGE = {"position": "exact", "rotation": "half", "scale": "half", "color": "byte", "opacity": "byte",
            "motion": "half", "omega": "half", "trbf": "half"}
 
-__all__ = ["FORMAT", "STORAGE", "read", "write", "encode", "info_fields", "read_records", "decode_records",
+__all__ = ["FORMAT", "STORAGE", "read", "write", "encode", "pieces", "info_fields", "read_records", "decode_records",
            "texture_key",
            "read_texture", "scan", "decode_rows", "decode_notes", "new_tally", "header_bytes", "texture_height",
            "texture_bytes", "TEXWIDTH", "SPLATS_PER_ROW",
@@ -110,6 +110,25 @@ def encode(scene: Scene, *, compat: str | None = None, sort: str | None = None):
             pool.shutdown(cancel_futures=True)
     report.notes.extend(write_notes(report, is_compat))
     return records, report
+
+
+def pieces(scene: Scene, put, *, compat: str | None = None, sort: str | None = None) -> WriteReport:
+    """What :func:`encode` gives, a block at a time: ``put(records)`` with each ``(M, 16) uint32`` block in
+    texture order, the padding left out; a block's memory is reused once ``put`` returns."""
+    is_compat = compat == "splatv-js"
+    n = scene.count
+    report = WriteReport(count=n, texheight=texture_height(n))
+    plan = engine.Plan(scene, is_compat, sort)
+    pool = engine.helpers(n)
+    try:
+        engine.prepare(plan, False, report, pool)
+        for block in engine.blocks(plan, report, pool):
+            put(block)
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+    report.notes.extend(write_notes(report, is_compat))
+    return report
 
 
 def write_notes(report: WriteReport, compat: bool) -> list:
@@ -640,6 +659,6 @@ FORMAT = Format(
     compat_modes=("splatv-js",),  # texture bytes identical to splaTV's in-browser converter
     info_fields=info_fields, storage=storage,
     # The file holds the viewer's texture itself: drawn, played and measured as stored.
-    texture=Texture(encode=encode, decode=decode_records, header=header_bytes, read=read_texture),
+    texture=Texture(encode=encode, pieces=pieces, decode=decode_records, header=header_bytes, read=read_texture),
     check_playable=read_records,  # the page plays a .splatv's bytes as they are
 )

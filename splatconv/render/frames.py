@@ -76,6 +76,18 @@ class Source:
         records, _report = texture_format().texture.encode(self.scene)
         return records
 
+    def load_into(self, renderer) -> None:
+        """Load :meth:`texture` into ``renderer`` (:class:`~splatconv.render.preview.Renderer`): where it is
+        packed here, a block at a time, never held whole (the renderer's copy is all there is of it)."""
+        if self.stored is not None:
+            renderer.load_records(self.stored)
+            return
+
+        def fill(put):
+            texture_format().texture.pieces(self.scene, put)
+
+        renderer.load_pieces(self.scene.count, fill)
+
     def reference(self, order: np.ndarray | None = None, records: int | None = None) -> np.ndarray:
         """Float reference rows (:func:`~splatconv.render.layout.float_attributes`).
 

@@ -170,7 +170,7 @@ class Prover:
         self.renderer = Renderer(first.width, first.height)
         self.frames = []
         try:
-            self.renderer.load(Source("<source>", source).texture())
+            Source("<source>", source).load_into(self.renderer)
             with progress.stage("drawing", len(views) * len(self.times), "frame") as advance:
                 for _name, view in views:
                     for t in self.times:
@@ -191,7 +191,7 @@ class Prover:
         worst frames of a like candidate first, where a failure shows soonest).
         """
         if isinstance(candidate, Scene):
-            self.renderer.load(Source("<candidate>", candidate).texture())
+            Source("<candidate>", candidate).load_into(self.renderer)
         else:
             load_candidate(self.renderer, candidate)
         plan = [(name, view, t) for name, view in self.views for t in self.times]
@@ -254,7 +254,7 @@ def load_candidate(renderer: Renderer, path) -> None:
     fmt = format_for(path)
     count = fmt.splat_count(path) if fmt.converted_texture is not None else None
     if count is None:  # no records to decode, or a header the reader refuses (and says why)
-        renderer.load(Source(str(path), read(path)).texture())
+        Source(str(path), read(path)).load_into(renderer)
         return
     renderer.load_pieces(count, lambda put: fmt.converted_texture(path, put))
 
