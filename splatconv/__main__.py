@@ -9,12 +9,14 @@ A run a signal ended leaves without waiting for its threads
 
 import sys
 
+from .files.heap import one_arena
 from .files.signals import asked_to_end, exit_at_once, exit_on_signals, hold_signals, status_for_signal
 
 
 def run() -> None:
     """Run the ``splatconv`` command line (the console script's entry point)."""
     exit_on_signals()
+    one_arena()  # before any helper thread: what one phase of a run frees, the next takes
     try:
         from .cli import main  # the one late import: after the handlers are set
     except KeyboardInterrupt:

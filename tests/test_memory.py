@@ -203,3 +203,35 @@ def test_a_whole_scene_command_stays_within_the_ceiling(name, scenes, files, tmp
         err = r.stderr.decode()
         assert r.returncode == 1 and err.startswith("Error: ") and "--max-decompressed" in err, err
         assert peak - base < CEILING / 4
+
+
+THREADS_ALLOCATING = """
+import ctypes, sys, threading
+import numpy as np
+from splatconv.files.heap import one_arena
+print(one_arena())
+def work():
+    for _ in range(200):
+        held = [np.ones(20000) for _ in range(10)]
+threads = [threading.Thread(target=work) for _ in range(4)]
+for t in threads:
+    t.start()
+for t in threads:
+    t.join()
+sys.stdout.flush()
+ctypes.CDLL(None).malloc_stats()  # to stderr: a paragraph an arena
+"""
+
+
+@pytest.mark.parametrize("asked", [None, "8"])
+def test_helper_threads_share_one_arena_unless_the_environment_says(asked):
+    # The command line (splatconv.__main__.run) calls one_arena first: what a helper thread
+    # frees, another phase allocates, instead of an arena of its own keeping it resident.
+    env = {k: v for k, v in os.environ.items() if k != "MALLOC_ARENA_MAX"}
+    if asked:
+        env["MALLOC_ARENA_MAX"] = asked
+    done = subprocess.run([sys.executable, "-c", THREADS_ALLOCATING], env=env, capture_output=True, text=True,
+                          check=True)
+    arenas = sum(line.startswith("Arena ") for line in done.stderr.splitlines())
+    assert done.stdout.split() == (["True"] if asked is None else ["False"])
+    assert arenas == 1 if asked is None else arenas > 1

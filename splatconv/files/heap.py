@@ -1,0 +1,33 @@
+"""The process's heap: one malloc arena for every thread.
+
+glibc's malloc gives each thread that allocates while another does an arena of
+its own, and keeps what is freed there for that arena. The helper threads that
+pack and unpack blocks (``.splatv``, ``.splatvq``) then leave their freed working
+arrays resident in arenas no other thread takes from: a proved 1M-splat
+``convert`` held some 85 MB so between a candidate's encode and its decode into
+the renderer, on top of what either needs. With one arena, what one phase frees
+the next allocates; the helpers work on whole blocks, so they seldom wait on its
+lock (a ``.splatv`` conversion runs as fast).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import sys
+
+#: mallopt(3) parameter: the most arenas malloc makes (glibc).
+_M_ARENA_MAX = -8
+
+
+def one_arena() -> bool:
+    """Have every thread's malloc take from the main arena (glibc), unless ``MALLOC_ARENA_MAX`` says
+    otherwise; call it before any helper thread starts. Whether it was set (False off glibc)."""
+    if not sys.platform.startswith("linux") or "MALLOC_ARENA_MAX" in os.environ:
+        return False
+    try:
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):
+        return False
+    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
+    return mallopt(_M_ARENA_MAX, 1) == 1
