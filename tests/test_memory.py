@@ -235,3 +235,37 @@ def test_helper_threads_share_one_arena_unless_the_environment_says(asked):
     arenas = sum(line.startswith("Arena ") for line in done.stderr.splitlines())
     assert done.stdout.split() == (["True"] if asked is None else ["False"])
     assert arenas == 1 if asked is None else arenas > 1
+
+
+def resident_of(path) -> int:
+    """Bytes of ``path``'s mappings resident in this process (/proc/self/smaps)."""
+    total, mine = 0, False
+    with open("/proc/self/smaps") as f:
+        for line in f:
+            head = line.split()
+            if "-" in head[0] and not head[0].endswith(":"):  # a mapping's line: address range, ..., path
+                mine = len(head) > 5 and head[5] == str(path)
+            elif mine and head[0] == "Rss:":
+                total += int(head[1]) * 1024
+    return total
+
+
+def test_a_proof_holds_no_page_of_a_mapped_input_between_its_passes(tmp_path):
+    # A proof reads its scene to pack the source's frames and at each candidate's write; in
+    # between, a mapped input's pages are handed back (the decode and the draws never sit beside
+    # them), and the next pass reads the same values again.
+    from splatconv.files.paging import hand_back, populate
+
+    from .scenes import moving_scene
+
+    source = tmp_path / "s.ply"
+    io.write(moving_scene(40_000, seed=2), source)
+    scene = io.read(source)
+    size = os.path.getsize(source)
+    before = {name: np.array(column) for name, column in scene.columns.items()}
+    populate(scene.columns["x"])
+    assert resident_of(source) >= 0.9 * size
+    hand_back(list(scene.columns.values()) + [np.zeros(3)])  # an array of no mapping is left alone
+    assert resident_of(source) < 0.01 * size
+    assert all(np.array_equal(scene.columns[name], column, equal_nan=True) for name, column in before.items())
+    assert resident_of(source) >= 0.9 * size

@@ -11,6 +11,13 @@ import numpy as np
 _MADV_POPULATE_READ = getattr(mmap, "MADV_POPULATE_READ", 22 if sys.platform.startswith("linux") else None)
 
 
+def _mapped(array):
+    """The ``np.memmap`` ``array`` is a view of, or None."""
+    while array is not None and getattr(array, "_mmap", None) is None:
+        array = array.base if isinstance(array, np.ndarray) else None
+    return array
+
+
 def populate(array: np.ndarray) -> None:
     """Map every page of the file mapping behind ``array`` now, in one call.
 
@@ -19,8 +26,7 @@ def populate(array: np.ndarray) -> None:
     process sharing the mapping starts with none of them mapped). Does nothing
     for an array not backed by ``np.memmap``, or where the call is not supported.
     """
-    while array is not None and getattr(array, "_mmap", None) is None:
-        array = array.base if isinstance(array, np.ndarray) else None
+    array = _mapped(array)
     if array is None or _MADV_POPULATE_READ is None:
         return
     try:
@@ -37,9 +43,7 @@ def release(array: np.ndarray) -> None:
     it, not the file. Does nothing for an array not backed by ``np.memmap``,
     or where the call is not supported.
     """
-    root = array
-    while root is not None and getattr(root, "_mmap", None) is None:
-        root = root.base if isinstance(root, np.ndarray) else None
+    root = _mapped(array)
     if root is None or not len(array):
         return
     mapping = root._mmap
@@ -51,3 +55,18 @@ def release(array: np.ndarray) -> None:
         mapping.madvise(mmap.MADV_DONTNEED, start, min(end, len(mapping)) - start)
     except (OSError, ValueError, AttributeError):
         pass
+
+
+def hand_back(arrays) -> None:
+    """Drop from this process's memory every page of the file mappings behind ``arrays``, each mapping
+    once (a scene's columns: views of one mapped table): between two passes over a mapped input, hold
+    none of it. The next pass reads the pages again from the page cache. Arrays not backed by
+    ``np.memmap`` are left as they are.
+    """
+    roots = {}
+    for array in arrays:
+        root = _mapped(array)
+        if root is not None:
+            roots.setdefault(id(root._mmap), root)
+    for root in roots.values():
+        release(root)

@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_writer
+from ..files.paging import hand_back
 from ..io import check_write_options, write
 from ..model import Scene
 from ..progress import SILENT
@@ -130,6 +131,8 @@ class _Candidates:
                 _, scene, pruned, prepared = self.pruned_last
             self.on_disk = key, write(scene, self.path, precision=step, tune=tune, force=True, prepared=prepared,
                                       **self.options), pruned
+            # A mapped input's pages, read again by the next write: none held beside the decode and draws.
+            hand_back(self.scene.columns.values())
             self.sizes[key] = os.path.getsize(self.path)
         return self.on_disk[1:]
 

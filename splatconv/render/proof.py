@@ -32,6 +32,7 @@ import numpy as np
 from .. import viewer
 from ..viewer import SPLATV_FOCAL, SPLATV_VIEW, SPLATV_WINDOW
 from ..cameras import camera_for_box
+from ..files.paging import hand_back
 from ..formats import format_for
 from ..io import read
 from ..model import Scene
@@ -171,6 +172,7 @@ class Prover:
         self.frames = []
         try:
             Source("<source>", source).load_into(self.renderer)
+            hand_back(source.columns.values())  # a mapped input's pages: the texture holds what is drawn
             with progress.stage("drawing", len(views) * len(self.times), "frame") as advance:
                 for _name, view in views:
                     for t in self.times:
