@@ -78,6 +78,28 @@ def test_the_floor_is_met_or_the_run_fails(tmp_path, kind):
     assert json.loads(r.stdout)["worst"]["psnr"] == pytest.approx(printed, abs=0.0051)  # printed to 2 places
 
 
+def test_axis_aligned_flat_splats_draw_nothing_in_the_file_as_in_the_source(tmp_path):
+    # A splat whose rotation is one component alone, with no omega and a zero scale, seen from a
+    # view on the scene's axes (the test camera's), has an exactly diagonal screen covariance: the
+    # viewer's major axis is normalize(vec2(0, 0)) and it draws nothing. The rotation codes cannot
+    # hold the three zeros, and the splat a hair off axis is drawn (no step reached the floor).
+    # Such splats are kept verbatim: the default floor holds, and the note counts them.
+    scene = _shaped("flat")
+    c = {k: np.array(v) for k, v in scene.columns.items()}
+    aligned = np.arange(1, len(c["x"]), 2)
+    for j in range(4):
+        c[f"rot_{j}"][aligned] = float(j == 0)
+        c[f"omega_{j}"][aligned] = 0.0
+    c["scale_2"][aligned] = -40.0  # a zero half: flat across the view
+    src = tmp_path / "s.ply"
+    io.write(Scene(c, cameras=scene.cameras), src)
+    out = tmp_path / "o.splatvq"
+    r = run("convert", src, out)
+    assert r.exit_code == 0, r.output
+    assert f"{len(aligned)} splats kept verbatim (a zero rotation, an axis-aligned flat splat" in r.stderr
+    assert float(r.stderr.split("note: proved: worst frame ")[1].split(" dB")[0]) >= 45
+
+
 def test_a_floor_out_of_reach_is_an_error_unless_best_effort(tmp_path):
     src = tmp_path / "s.ply"
     io.write(_shaped("large"), src)

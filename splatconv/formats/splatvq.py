@@ -216,7 +216,7 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     kept = scene.variant == FORMAT.name and scene.meta.get("setting") == name
     how = f"kept the source's {name!r} setting" if kept else f"quantized with the {name!r} setting"
     report.notes.append(f"{how} ({len(data) / n:.1f} bytes a splat)"
-                        + (f"; {plural(raw, 'splat')} kept verbatim (a zero rotation, or NaN, infinite or far values)" if raw else "")
+                        + (f"; {plural(raw, 'splat')} kept verbatim (a zero rotation, an axis-aligned flat splat, or NaN, infinite or far values)" if raw else "")
                         + (f"; {plural(forced, 'splat')} at the ends of the viewer's depth sort kept exactly"
                            if forced else ""))
     # What packing the drawable splats' records changed, as the .splatv writer says it.
