@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import io as pyio
 import json
 import zlib
 
@@ -210,6 +211,37 @@ def overlapping():
         mp.setattr(codec, "BLOCK", 256)
         data, report = splatvq.encode(scene)
     return data, report
+
+
+class _Pipe:
+    """A stream that cannot seek (standard output, a compressor): what write falls back to encode for."""
+
+    def __init__(self):
+        self.data = bytearray()
+
+    def write(self, b):
+        self.data += b
+        return len(b)
+
+    def seekable(self):
+        return False
+
+
+def test_a_write_streams_its_blocks_and_writes_what_encode_gives(monkeypatch, overlapping):
+    # A seekable stream gets each block as it is encoded (the block table filled in after, where the
+    # header left room for it), from wherever the stream stands; any other stream the bytes encode gives.
+    monkeypatch.setattr(codec, "BLOCK", 256)
+    scene = overlapping_scene()
+    seekable = pyio.BytesIO(b"before")
+    seekable.seek(0, 2)
+    report = splatvq.write(scene, seekable)
+    pipe = _Pipe()
+    splatvq.write(scene, pipe)
+    assert seekable.getvalue() == b"before" + overlapping[0] and bytes(pipe.data) == overlapping[0]
+    assert report.notes == overlapping[1].notes and report.count == overlapping[1].count
+    _, entries, body_at = damage.layout(overlapping[0])  # the table filled in: each block where it says
+    assert len(entries) == 2 and body_at + sum(e[3] for e in entries) == len(overlapping[0])
+    assert all(e[0] + e[1] > 0 for e in entries)
 
 
 def test_records_decode_in_importance_order_block_after_block(tmp_path, overlapping, monkeypatch):

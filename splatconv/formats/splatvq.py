@@ -15,6 +15,7 @@ writing: every frame the viewer draws is unchanged by it; the notes say how many
 from __future__ import annotations
 
 import contextlib
+import io
 import json
 import os
 import struct
@@ -96,7 +97,23 @@ def prepare(scene: Scene) -> tuple:
 
 def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, precision: int = 0,
            tune: tuple = (), level: int = 9, progress=SILENT, prepared: tuple | None = None) -> tuple:
-    """A scene as ``.splatvq`` bytes, in memory.
+    """A scene as ``.splatvq`` bytes, in memory (:func:`write`'s parameters; see :func:`_encode_to`).
+
+    Returns
+    -------
+    data : bytes
+    report : WriteReport
+    """
+    out = io.BytesIO()
+    report = _encode_to(scene, out, sort=sort, quality=quality, precision=precision, tune=tune, level=level,
+                        progress=progress, prepared=prepared)
+    return out.getvalue(), report
+
+
+def _encode_to(scene: Scene, out, *, sort: str | None = None, quality: str | None = None, precision: int = 0,
+               tune: tuple = (), level: int = 9, progress=SILENT, prepared: tuple | None = None) -> WriteReport:
+    """Write a scene as ``.splatvq`` to ``out``, a seekable binary stream, from where it stands: each block as
+    it is encoded, then the block table in the place the header left for it (no block held once written).
 
     Parameters
     ----------
@@ -121,8 +138,7 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
 
     Returns
     -------
-    data : bytes
-    report : WriteReport
+    WriteReport
     """
     base = _setting_name(quality)
     if precision not in codec.PRECISIONS:
@@ -162,6 +178,19 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
         return out, counts
 
     starts = range(0, n, codec.BLOCK)
+    header = {"count": n, "setting": name, "cameras": cameras}
+    if setting.color_shift:
+        header["color_shift"] = setting.color_shift  # colours rounded: verify judges them as quantized
+    if scene.meta.get("pruned"):
+        header["pruned"] = int(scene.meta["pruned"])  # splats pruned from the scene (splatconv.ops.prune)
+    text = json.dumps(header, separators=(",", ":"),
+                      ensure_ascii=False, allow_nan=False).encode("utf-8")
+    values = [getattr(setting, f) for f in SETTING_ORDER]
+    first = out.tell()
+    out.write(PREAMBLE.pack(MAGIC, VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2, len(text), len(starts)))
+    out.write(text)
+    table_at = out.tell()
+    out.write(bytes(BLOCK_ENTRY.size * len(starts)))  # the block table, written once the blocks are
     with ThreadPoolExecutor(max_workers=2) if len(starts) > 1 else contextlib.nullcontext() as pool:
         each = pool.map if pool is not None else map
         if (sort or FORMAT.default_sort) == "none":
@@ -182,27 +211,18 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
             records, counts = packed(rows)
             return codec.encode_block(records, setting, level, exact=exact[rows]), counts
 
-        blocks = []
+        blocks, counts, forced = [], engine.new_counts(), 0  # each block's table entry, once written
         with progress.stage("writing", n, "splat") as advance:
-            for start, block in zip(starts, each(job, starts)):
-                blocks.append(block)
+            for start, ((stored, coded, raw, payload, block_forced), part) in zip(starts, each(job, starts)):
+                out.write(stored)
+                blocks.append((coded, raw, payload, len(stored)))
+                engine.merge_counts(counts, part)
+                forced += block_forced
                 advance(min(codec.BLOCK, n - start))
-    counts = engine.new_counts()
-    for _, part in blocks:
-        engine.merge_counts(counts, part)
-    forced = sum(block[4] for block, _ in blocks)
-    blocks = [block[:4] for block, _ in blocks]
-    header = {"count": n, "setting": name, "cameras": cameras}
-    if setting.color_shift:
-        header["color_shift"] = setting.color_shift  # colours rounded: verify judges them as quantized
-    if scene.meta.get("pruned"):
-        header["pruned"] = int(scene.meta["pruned"])  # splats pruned from the scene (splatconv.ops.prune)
-    text = json.dumps(header, separators=(",", ":"),
-                      ensure_ascii=False, allow_nan=False).encode("utf-8")
-    values = [getattr(setting, f) for f in SETTING_ORDER]
-    head = PREAMBLE.pack(MAGIC, VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2, len(text), len(blocks))
-    table = b"".join(BLOCK_ENTRY.pack(coded, raw, payload, len(stored)) for stored, coded, raw, payload in blocks)
-    data = b"".join([head, text, table] + [stored for stored, _, _, _ in blocks])
+    end = out.tell()
+    out.seek(table_at)
+    out.write(b"".join(BLOCK_ENTRY.pack(*entry) for entry in blocks))
+    out.seek(end)
     if dropped.any():
         what = kinds_text({kind: int(c) for kind, c in zip(UNDRAWABLE_KINDS, dropped)})
         report.notes.append(f"left out {plural(int(dropped.sum()), 'undrawable splat')} ({what}): "
@@ -210,18 +230,18 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
                             + (f"; kept {shaping:,} that the viewer's depth sort needs" if shaping else ""))
     elif shaping:
         report.notes.append(f"kept {plural(shaping, 'undrawable splat')}: the viewer's depth sort needs them")
-    raw = sum(r for _, _, r, _ in blocks) - forced
+    raw = sum(r for _, r, _, _ in blocks) - forced
     # A scene read from a .splatvq of this very setting is on its grid already (the quantizers are
     # projections): encoding it again quantizes nothing, so the note says the setting was kept.
     kept = scene.variant == FORMAT.name and scene.meta.get("setting") == name
     how = f"kept the source's {name!r} setting" if kept else f"quantized with the {name!r} setting"
-    report.notes.append(f"{how} ({len(data) / n:.1f} bytes a splat)"
+    report.notes.append(f"{how} ({(end - first) / n:.1f} bytes a splat)"
                         + (f"; {plural(raw, 'splat')} kept verbatim (a zero rotation, an axis-aligned flat splat, or NaN, infinite or far values)" if raw else "")
                         + (f"; {plural(forced, 'splat')} at the ends of the viewer's depth sort kept exactly"
                            if forced else ""))
     # What packing the drawable splats' records changed, as the .splatv writer says it.
     report.notes.extend(splatv.write_notes(counts, False))
-    return data, report
+    return report
 
 
 def kept_step(scene: Scene, quality: str | None) -> int | None:
@@ -241,10 +261,20 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
           **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`): ``progress`` counts the
     splats written, not those read (undrawable splats are left out)."""
-    data, report = encode(scene, sort=sort, quality=quality, precision=precision, tune=tune, progress=progress,
-                          prepared=prepared)
+    options = {"sort": sort, "quality": quality, "precision": precision, "tune": tune, "progress": progress,
+               "prepared": prepared}
+    if _seekable(stream):  # each block written as it is encoded
+        return _encode_to(scene, stream, **options)
+    data, report = encode(scene, **options)
     stream.write(data)
     return report
+
+
+def _seekable(stream) -> bool:
+    try:
+        return stream.seekable()
+    except (AttributeError, ValueError, OSError):
+        return False
 
 
 # --------------------------------------------------------------------------
