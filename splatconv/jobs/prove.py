@@ -22,6 +22,7 @@ import numpy as np
 
 from ..errors import OutputError, UsageError
 from ..files.output import atomic_writer
+from ..files.heap import trim
 from ..files.paging import hand_back
 from ..io import check_write_options, write
 from ..model import Scene
@@ -129,10 +130,12 @@ class _Candidates:
                     scene, pruned = leave_out(self.scene, self.ranked[:left_out], of=len(self.ranked))
                     self.pruned_last = left_out, scene, pruned, self.prepare(scene) if self.prepare else None
                 _, scene, pruned, prepared = self.pruned_last
+            trim()  # what the last candidate's decode and draws freed, given back before this write
             self.on_disk = key, write(scene, self.path, precision=step, tune=tune, force=True, prepared=prepared,
                                       **self.options), pruned
             # A mapped input's pages, read again by the next write: none held beside the decode and draws.
             hand_back(self.scene.columns.values())
+            trim()
             self.sizes[key] = os.path.getsize(self.path)
         return self.on_disk[1:]
 
