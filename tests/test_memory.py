@@ -269,6 +269,13 @@ def test_a_proof_holds_no_page_of_a_mapped_input_between_its_passes(tmp_path):
     assert resident_of(source) < 0.01 * size
     assert all(np.array_equal(scene.columns[name], column, equal_nan=True) for name, column in before.items())
     assert resident_of(source) >= 0.9 * size
+    # A copy-on-write mapping's pages may hold this process's changes: those are kept.
+    raw = tmp_path / "r.f32"
+    raw.write_bytes(bytes(4 * 4096))
+    changed = np.memmap(raw, np.float32, mode="c")[::2]
+    changed[:] = 7.0
+    hand_back([changed])
+    assert (changed == 7.0).all()
 
 
 HEAP_FREED = """

@@ -60,13 +60,17 @@ def release(array: np.ndarray) -> None:
 def hand_back(arrays) -> None:
     """Drop from this process's memory every page of the file mappings behind ``arrays``, each mapping
     once (a scene's columns: views of one mapped table): between two passes over a mapped input, hold
-    none of it. The next pass reads the pages again from the page cache. Arrays not backed by
-    ``np.memmap`` are left as they are.
+    none of it. The next pass reads the pages again from the page cache. Arrays not backed by a
+    read-only ``np.memmap`` (every reader's mode) are left as they are.
     """
     roots = {}
     for array in arrays:
         root = _mapped(array)
-        if root is not None:
+        while root is not None and getattr(root.base, "_mmap", None) is not None:  # the mapping's own array
+            root = root.base
+        # Only a read-only mapping: the pages of a copy-on-write one ("c") may hold changes of this
+        # process alone, which dropping them would undo.
+        if root is not None and getattr(root, "mode", None) == "r":
             roots.setdefault(id(root._mmap), root)
     for root in roots.values():
         release(root)
