@@ -227,7 +227,7 @@ class _Pipe:
         return False
 
 
-def test_a_write_streams_its_blocks_and_writes_what_encode_gives(monkeypatch, overlapping):
+def test_a_write_streams_its_blocks_and_writes_what_encode_gives(tmp_path, monkeypatch, overlapping):
     # A seekable stream gets each block as it is encoded (the block table filled in after, where the
     # header left room for it), from wherever the stream stands; any other stream the bytes encode gives.
     monkeypatch.setattr(codec, "BLOCK", 256)
@@ -239,6 +239,11 @@ def test_a_write_streams_its_blocks_and_writes_what_encode_gives(monkeypatch, ov
     splatvq.write(scene, pipe)
     assert seekable.getvalue() == b"before" + overlapping[0] and bytes(pipe.data) == overlapping[0]
     assert report.notes == overlapping[1].notes and report.count == overlapping[1].count
+    appended = tmp_path / "a.splatvq"  # a file opened to append to seeks in vain: encode's bytes
+    appended.write_bytes(b"before")
+    with open(appended, "ab") as f:
+        splatvq.write(scene, f)
+    assert appended.read_bytes() == b"before" + overlapping[0]
     _, entries, body_at = damage.layout(overlapping[0])  # the table filled in: each block where it says
     assert len(entries) == 2 and body_at + sum(e[3] for e in entries) == len(overlapping[0])
     assert all(e[0] + e[1] > 0 for e in entries)

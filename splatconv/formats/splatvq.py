@@ -271,8 +271,9 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
 
 
 def _seekable(stream) -> bool:
+    """Whether ``stream`` can take the block table after the blocks (not a file opened to append to)."""
     try:
-        return stream.seekable()
+        return stream.seekable() and "a" not in getattr(stream, "mode", "")
     except (AttributeError, ValueError, OSError):
         return False
 
