@@ -8,6 +8,7 @@ splats per texture row. The word table below is the whole record layout.
 
 from __future__ import annotations
 
+import contextlib
 import os
 
 import numpy as np
@@ -46,6 +47,23 @@ __all__ = ["FORMAT", "STORAGE", "read", "write", "encode", "pieces", "info_field
 # Writing
 
 
+@contextlib.contextmanager
+def _packing(scene: Scene, compat: str | None, sort: str | None, camera: bool = False):
+    """What a packing of ``scene``'s records takes: ``(plan, report, pool, cameras)``, its key pass and sort
+    done (and a framing camera made where ``camera``: :func:`engine.prepare`); the helper threads shut
+    down after, and the write notes added to the report once every record is packed."""
+    is_compat = compat == "splatv-js"
+    report = WriteReport(count=scene.count, texheight=texture_height(scene.count))
+    plan = engine.Plan(scene, is_compat, sort)
+    pool = engine.helpers(scene.count)
+    try:
+        yield plan, report, pool, engine.prepare(plan, camera, report, pool)
+    finally:
+        if pool is not None:
+            pool.shutdown(cancel_futures=True)
+    report.notes.extend(write_notes(report, is_compat))
+
+
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
           **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatv``.
@@ -66,23 +84,13 @@ def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None =
     n = scene.count
     if n == 0:
         raise UnsupportedError("no splats to write; the viewer cannot show an empty texture")
-    is_compat = compat == "splatv-js"
-    report = WriteReport(count=n, texheight=texture_height(n))
-    plan = engine.Plan(scene, is_compat, sort)
-    pool = engine.helpers(n)
-    try:
-        cameras = engine.prepare(plan, not scene.cameras, report, pool)
+    with _packing(scene, compat, sort, camera=not scene.cameras) as (plan, report, pool, cameras):
         stream.write(header_bytes(n, cameras or scene.cameras))
         with progress.stage("writing", n, "splat") as advance:
             for block in engine.blocks(plan, report, pool):
                 stream.write(memoryview(block))
                 advance(len(block))
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
-    padding = report.texheight * SPLATS_PER_ROW - n
-    stream.write(bytes(padding * RECORD_BYTES))
-    report.notes.extend(write_notes(report, is_compat))
+        stream.write(bytes((report.texheight * SPLATS_PER_ROW - n) * RECORD_BYTES))  # the padding
     return report
 
 
@@ -95,39 +103,19 @@ def encode(scene: Scene, *, compat: str | None = None, sort: str | None = None):
         Padding records included, all zero.
     report : WriteReport
     """
-    is_compat = compat == "splatv-js"
-    n = scene.count
-    report = WriteReport(count=n, texheight=texture_height(n))
-    records = np.empty((report.texheight * SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4")
-    records[n:] = 0
-    plan = engine.Plan(scene, is_compat, sort)
-    pool = engine.helpers(n)
-    try:
-        engine.prepare(plan, False, report, pool)
+    with _packing(scene, compat, sort) as (plan, report, pool, _):
+        records = np.empty((report.texheight * SPLATS_PER_ROW, WORDS_PER_SPLAT), dtype="<u4")
+        records[scene.count:] = 0
         engine.into(plan, records, report, pool)
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
-    report.notes.extend(write_notes(report, is_compat))
     return records, report
 
 
 def pieces(scene: Scene, put, *, compat: str | None = None, sort: str | None = None) -> WriteReport:
     """What :func:`encode` gives, a block at a time: ``put(records)`` with each ``(M, 16) uint32`` block in
     texture order, the padding left out; a block's memory is reused once ``put`` returns."""
-    is_compat = compat == "splatv-js"
-    n = scene.count
-    report = WriteReport(count=n, texheight=texture_height(n))
-    plan = engine.Plan(scene, is_compat, sort)
-    pool = engine.helpers(n)
-    try:
-        engine.prepare(plan, False, report, pool)
+    with _packing(scene, compat, sort) as (plan, report, pool, _):
         for block in engine.blocks(plan, report, pool):
             put(block)
-    finally:
-        if pool is not None:
-            pool.shutdown(cancel_futures=True)
-    report.notes.extend(write_notes(report, is_compat))
     return report
 
 
