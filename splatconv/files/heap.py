@@ -20,28 +20,30 @@ import sys
 _M_ARENA_MAX = -8
 
 
+def _glibc(name: str, argtypes: tuple):
+    """The C library's function ``name`` (argument and int result types set), or None off Linux or where
+    the library has none."""
+    if not sys.platform.startswith("linux"):
+        return None
+    try:
+        function = getattr(ctypes.CDLL(None), name)
+    except (OSError, AttributeError):
+        return None
+    function.argtypes, function.restype = argtypes, ctypes.c_int
+    return function
+
+
 def one_arena() -> bool:
     """Have every thread's malloc take from the main arena (glibc), unless ``MALLOC_ARENA_MAX`` says
     otherwise; call it before any helper thread starts. Whether it was set (False off glibc)."""
-    if not sys.platform.startswith("linux") or "MALLOC_ARENA_MAX" in os.environ:
-        return False
-    try:
-        mallopt = ctypes.CDLL(None).mallopt
-    except (OSError, AttributeError):
-        return False
-    mallopt.argtypes, mallopt.restype = (ctypes.c_int, ctypes.c_int), ctypes.c_int
-    return mallopt(_M_ARENA_MAX, 1) == 1
+    mallopt = None if "MALLOC_ARENA_MAX" in os.environ else _glibc("mallopt", (ctypes.c_int, ctypes.c_int))
+    return mallopt is not None and mallopt(_M_ARENA_MAX, 1) == 1
 
 
 def trim() -> None:
     """Give the heap's free pages back to the system (glibc's ``malloc_trim``; nothing elsewhere): between a
     proof's passes, what one pass freed is not resident through the next (a candidate's decode and draws
     free some 100 MB at 1M splats, whose pages its next encode would only partly reuse)."""
-    if not sys.platform.startswith("linux"):
-        return
-    try:
-        malloc_trim = ctypes.CDLL(None).malloc_trim
-    except (OSError, AttributeError):
-        return
-    malloc_trim.argtypes, malloc_trim.restype = (ctypes.c_size_t,), ctypes.c_int
-    malloc_trim(0)
+    malloc_trim = _glibc("malloc_trim", (ctypes.c_size_t,))
+    if malloc_trim is not None:
+        malloc_trim(0)
