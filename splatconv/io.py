@@ -358,7 +358,7 @@ def _has_suffix(path, suffixes) -> bool:
 def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, sort: str | None = None,
           force: bool = False, inputs=(), zstd_level: int | None = None, layout: str | None = None,
           quality: str | None = None, precision: int | None = None, tune: tuple = (), prepared=None,
-          progress=SILENT):
+          weights=None, progress=SILENT):
     """Write ``scene`` to ``path`` (format by suffix), atomically.
 
     Parameters
@@ -391,6 +391,9 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
         format offers (``tunings``; a name once a notch).
     prepared : optional
         What the format's ``prepare`` gave for this very scene (a proof writes it at several steps).
+    weights : (N,) float ndarray, optional
+        What each splat adds to the frames a user sees, for a format that spends its
+        bits by it (``weighs``): :func:`splatconv.render.proof.frame_weights`.
     progress : splatconv.progress.Progress
         Told the splats written as they are written, and, for a ``.zst``
         output, the bytes compressed after the last write.
@@ -411,12 +414,14 @@ def write(scene: Scene, path: str | os.PathLike, *, compat: str | None = None, s
                          f"not {', '.join(n for n in tune if n not in fmt.tunings)}", path)
     if prepared is not None and fmt.prepare is None:
         raise UsageError(f"a .{fmt.name} writer prepares nothing", path)
+    if weights is not None and not fmt.weighs:
+        raise UsageError(f"a .{fmt.name} writer weighs no splat", path)
     beside = _companions(fmt, path, inputs, force)
     with atomic_group(replace=force) as group, group.open(path) as stream, contextlib.ExitStack() as stack:
         streams = [stack.enter_context(group.open(other)) for other in beside]
         return _write_file(stream, fmt, scene, path, compat=compat, sort=sort, layout=layout, quality=quality,
-                           precision=precision, tune=tuple(tune), prepared=prepared, zstd_level=zstd_level,
-                           progress=progress, companions=streams)
+                           precision=precision, tune=tuple(tune), prepared=prepared, weights=weights,
+                           zstd_level=zstd_level, progress=progress, companions=streams)
 
 
 def _companions(fmt, path, inputs, force: bool) -> tuple:
@@ -442,7 +447,8 @@ def _size_hint(scene: Scene) -> int:
 
 def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, sort: str | None = None,
                 layout: str | None = None, quality: str | None = None, precision: int | None = None,
-                tune: tuple = (), prepared=None, zstd_level: int | None = None, progress=SILENT, companions=()):
+                tune: tuple = (), prepared=None, weights=None, zstd_level: int | None = None, progress=SILENT,
+                companions=()):
     """Write ``scene`` in format ``fmt`` to the binary ``stream`` that becomes ``path`` (``.zst``: compressed
     as it is written), and to the ``companions`` streams of the files beside it: what :func:`write` and
     :func:`write_each` do for each file. Errors name ``path``."""
@@ -450,6 +456,7 @@ def _write_file(stream, fmt, scene: Scene, path, *, compat: str | None = None, s
     # Only the options given: a writer that offers none takes none.
     extra = {key: value for key, value in (("layout", layout), ("quality", quality), ("precision", precision),
                                            ("tune", tuple(tune) or None), ("prepared", prepared),
+                                           ("weights", weights),
                                            ("companions", tuple(companions) or None)) if value is not None}
     try:
         with output_stream(stream, path, level, progress, size_hint=_size_hint(scene)) as out:

@@ -275,7 +275,7 @@ def _splatvq_header_edit(rng, data):
     preamble = bytearray(data[:splatvq.PREAMBLE.size])
     struct.pack_into("<I", preamble, splatvq.PREAMBLE.size - 8, declared & 0xFFFFFFFF)
     if rng.random() < 0.3:  # a setting byte at an edge of its range or past it
-        preamble[rng.randrange(6, 16)] = rng.choice([0, 1, 2, 8, 16, 30, 31, 127, 128, 255])
+        preamble[rng.randrange(6, 6 + len(splatvq.SETTING_ORDER))] = rng.choice([0, 1, 2, 8, 16, 30, 31, 127, 128, 255])
     return bytes(preamble) + text + data[table_at:]
 
 

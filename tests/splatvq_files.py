@@ -16,6 +16,12 @@ from splatconv.formats import splatvq
 from splatconv.formats import splatvq_codec as codec
 
 
+def setting(data: bytes) -> codec.Setting:
+    """The setting a file's preamble holds."""
+    values = splatvq.PREAMBLE.unpack_from(data)[3:3 + len(splatvq.SETTING_ORDER)]
+    return codec.Setting(**dict(zip(splatvq.SETTING_ORDER, values)))
+
+
 def layout(data: bytes):
     """Where the block table starts, its entries (coded, raw, payload, stored) and where the blocks start."""
     json_length, blocks = splatvq.PREAMBLE.unpack_from(data)[-2:]
@@ -85,9 +91,10 @@ def with_width(data: bytes, column: str, width: int) -> bytes:
     return with_payload(data, bytes(changed))
 
 
-def bad_window(tables, fields):
-    """A window_index one past the largest (e 30, rotation index 3): a change for :func:`with_codes`."""
-    fields["window_index"][0] = (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 4
+def bad_rotation(tables, fields):
+    """Splat 3's boost level 0 (``rotation_bits`` a component) and a rotation code of 4096, past them."""
+    fields["window_index"][3] &= 0x3F
+    fields["rotation"][3, 1] = 1 << 12
 
 
 def bad_position_step(tables, fields):

@@ -57,7 +57,7 @@ def test_preamble_table_is_the_struct():
     assert "16 `B`" in SPEC and splatvq.BLOCK_ENTRY.size == 16
     assert "`coded`, `raw`, `payload`, `stored`, four uint32" in SPEC and splatvq.BLOCK_ENTRY.format == "<IIII"
     assert "the bytes `SPVQ` (`MAGIC`)" in SPEC and splatvq.MAGIC == b"SPVQ"
-    assert "| 4 | 1 | version | 4 (`VERSION`) |" in SPEC and splatvq.VERSION == 4
+    assert "| 4 | 1 | version | 5 (`VERSION`) |" in SPEC and splatvq.VERSION == 5
     assert "1: raw deflate (`CODER_DEFLATE_RAW`)" in SPEC and codec.CODER_DEFLATE_RAW == 1
     assert "8: 256 splats a chunk (`CHUNK_LOG2`)" in SPEC and codec.CHUNK == 256
 
@@ -113,13 +113,16 @@ def test_settings_table_is_the_code():
 
 @pytest.mark.parametrize("text, value", [
     ("1 to 65536 in all (`BLOCK`)", codec.BLOCK == 65536),
-    ("(e + 30) · 4 + which quaternion component is dropped (0–3: rot_0..rot_3) (`WINDOW_BIAS`)",
-     codec.WINDOW_BIAS == 30),
-    ("e = (window_index >> 2) − 30, from −30 to 30 (a window_index past\n  243 is refused)",
-     (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 3 == 243),
+    ("level · 64 + (e + 13) · 4 + which quaternion component is dropped (0–3: rot_0..rot_3) (`WINDOW_BIAS`)",
+     codec.WINDOW_BIAS == 13 and codec.BOOST_MAX == 3),
+    ("e = ((window_index >> 2) AND 15) − 13, from −13 to 2:", (codec.WINDOW_MIN, codec.WINDOW_MAX) == (-13, 2)),
+    ("level (window_index >> 6, 0 to 3: `BOOST_MAX`)", codec.BOOST_MAX == 3),
+    ("2^min(16, `rotation_bits` + b) − 1", codec.ROTATION_BITS_MAX == 16),
+    ("the level is round(0.2 · log2 w), 0 to 3", codec.LEVELS_PER_OCTAVE["frames"] == 0.2),
+    ("at 0.5\n  levels an octave", codec.LEVELS_PER_OCTAVE["size"] == 0.5),
     ("each at most 4\n(`MAX_WIDTH`)", codec.MAX_WIDTH == 4),
     ("min(v, 255) of each splat\n  (`SATURATED`)", codec.SATURATED == 255),
-    ("clamped to [−30, 30]", (codec.WINDOW_MIN, codec.WINDOW_MAX) == (-30, 30)),
+    ("at least −13 (`WINDOW_MIN`)", codec.WINDOW_MIN == -13),
     ("code 0 is +0", codec.SCALE_ZERO == 0),
     ("code 1 is +inf\n  (`SCALE_INF`)", codec.SCALE_INF == 1),
     ("c ≥ 2 (`SCALE_FIRST`)", codec.SCALE_FIRST == 2),
@@ -170,10 +173,10 @@ def test_the_test_vector_decodes_as_written():
     key = [1.6875 * 1.9375 * 1.875 * 40, 0.0]
     assert codec.record_key(out).tolist() == key
     assert "its key is 1.6875 · 1.9375 · 1.875 · 40" in section
-    assert out[:, 0].view(np.float32).tolist() == [22.875, 16.625]
-    assert codec.x_steps(np.array([1000, 175]), np.array([-6, -3])).tolist() == [1000, 50]
+    assert out[:, 0].view(np.float32).tolist() == [11.125, 4.90625]
+    assert codec.x_steps(np.array([1000, 81]), np.array([-8, -3])).tolist() == [1000, 50]
     tables, fields, raw = codec.unpack_payload(payload, 2, 0, "<spec>", ())
-    assert fields["x_step"][:, 0].tolist() == [1000, 50] and fields["window_index"][:, 0].tolist() == [116, 122]
+    assert fields["x_step"][:, 0].tolist() == [1000, 50] and fields["window_index"][:, 0].tolist() == [112, 54]
     assert fields["motion"][:, :2].tolist() == [[10, 9], [0, 0]] and len(raw) == 0
     # The vector is what the encoder's own packing gives for these codes.
     assert b"".join(codec.payload_parts(tables, fields, raw)) == payload

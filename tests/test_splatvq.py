@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import io as pyio
 import json
 import zlib
@@ -95,7 +96,7 @@ def test_undrawable_splats_are_left_out_and_counted(tmp_path, real, renderer):
 
 def test_fidelity_by_pixels(tmp_path, real, renderer):
     scene, _ = real
-    for quality, floor in (("default", 42.0), ("small", 38.0)):
+    for quality, floor in (("default", 42.0), ("small", 31.0)):
         path, _ = written(tmp_path, scene, f"{quality}.splatvq", quality)
         decoded = splatvq.read(path)
         values = [psnr(draw(renderer, scene, t, CAMERA), draw(renderer, decoded, t, CAMERA)) for t in TIMES]
@@ -266,7 +267,7 @@ def test_records_decode_in_importance_order_block_after_block(tmp_path, overlapp
     start, ties_with_raw = 0, 0
     for coded, raw, _, stored in entries:
         payload = zlib.decompress(data[at:at + stored], -15)
-        records = codec.decode_payload(payload, coded, raw, codec.SETTINGS["default"], "x", ())
+        records = codec.decode_payload(payload, coded, raw, damage.setting(data), "x", ())
         assert np.array_equal(words[start:start + len(records)], records[importance_order(codec.record_key(records))])
         ties_with_raw += np.isin(codec.record_key(records[:coded]), codec.record_key(records[coded:])).sum()
         start, at = start + len(records), at + stored
@@ -314,10 +315,6 @@ def _good(tmp_path) -> bytes:
     return splatvq.encode(scene)[0]
 
 
-def _bad_rotation(tables, fields):
-    fields["rotation"][3, 1] = 1 << 12
-
-
 def _bad_scale(tables, fields):
     fields["scale"][5, 2] = 1 << 20
 
@@ -335,10 +332,10 @@ def _no_blocks(data: bytes) -> bytes:
 
 
 BAD = [
-    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (26-byte preamble)"),
+    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (27-byte preamble)"),
     ("magic", lambda d: b"XXXX" + d[4:], "not a .splatvq file: magic b'XXXX', expected b'SPVQ'"),
-    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (4)"),
-    ("version 3", lambda d: d[:4] + b"\x03" + d[5:], "version 3 is not one this reader knows (4)"),
+    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (5)"),
+    ("version 4", lambda d: d[:4] + b"\x04" + d[5:], "version 4 is not one this reader knows (5)"),
     ("coder", lambda d: d[:5] + b"\x02" + d[6:], "coder 2 is not one this reader knows (1: raw deflate)"),
     ("setting", lambda d: d[:7] + b"\x00" + d[8:], "setting 'rotation_bits' is 0, outside [2, 16]"),
     ("truncated", lambda d: d[:-5], "block 0: declares {stored} bytes but the file ends {short} bytes after its "
@@ -360,10 +357,9 @@ BAD = [
     ("corrupt stream", lambda d: damage.with_entry(d, body=b"\xff" * len(d[damage.layout(d)[2]:])),
      "block 0: compressed data "
      "is corrupt (Error -3 while decompressing data: invalid block type)"),
-    ("window", lambda d: damage.with_codes(d, damage.bad_window), "block 0: a window exponent is past 30"),
     ("position step", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 0: a position code is past 2**32 - 1"),
-    ("rotation code", lambda d: damage.with_codes(d, _bad_rotation), f"block 0: a rotation code is past {(1 << codec.SETTINGS['default'].rotation_bits) - 1}"),
+    ("rotation code", lambda d: damage.with_codes(d, damage.bad_rotation), f"block 0: a rotation code is past {(1 << codec.SETTINGS['default'].rotation_bits) - 1}"),
     ("scale code", lambda d: damage.with_codes(d, _bad_scale), "block 0: a scale code decodes past the half range"),
     ("width", lambda d: damage.with_width(d, "x_step[0]", 5), "block 0: a column width of 5 bytes (at most 4)"),
     ("payload ends early", lambda d: damage.with_width(d, "rotation[0]", codec.MAX_WIDTH),
@@ -492,12 +488,12 @@ def test_verify_and_stats_compare_against_the_sources_drawable_splats(tmp_path, 
     # Paired with the right splats: colour and opacity bytes are kept exactly, positions move by under a step.
     assert stats["attributes"]["color"]["max_abs_error"] <= 0.5 / 255 + 1e-6
     assert stats["attributes"]["opacity"]["max_abs_error"] <= 0.5 / 255 + 1e-6
-    assert stats["attributes"]["position"]["max_abs_error"] < 0.01
+    assert stats["attributes"]["position"]["max_abs_error"] < 0.02
 
 
 def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path, real):
     """compare.pair: the source's drawable splats, each paired with its own quantized copy (colour and opacity
-    bytes equal, position within a hundredth); a file that lost other splats is still refused."""
+    bytes equal, position within two hundredths); a file that lost other splats is still refused."""
     from splatconv.compare import _byte_key, pair
     from splatconv.errors import UnsupportedError
     from splatconv.model import COLUMNS, Scene
@@ -510,7 +506,7 @@ def test_pairing_finds_each_quantized_splat_and_refuses_any_other_count(tmp_path
     assert sorted(order.tolist()) == keep.tolist() and len(notes) == 1
     assert (_byte_key(scene.take(order)) == _byte_key(converted.columns)).all()
     moved = np.stack([np.abs(scene.columns[c][order] - converted.columns[c]) for c in "xyz"])
-    assert moved.max() < 0.01
+    assert moved.max() < 0.02
     # The same count: no note, as before.
     drawable = Scene(columns=scene.take(keep), cameras=scene.cameras)
     same, notes = pair(drawable, converted, storage=splatv.FORMAT.storage(converted))
@@ -653,7 +649,11 @@ def test_the_small_setting_rounds_colours_and_says_so(tmp_path, monkeypatch):
     r = CliRunner().invoke(main, ["stats", str(src), str(out), "--json", "--zstd-level", "1"])
     assert json.loads(r.stdout)["pairing"] == {"paired": decoded.count, "unpaired": 0}
     io.write(decoded, again, quality="small")
-    assert np.array_equal(splatvq.decode(again), splatvq.decode(out))  # the rounding is a projection
+    # The rounding is a projection: a second encoding keeps every coded splat. A splat kept verbatim as an
+    # end of the source's depth range need not be one of the decoded scene's (its neighbours moved): coded.
+    first = collections.Counter(r.tobytes() for r in splatvq.decode(out))
+    second = collections.Counter(r.tobytes() for r in splatvq.decode(again))
+    assert sum((first - second).values()) <= raw
     default = tmp_path / "d.splatvq"
     io.write(scene, default)
     assert "color_shift" not in io.read(default).meta and splatvq.storage(io.read(default))["color"] == "byte"

@@ -116,14 +116,21 @@ def test_a_floor_out_of_reach_is_an_error_unless_best_effort(tmp_path):
     assert out.exists()
 
 
+def _proof_weights(scene):
+    """What convert weighs each splat by (the proof's views and times): its levels, its candidates' sizes."""
+    views, times = proof.proof_plan(scene, proof.proof_views(scene, ~viewer.undrawable(scene.columns)))
+    return proof.frame_weights(scene, views, times)
+
+
 def test_max_bytes_gives_the_finest_step_that_fits(tmp_path):
     src = tmp_path / "s.ply"
     scene = _shaped("large")
     io.write(scene, src)
     sizes = {}
     coarsest = codec.PRECISIONS[0]
+    weights = _proof_weights(scene)
     for step in (coarsest, 0, 3):
-        io.write(scene, tmp_path / f"{step}.splatvq", precision=step)
+        io.write(scene, tmp_path / f"{step}.splatvq", precision=step, weights=weights)
         sizes[step] = (tmp_path / f"{step}.splatvq").stat().st_size
     assert sizes[coarsest] < sizes[0] < sizes[3]
     out = tmp_path / "o.splatvq"
@@ -293,7 +300,8 @@ def test_a_proof_prepares_once_what_each_candidate_shares(tmp_path, monkeypatch)
     assert tried > 1 and len(calls) == 1
     setting = io.read(out).meta["setting"]
     step = next(p for p in codec.PRECISIONS if codec.precision_name("default", p) == setting)
-    io.write(io.read(src), again, precision=step)
+    source = io.read(src)
+    io.write(source, again, precision=step, weights=_proof_weights(source))
     assert again.read_bytes() == out.read_bytes()
 
 

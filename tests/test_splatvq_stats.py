@@ -100,7 +100,7 @@ def test_stats_of_a_splatvq_against_its_source_gives_the_true_errors(tmp_path, f
         assert errors["color"]["max_abs_error"] == errors["color"]["rmse"] == 0
     for group in QUANTIZED:
         assert errors[group]["max_abs_error"] > 0, group
-    assert errors["position"]["max_abs_error"] < 0.01
+    assert errors["position"]["max_abs_error"] <= position_bound(out, quality)
     # Smallest-three components of a unit quaternion: a kept one is off by at most half a code step,
     # sqrt(1/2) / M; the dropped one, made from the other three, by at most about twice that.
     bits = splatvq.codec.SETTINGS[quality].rotation_bits
@@ -120,8 +120,9 @@ def test_stats_of_a_splatvq_against_its_source_gives_the_true_errors(tmp_path, f
     longest = float(trbf[np.isfinite(trbf)].max())
     assert errors["trbf"]["max_abs_error"] <= max(longest * (2 ** (setting.trbf_scale_step / 2048) - 1),
                                                   2.0 ** -(setting.time_shift + 1))
-    # So are the acceleration and jerk, the more so at the small setting (2 and 4 times the velocity's step).
-    assert errors["motion"]["max_abs_error"] < 2.0
+    # So are the acceleration and jerk, the more so at the small setting (2 and 4 times the velocity's step),
+    # and a splat of boost level 0 takes a position step four times version 4's, its motion step with it.
+    assert errors["motion"]["max_abs_error"] < 8.0
     # Against the PLY (float colours), colour and opacity are off by the byte's rounding only (and the
     # colour by the setting's rounding of the byte).
     errors = stats_json(files / "real.ply", out)["attributes"]

@@ -264,16 +264,16 @@ BAD = [
     ("a block that inflates to far more than declared",
      lambda d: damage.with_payload(d, damage.payload(d) + bytes(8 << 20), declared=len(damage.payload(d))),
      "block 1 of 1 is damaged: it decodes to more than the"),
-    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 4"),
+    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 5"),
     ("a setting out of range", lambda d: d[:7] + b"\x00" + d[8:], "setting rotation_bits is 0"),
     ("a position step past the code range", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 1 of 1 is damaged (a position code past 2^32 - 1)"),
     ("a scale code past the half range", lambda d: damage.with_codes(d, _bad_scale),
      "block 1 of 1 is damaged (a scale code decodes past the half range)"),
+    ("a rotation code past its bits", lambda d: damage.with_codes(d, damage.bad_rotation),
+     f"block 1 of 1 is damaged (a rotation code past {(1 << codec.SETTINGS['default'].rotation_bits) - 1})"),
     ("a width past 4", lambda d: damage.with_width(d, "x_step[0]", 5),
      "block 1 of 1 is damaged (a column of its values is 5 bytes wide; at most 4)"),
-    ("a window byte past 243", lambda d: damage.with_codes(d, damage.bad_window),
-     "block 1 of 1 is damaged (a window exponent past 30)"),
     ("a payload that ends before its last record", lambda d: damage.with_width(d, "rotation[0]", codec.MAX_WIDTH),
      "block 1 of 1 is damaged (its data ends before its last splat)"),
     ("a payload with bytes after its last record",
@@ -309,7 +309,7 @@ EVERY_PATH_PRECISION = 2
 def _every_path(tables, fields):
     """Valid codes (the default setting's) that take the codings' rare paths: escapes in every saturating
     column, up to 4 bytes wide (codes past 2**32 in motion and omega), plain columns 4 bytes
-    wide, window bytes up to 243. Each splat keeps its step exponent and its position codes stay in range:
+    wide, every window exponent and rotation index (the boost levels as written). Each splat keeps its step exponent and its position codes stay in range:
     only a scale's largest axis grows, and only the last x step of a chunk."""
     rng = np.random.default_rng(3)
     n = len(fields["x_step"])
@@ -320,7 +320,7 @@ def _every_path(tables, fields):
         fields[name][np.flatnonzero(some)[:2]] = codec.VALUE_MAX + codec.SATURATED - np.arange(2)[:, None]
     fields["trbf_center"][some, 0] = rng.integers(0, 2 ** 32, int(some.sum()))
     fields["yz"][some, 1] = rng.integers(0, 2 ** 32, int(some.sum()))
-    fields["window_index"][some, 0] = rng.integers(0, (codec.WINDOW_MAX + codec.WINDOW_BIAS) * 4 + 4, int(some.sum()))
+    fields["window_index"][some, 0] = (fields["window_index"][some, 0] & 0xC0) | rng.integers(0, 64, int(some.sum()))
     last = np.unique(np.r_[np.arange(codec.CHUNK - 1, n, codec.CHUNK), n - 1])
     fields["x_step"][last, 0] += rng.integers(0, 2 ** 30, len(last))
     # Chunk bases of 0, the codes raised to match (every scale decodes as before): with a coarse

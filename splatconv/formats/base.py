@@ -160,10 +160,10 @@ class Format:
     floors : dict
         Quality setting -> the worst-frame PSNR (dB) ``convert`` proves a file of that
         setting reaches unless told another floor (``--min-psnr``) or none.
-    kept_step : callable or None
-        ``kept_step(scene, quality) -> int or None``: the precision step at which
-        ``scene``, read from a file of this format, is written again losslessly
-        at ``quality`` (its own setting), or None.
+    weighs : bool
+        Its writer takes ``weights=``, what each splat adds to the frames a user
+        sees (:func:`splatconv.ops.prune.contributions`), and spends its bits by
+        them: ``convert``'s proof computes them once, from the views it proves.
     declared_size : callable or None
         ``declared_size(head) -> int or None``: the file size the header at the start
         of ``head`` (bytes) declares; bounds the decompression of a ``.zst`` file.
@@ -217,7 +217,7 @@ class Format:
     precisions: tuple[int, ...] = ()
     tunings: tuple[str, ...] = ()
     floors: dict = field(default_factory=dict, hash=False, compare=False)
-    kept_step: Callable | None = None
+    weighs: bool = False
     declared_size: Callable | None = None
     texture: Texture | None = None
     check_playable: Callable | None = None

@@ -46,9 +46,9 @@ STORAGE = {"position": "quantized", "rotation": "quantized", "scale": "quantized
            "opacity": "byte", "motion": "quantized", "omega": "quantized", "trbf": "quantized"}
 
 MAGIC = b"SPVQ"
-VERSION = 4
-#: magic, version, coder, the setting's eleven numbers, chunk size (log2), JSON length, block count.
-PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBBII")
+VERSION = 5
+#: magic, version, coder, the setting's twelve numbers, chunk size (log2), JSON length, block count.
+PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBBBII")
 #: One block table entry: splats quantized, splats verbatim, payload (inflated) bytes, stored (compressed) bytes.
 BLOCK_ENTRY = struct.Struct("<IIII")
 #: Largest JSON header read.
@@ -57,7 +57,7 @@ MAX_JSON_BYTES = 64 << 20
 MAX_SPLATS = 65536 * SPLATS_PER_ROW
 #: The setting's fields in preamble order.
 SETTING_ORDER = ("position_shift", "rotation_bits", "scale_step", "trbf_scale_step", "time_shift", "omega_shift",
-                 "motion_shift", "acceleration_shift", "jerk_shift", "alpha_levels", "flat_octaves")
+                 "motion_shift", "acceleration_shift", "jerk_shift", "alpha_levels", "flat_octaves", "boost_step")
 
 class Block(NamedTuple):
     """A block table entry, checked, and where the block's stored bytes start in the file."""
@@ -96,7 +96,8 @@ def prepare(scene: Scene) -> tuple:
 
 
 def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None, precision: int = 0,
-           tune: tuple = (), level: int = 9, progress=SILENT, prepared: tuple | None = None) -> tuple:
+           tune: tuple = (), level: int = 9, progress=SILENT, prepared: tuple | None = None,
+           weights: np.ndarray | None = None) -> tuple:
     """A scene as ``.splatvq`` bytes, in memory (:func:`write`'s parameters; see :func:`_encode_to`).
 
     Returns
@@ -106,12 +107,13 @@ def encode(scene: Scene, *, sort: str | None = None, quality: str | None = None,
     """
     out = io.BytesIO()
     report = _encode_to(scene, out, sort=sort, quality=quality, precision=precision, tune=tune, level=level,
-                        progress=progress, prepared=prepared)
+                        progress=progress, prepared=prepared, weights=weights)
     return out.getvalue(), report
 
 
 def _encode_to(scene: Scene, out, *, sort: str | None = None, quality: str | None = None, precision: int = 0,
-               tune: tuple = (), level: int = 9, progress=SILENT, prepared: tuple | None = None) -> WriteReport:
+               tune: tuple = (), level: int = 9, progress=SILENT, prepared: tuple | None = None,
+               weights: np.ndarray | None = None) -> WriteReport:
     """Write a scene as ``.splatvq`` to ``out``, a seekable binary stream, from where it stands: each block as
     it is encoded, then the block table in the place the header left for it (no block held once written).
 
@@ -135,12 +137,20 @@ def _encode_to(scene: Scene, out, *, sort: str | None = None, quality: str | Non
         A "writing" stage of the splats written (the drawable ones), advanced as each block is encoded.
     prepared : tuple, optional
         :func:`prepare` of this very scene, when already computed.
+    weights : (N,) float ndarray, optional
+        What each splat of the scene adds to the frames a user will see, in units
+        of what a typical splat adds (:func:`splatconv.render.proof.frame_weights`):
+        the splats above 1 take the higher boost levels, the finer steps
+        (:func:`splatvq_codec.boost_levels`). Without it, the levels follow the size
+        each splat is seen at from the nearest header camera, times its opacity.
 
     Returns
     -------
     WriteReport
     """
     base = _setting_name(quality)
+    if weights is not None and len(weights) != scene.count:
+        raise ValueError(f"{len(weights)} weights for {scene.count} splats")
     if precision not in codec.PRECISIONS:
         raise UsageError(f"precision {precision} is not one of {codec.PRECISIONS[0]}..{codec.PRECISIONS[-1]}")
     try:
@@ -193,23 +203,39 @@ def _encode_to(scene: Scene, out, *, sort: str | None = None, quality: str | Non
     out.write(bytes(BLOCK_ENTRY.size * len(starts)))  # the block table, written once the blocks are
     with ThreadPoolExecutor(max_workers=2) if len(starts) > 1 else contextlib.nullcontext() as pool:
         each = pool.map if pool is not None else map
-        if (sort or FORMAT.default_sort) == "none":
-            order = keep
-        else:
-            key = np.empty(n)
+        key = np.empty(n) if (sort or FORMAT.default_sort) != "none" else None
+        # Boost levels from the frames where the caller weighed the splats by them, else from the size
+        # each splat is seen at from the nearest camera, as it decodes (codec.boost_levels).
+        sizes = np.empty(n) if setting.boost_step and weights is None else None
+        eyes = np.array([c["position"] for c in cameras], dtype=np.float64).reshape(-1, 3)
 
-            def key_job(start):
-                key[start:start + codec.BLOCK] = codec.quantized_key(packed(keep[start:start + codec.BLOCK])[0],
-                                                                     setting)
+        def key_job(start):  # the importance key of the records as they decode, and their sizes
+            records = packed(keep[start:start + codec.BLOCK])[0]
+            if key is not None:
+                key[start:start + codec.BLOCK] = codec.quantized_key(records, setting)
+            if sizes is not None:
+                sizes[start:start + codec.BLOCK] = codec.seen_size(records, setting, eyes)
 
+        if key is not None or sizes is not None:
             list(each(key_job, starts))
-            order = keep[importance_order(key)]
-            del key
+        levels = None
+        if sizes is not None:
+            levels = codec.boost_levels(sizes, codec.LEVELS_PER_OCTAVE["size"])
+        elif setting.boost_step:
+            with np.errstate(divide="ignore", invalid="ignore"):
+                levels = codec.boost_levels(np.log2(np.asarray(weights, dtype=np.float64)[keep]),
+                                            codec.LEVELS_PER_OCTAVE["frames"], centre=0.0)
+        ranks = importance_order(key) if key is not None else np.arange(n)
+        order = keep[ranks]
+        if levels is not None:
+            levels = levels[ranks]
+        key = sizes = ranks = None  # freed before the blocks are encoded
 
         def job(start):
             rows = order[start:start + codec.BLOCK]
             records, counts = packed(rows)
-            return codec.encode_block(records, setting, level, exact=exact[rows]), counts
+            return codec.encode_block(records, setting, level, exact=exact[rows],
+                                      levels=None if levels is None else levels[start:start + codec.BLOCK]), counts
 
         blocks, counts, forced = [], engine.new_counts(), 0  # each block's table entry, once written
         with progress.stage("writing", n, "splat") as advance:
@@ -244,25 +270,13 @@ def _encode_to(scene: Scene, out, *, sort: str | None = None, quality: str | Non
     return report
 
 
-def kept_step(scene: Scene, quality: str | None) -> int | None:
-    """The precision step that writes ``scene``, read from a ``.splatvq`` of ``quality``'s setting, losslessly.
-
-    The quantizers are projections: a scene on a step's grid is written again at
-    that step unchanged. None for a scene of another format or setting.
-    """
-    if scene.variant != FORMAT.name:
-        return None
-    base = _setting_name(quality)
-    return next((p for p in codec.PRECISIONS if codec.precision_name(base, p) == scene.meta.get("setting")), None)
-
-
 def write(scene: Scene, stream, *, compat: str | None = None, sort: str | None = None, progress=SILENT,
           quality: str | None = None, precision: int = 0, tune: tuple = (), prepared: tuple | None = None,
-          **_options) -> WriteReport:
+          weights: np.ndarray | None = None, **_options) -> WriteReport:
     """Write ``scene`` to a binary stream as ``.splatvq`` (see :func:`encode`): ``progress`` counts the
     splats written, not those read (undrawable splats are left out)."""
     options = {"sort": sort, "quality": quality, "precision": precision, "tune": tune, "progress": progress,
-               "prepared": prepared}
+               "prepared": prepared, "weights": weights}
     if _seekable(stream):  # each block written as it is encoded
         return _encode_to(scene, stream, **options)
     data, report = encode(scene, **options)
@@ -561,5 +575,5 @@ FORMAT = Format(
     precisions=codec.PRECISIONS,
     tunings=codec.TUNINGS,
     floors=dict(codec.FLOORS),
-    kept_step=kept_step,
+    weighs=True,
 )

@@ -43,10 +43,16 @@ CHUNK_LOG2 = 8
 CHUNK = 1 << CHUNK_LOG2
 #: Splats a block at most (one independently decodable unit, importance order between blocks).
 BLOCK = 1 << 16
-#: Bias of the stored window exponent: window_index = (e + WINDOW_BIAS) * 4 + rotation index.
-WINDOW_BIAS = 30
-#: Window exponents kept: W = 2**e, clipped to this range.
-WINDOW_MIN, WINDOW_MAX = -30, 30
+#: Bias of the stored window exponent: window_index = level * 64 + (e + WINDOW_BIAS) * 4 + rotation index.
+WINDOW_BIAS = 13
+#: Window exponents kept: W = 2**e, e from WINDOW_MIN (a shorter window takes it) to WINDOW_MAX (a
+#: longer one is kept verbatim: a temporal centre far outside [0, 1] seen at every time).
+WINDOW_MIN, WINDOW_MAX = -13, 2
+#: Highest boost level of a splat (the window_index byte's top two bits): its geometric steps are
+#: level * boost_step bits finer.
+BOOST_MAX = 3
+#: Most bits of a rotation component, boosts included.
+ROTATION_BITS_MAX = 16
 #: Reserved scale codes: 0 -> half +0 (a linear scale of 0), 1 -> half +inf.
 SCALE_ZERO, SCALE_INF, SCALE_FIRST = 0, 1, 2
 #: A position farther than this many robust scene extents (the widest interquartile range of an axis)
@@ -97,6 +103,12 @@ class Setting:
         to its alpha, so the same displacement of a faint splat changes a frame less.
     flat_octaves : int
         How far below the middle scale the least one may take the position step down.
+    boost_step : int
+        A splat's boost level (0 to :data:`BOOST_MAX`, stored with it: the encoder
+        gives the splats that add most to the frames the higher levels,
+        :func:`boost_levels`) makes its position and motion steps
+        ``2**(level * boost_step)`` times finer and gives its rotation, omega and
+        temporal centre ``level * boost_step`` more bits. 0: every level means the same.
     color_shift : int
         The encoder's alone, not among the header's numbers: each coded splat's red,
         green and blue bytes are rounded to the nearest multiple of ``2**color_shift``
@@ -116,17 +128,18 @@ class Setting:
     jerk_shift: int
     alpha_levels: int
     flat_octaves: int
+    boost_step: int = 0
     color_shift: int = 0
 
 
 #: Quality settings by name, best first. The bench (``bench/bench_splatvq.py``) measures them.
 SETTINGS = {
-    "default": Setting(position_shift=-5, rotation_bits=9, scale_step=48, trbf_scale_step=192, time_shift=10,
-                       omega_shift=8, motion_shift=2, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
-                       flat_octaves=2),
-    "small": Setting(position_shift=-4, rotation_bits=8, scale_step=96, trbf_scale_step=255, time_shift=8,
-                     omega_shift=7, motion_shift=3, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
-                     flat_octaves=2, color_shift=2),
+    "default": Setting(position_shift=-3, rotation_bits=7, scale_step=48, trbf_scale_step=192, time_shift=8,
+                       omega_shift=6, motion_shift=2, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
+                       flat_octaves=2, boost_step=2),
+    "small": Setting(position_shift=-2, rotation_bits=6, scale_step=96, trbf_scale_step=255, time_shift=6,
+                     omega_shift=5, motion_shift=3, acceleration_shift=1, jerk_shift=2, alpha_levels=4,
+                     flat_octaves=2, boost_step=2, color_shift=2),
 }
 DEFAULT_SETTING = "default"
 #: The worst-frame PSNR (dB) each setting promises: what ``convert`` proves a file of it reaches.
@@ -232,7 +245,7 @@ def tuned_name(name: str, notches) -> str:
 SETTING_LIMITS = {"position_shift": (-30, 30), "rotation_bits": (2, 16), "scale_step": (1, 255),
                   "trbf_scale_step": (1, 255), "time_shift": (0, 30), "omega_shift": (0, 30),
                   "motion_shift": (-30, 30), "acceleration_shift": (0, 8), "jerk_shift": (0, 8),
-                  "alpha_levels": (0, 7), "flat_octaves": (0, 15)}
+                  "alpha_levels": (0, 7), "flat_octaves": (0, 15), "boost_step": (0, 4)}
 #: Limits of every number of a :class:`Setting`: the header's, and the encoder's own colour step.
 LIMITS = {**SETTING_LIMITS, "color_shift": (0, 7)}
 
@@ -294,8 +307,8 @@ MOTION_DEGREE = np.repeat(np.arange(1, 4), 3)
 
 _SQRT1_2 = np.sqrt(0.5)
 #: 2**x for every step exponent a decoder meets: |x| is at most the sum of the largest size exponent (16),
-#: position shift, alpha coarsening, motion shift, acceleration or jerk shift, omega shift and three windows.
-_POW2_BIAS = (16 + 3 * max(-WINDOW_MIN, WINDOW_MAX)
+#: position shift, alpha coarsening, boost, motion shift, acceleration or jerk shift, omega shift and three windows.
+_POW2_BIAS = (16 + BOOST_MAX * SETTING_LIMITS["boost_step"][1] + 3 * max(-WINDOW_MIN, WINDOW_MAX)
               + sum(max(map(abs, SETTING_LIMITS[name]))
                     for name in ("position_shift", "alpha_levels", "motion_shift", "omega_shift"))
               + max(max(map(abs, SETTING_LIMITS[name])) for name in ("acceleration_shift", "jerk_shift")))
@@ -371,6 +384,52 @@ def alpha_coarsening(alpha: np.ndarray, levels: int) -> np.ndarray:
     a = np.maximum(alpha.astype(np.int64), 1)
     floor_log2 = np.frexp(a.astype(np.float64))[1] - 1
     return np.clip(7 - floor_log2, 0, levels)
+
+
+def seen_size(records: np.ndarray, setting: Setting, eyes: np.ndarray) -> np.ndarray:
+    """log2 of what each record covers seen face on from the nearest of ``eyes`` (camera positions,
+    ``(E, 3)``; none: from anywhere alike), weighed by its opacity: ``(N,) float64``, -inf for a splat of no
+    area. Its scales as they decode, its position as stored: the writer's measure of a splat where it has
+    no frames to weigh it by."""
+    scale = packing.HALF_TO_FLOAT[_scale_decoded(_halves_of(records, SCALE_AT), setting.scale_step)]
+    alpha = (records[:, COLOR_WORD] >> np.uint32(24)).astype(np.float64)
+    # A signalling NaN half (a .splatv read keeps payloads) warns when widened: it weighs nothing.
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        ordered = np.sort(scale.astype(np.float64), axis=1)
+        out = np.log2(ordered[:, 2] * ordered[:, 1] * alpha)
+        if len(eyes):
+            pos = records[:, :3].view(np.float32).astype(np.float64)
+            near = np.min([((pos - eye) ** 2).sum(axis=1) for eye in eyes], axis=0)
+            out -= np.log2(np.maximum(near, 1e-12))
+    return np.where(np.isnan(out), -np.inf, out)
+
+
+#: Boost levels a factor of two in weight is worth (:func:`boost_levels`): for weights from the frames
+#: (what a splat adds to them), and for the size seen that the writer falls back on (:func:`seen_size`).
+LEVELS_PER_OCTAVE = {"frames": 0.2, "size": 0.5}
+
+
+def boost_levels(log2_weight: np.ndarray, per_octave: float, centre: float | None = None) -> np.ndarray:
+    """Each splat's boost level from the log2 of its weight: ``(N,) uint8``, 0 to :data:`BOOST_MAX`.
+
+    ``round(per_octave * (log2 w - centre))``, at least 0: the splats that weigh
+    less than ``centre`` (default: the median of ``log2 w``) take level 0, and a
+    splat takes one level more for every ``1 / per_octave`` octaves it weighs
+    above it. A weight of 0 (log -inf) or NaN takes level 0, and does not count
+    toward the median.
+    """
+    lw = np.asarray(log2_weight, dtype=np.float64)
+    out = np.zeros(len(lw), np.uint8)
+    counted = np.isfinite(lw)
+    if counted.any():
+        mid = np.median(lw[counted]) if centre is None else centre
+        out[counted] = np.clip(np.floor(per_octave * (lw[counted] - mid) + 0.5), 0, BOOST_MAX)
+    return out
+
+
+def rotation_max(setting: Setting, boost: np.ndarray) -> np.ndarray:
+    """Largest rotation code of each splat, ``2**bits - 1``, its bits ``rotation_bits`` plus its boost, at most 16."""
+    return (np.int64(1) << np.minimum(setting.rotation_bits + boost, ROTATION_BITS_MAX)) - 1
 
 
 def motion_exponents(setting: Setting) -> np.ndarray:
@@ -465,8 +524,12 @@ def escapes(records: np.ndarray) -> np.ndarray:
     return bad
 
 
-def _rotation_value(code: np.ndarray, rmax: int) -> np.ndarray:
-    """A smallest-three code -> its component value (float64), as the decoder computes it."""
+def _rotation_value(code: np.ndarray, rmax) -> np.ndarray:
+    """A smallest-three code -> its component value (float64), as the decoder computes it (``rmax`` one a splat,
+    or one for all)."""
+    rmax = np.asarray(rmax, dtype=np.float64)
+    if rmax.ndim:
+        rmax = rmax[:, None]
     return (2.0 * code - rmax) / rmax * _SQRT1_2
 
 
@@ -515,7 +578,7 @@ def _keep_largest(code: np.ndarray, index: np.ndarray, rmax: int) -> np.ndarray:
         small = np.take_along_axis(mag[bad], _OTHERS[index[bad]], axis=1)
         j = np.argmax(small, axis=1)
         c = code[bad, j]
-        code[bad, j] = np.where(2 * c > rmax, c - 1, c + 1)
+        code[bad, j] = np.where(2 * c > (rmax[bad] if np.ndim(rmax) else rmax), c - 1, c + 1)
     return code
 
 
@@ -609,7 +672,7 @@ def _byte_planes(values: np.ndarray, width: int):
 
 
 def encode_block(records: np.ndarray, setting: Setting, level: int = 9,
-                 exact: np.ndarray | None = None) -> tuple[bytes, int, int, int, int]:
+                 exact: np.ndarray | None = None, levels: np.ndarray | None = None) -> tuple[bytes, int, int, int, int]:
     """Quantize and compress one block of records (importance order).
 
     Parameters
@@ -622,6 +685,8 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9,
     exact : (M,) bool ndarray, optional
         Records to store verbatim besides those :func:`escapes` names (the
         writer's depth-sort ends; the last value returned counts them).
+    levels : (M,) uint8 ndarray, optional
+        Each record's boost level (:func:`boost_levels`); default 0.
 
     Returns
     -------
@@ -643,7 +708,7 @@ def encode_block(records: np.ndarray, setting: Setting, level: int = 9,
         kept = np.flatnonzero(~esc)
         # Chunks in Morton order (stable: within a cell, importance order).
         kept = kept[np.argsort(_morton(records[kept, :3].view(np.float32)), kind="stable")]
-        tables, fields, kept, too_big = _quantize(records, kept, setting)
+        tables, fields, kept, too_big = _quantize(records, kept, setting, levels)
         if not too_big.any():
             break
         # Records whose codes do not fit go raw after all, and the block is made again without
@@ -707,7 +772,7 @@ def _compressor(level: int):
     return zlib.compressobj(level, zlib.DEFLATED, -15, 9, zlib.Z_RLE)
 
 
-def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
+def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting, levels: np.ndarray | None) -> tuple:
     """The codes of the records ``kept`` names (in Morton order).
 
     Returns
@@ -723,12 +788,15 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     starts = np.arange(0, n, CHUNK)
     chunk_of = np.arange(n) // CHUNK
 
-    # Scales, alpha coarsening and each splat's position step 2**k, k = its size exponent + position_shift + c
-    # (see size_exponent); positions coded from their chunk's base, a multiple of every step in the chunk.
+    # Scales, alpha coarsening, boost b (bits finer) and each splat's position step 2**k, k = its size
+    # exponent + position_shift + c - b (see size_exponent); positions coded from their chunk's base, a
+    # multiple of every step in the chunk.
     scale_h = _halves_of(records[kept, 5:7], ((0, 0), (0, 1), (1, 0)))
     coarse = alpha_coarsening(records[kept, COLOR_WORD] >> np.uint32(24), setting.alpha_levels)
+    lv = np.zeros(n, np.int64) if levels is None else np.minimum(levels[kept], BOOST_MAX).astype(np.int64)
+    b = lv * setting.boost_step
     k = (size_exponent(_scale_decoded(scale_h, setting.scale_step), setting.flat_octaves) + setting.position_shift
-         + coarse)
+         + coarse - b)
     pos = records[kept, :3].view(np.float32).astype(np.float64)
     if n:
         lo = np.minimum.reduceat(pos, starts, axis=0)
@@ -743,6 +811,7 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     # (some log2(256!) / 256 = 6.6 bits a splat) that independent codes spend again.
     order = np.lexsort((np.arange(n), np.ldexp(pos_code[:, 0], k), chunk_of))
     kept, k, coarse, pos_code, scale_h = kept[order], k[order], coarse[order], pos_code[order], scale_h[order]
+    b, lv = b[order], lv[order]
     del order
     rec = records[kept]
     h = rec.view(np.uint16)
@@ -753,16 +822,16 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     norm = np.sqrt((q * q).sum(axis=1))
     big = np.argmax(np.abs(q), axis=1)
     sign = np.where(q[np.arange(n), big] < 0, -1.0, 1.0) / norm
-    rmax = (1 << setting.rotation_bits) - 1
+    rmax = rotation_max(setting, b)
     small3 = np.take_along_axis(q, _OTHERS[big], axis=1) * sign[:, None]
-    rot_code = np.clip(np.rint((small3 / _SQRT1_2 + 1.0) * 0.5 * rmax), 0, rmax)
+    rot_code = np.clip(np.rint((small3 / _SQRT1_2 + 1.0) * 0.5 * rmax[:, None]), 0, rmax[:, None])
     rot_code = _keep_largest(rot_code, big, rmax).astype(np.uint16)
     del q, small3, norm
 
     # Temporal centre and scale, quantized first: the window W is that of the decoded values.
     centre_f = packing.HALF_TO_FLOAT[h[:, 30]].astype(np.float64)
-    centre_code = np.rint(np.ldexp(centre_f, setting.time_shift)).astype(np.int64)
-    centre_dec = packing.HALF_TO_FLOAT[_half(np.ldexp(centre_code.astype(np.float64), -setting.time_shift))]
+    centre_code = np.rint(np.ldexp(centre_f, setting.time_shift + b)).astype(np.int64)
+    centre_dec = packing.HALF_TO_FLOAT[_half(np.ldexp(centre_code.astype(np.float64), -(setting.time_shift + b)))]
     tsh = h[:, 31]
     t_special = (tsh == 0) | (tsh == packing.HALF_INF_BITS)
     t_lat = scale_lattice(tsh, setting.trbf_scale_step)
@@ -775,14 +844,16 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
         window = np.maximum(np.abs(t0 - c), np.abs(t1 - c))
     e = np.full(n, WINDOW_MIN, dtype=np.int64)
     pos_w = window > 0
-    e[pos_w] = np.clip(_ceil_log2(window[pos_w]), WINDOW_MIN, WINDOW_MAX)
+    e[pos_w] = np.clip(_ceil_log2(window[pos_w]), WINDOW_MIN, WINDOW_MAX + 1)
+    wide = e > WINDOW_MAX
+    e = np.minimum(e, WINDOW_MAX)
     del centre_f, centre_dec, reach, c, t0, t1, window
 
     # Omega and motion, a column at a time as zigzag codes (uint32: their widest): few temporaries.
     omega_u = np.empty((n, 4), np.uint32)
     fits = np.ones(n, bool)
     for j, (w, i) in enumerate(OMEGA_AT):
-        v = np.rint(np.ldexp(packing.HALF_TO_FLOAT[h[:, 2 * w + i]] * sign, e + setting.omega_shift - coarse))
+        v = np.rint(np.ldexp(packing.HALF_TO_FLOAT[h[:, 2 * w + i]] * sign, e + setting.omega_shift - coarse + b))
         fits &= np.abs(v) < 2.0 ** 31
         omega_u[:, j] = _zigzag(np.where(fits, v, 0), np.uint32)
     motion_u = np.empty((n, 9), np.uint32)
@@ -793,7 +864,7 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
         fits &= np.abs(v) < 2.0 ** 31
         motion_u[:, j] = _zigzag(np.where(fits, v, 0), np.uint32)
     del v, sign
-    too_big = ~fits | (pos_code > POSITION_CODE_MAX).any(axis=1) | (np.abs(centre_code) >= 1 << 31)
+    too_big = ~fits | wide | (pos_code > POSITION_CODE_MAX).any(axis=1) | (np.abs(centre_code) >= 1 << 31)
     pos_code = np.where(too_big[:, None], 0, pos_code).astype(np.int64)
 
     s_special = (scale_h == 0) | (scale_h == packing.HALF_INF_BITS)
@@ -813,7 +884,7 @@ def _quantize(records: np.ndarray, kept: np.ndarray, setting: Setting) -> tuple:
     tables = {"position_base": base, "scale_base": s_base, "trbf_scale_base": t_base[:, None]}
     fields = {
         "x_step": x_steps(pos_code[:, 0], k)[:, None], "yz": pos_code[:, 1:],
-        "window_index": ((e + WINDOW_BIAS) * 4 + big).astype(np.uint8)[:, None], "rotation": rot_code,
+        "window_index": ((lv << 6) + (e + WINDOW_BIAS) * 4 + big).astype(np.uint8)[:, None], "rotation": rot_code,
         "scale": s_code, "color": _colour_bytes(rec[:, COLOR_WORD], setting.color_shift),
         "trbf_center": _zigzag(np.where(too_big, 0, centre_code), np.uint32)[:, None],
         "trbf_scale": t_code[:, None], "motion": motion_u, "omega": omega_u,
@@ -1012,31 +1083,31 @@ def decode_payload(payload: bytes, coded: int, raw: int, setting: Setting, path:
     scale = _scale_halves(fields["scale"], table["scale_base"][chunk_of], setting.scale_step, path, where)
     colour = np.ascontiguousarray(fields["color"].astype(np.uint8)).view("<u4")[:, 0]
     coarse = alpha_coarsening(colour >> np.uint32(24), setting.alpha_levels)
-    k = size_exponent(scale, setting.flat_octaves) + setting.position_shift + coarse
+    head = fields["window_index"][:, 0]
+    boost = (head >> 6).astype(np.int64) * setting.boost_step  # its level times the step: bits finer
+    k = size_exponent(scale, setting.flat_octaves) + setting.position_shift + coarse - boost
     # x_codes refuses an x code past POSITION_CODE_MAX; y and z are at most 4 bytes wide.
     code = np.concatenate([x_codes(fields["x_step"][:, 0], k, path, where)[:, None], fields["yz"]], axis=1)
     with np.errstate(over="ignore", invalid="ignore"):
         pos = base[chunk_of] + np.ldexp(code.astype(np.float64), k[:, None])
         out[:n, :3] = pos.astype(np.float32).view(np.uint32)
-    head = fields["window_index"][:, 0]
-    if (head > (WINDOW_MAX + WINDOW_BIAS) * 4 + 3).any():
-        raise FormatError(f"a window exponent is past {WINDOW_MAX}", path, where)
-    e, index = (head >> 2) - WINDOW_BIAS, head & 3
+    e, index = ((head >> 2) & 15).astype(np.int64) - WINDOW_BIAS, head & 3
     # Rotation.
-    rmax = (1 << setting.rotation_bits) - 1
-    if (fields["rotation"] > rmax).any():
-        raise FormatError(f"a rotation code is past {rmax}", path, where)
+    rmax = rotation_max(setting, boost)
+    past = (fields["rotation"] > rmax[:, None]).any(axis=1)
+    if past.any():  # the first such splat's largest code
+        raise FormatError(f"a rotation code is past {int(rmax[np.argmax(past)])}", path, where)
     quat_halves = _decoded_quaternion(fields["rotation"], index, rmax)
     tscale = _scale_halves(fields["trbf_scale"], table["trbf_scale_base"][chunk_of], setting.trbf_scale_step,
                            path, where)[:, 0]
-    centre = np.ldexp(_unzigzag(fields["trbf_center"][:, 0]).astype(np.float64), -setting.time_shift)
+    centre = np.ldexp(_unzigzag(fields["trbf_center"][:, 0]).astype(np.float64), -(setting.time_shift + boost))
     half = out[:n].view(np.uint16)
     for j, (w, i) in enumerate(ROT_AT):
         half[:, 2 * w + i] = quat_halves[:, j]
     for j, (w, i) in enumerate(SCALE_AT):
         half[:, 2 * w + i] = scale[:, j]
     # Omega and motion a column at a time: code * 2**x, the power from a table (exact: |x| is small).
-    step = _POW2[_POW2_BIAS - (e + setting.omega_shift - coarse)]
+    step = _POW2[_POW2_BIAS - (e + setting.omega_shift - coarse + boost)]
     for j, (w, i) in enumerate(OMEGA_AT):
         half[:, 2 * w + i] = _half(_unzigzag(fields["omega"][:, j]) * step)
     exps = motion_exponents(setting)

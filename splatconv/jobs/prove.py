@@ -29,7 +29,7 @@ from ..model import Scene
 from ..progress import SILENT
 from ..ops.prune import leave_out
 from ..publish import PAGE
-from ..render.proof import PROOF_TIMES, Prover, proof_plan, proof_views, ranked
+from ..render.proof import PROOF_TIMES, Prover, frame_weights, proof_plan, proof_views, ranked
 from ..viewer import undrawable
 from ..wording import plural
 from .convert import PROVE_MEMORY_BYTES, convert
@@ -110,8 +110,10 @@ class _Candidates:
     """
 
     def __init__(self, scene: Scene, path: str, prover: Prover, options: dict, advance, prepare=None,
-                 prepared=None):
+                 prepared=None, weights=None):
         self.scene, self.path, self.prover, self.options, self.advance = scene, path, prover, options, advance
+        # What each splat adds to the proof's frames, for a format that spends its bits by it (Format.weighs).
+        self.weights = weights
         # The format's prepare() and what it gave for the scene: what every unpruned candidate shares.
         self.prepare, self.prepared = prepare, prepared
         self.pruned_last = None  # (left out, the pruned scene, its pruning report, its prepare()): its candidates'
@@ -124,15 +126,16 @@ class _Candidates:
         reports."""
         if self.on_disk[0] != key:
             step, tune, left_out = key
-            scene, pruned, prepared = self.scene, None, self.prepared
+            scene, pruned, prepared, weights = self.scene, None, self.prepared, self.weights
             if left_out:
                 if self.pruned_last is None or self.pruned_last[0] != left_out:
                     scene, pruned = leave_out(self.scene, self.ranked[:left_out], of=len(self.ranked))
-                    self.pruned_last = left_out, scene, pruned, self.prepare(scene) if self.prepare else None
-                _, scene, pruned, prepared = self.pruned_last
+                    kept = None if self.weights is None else np.delete(self.weights, self.ranked[:left_out])
+                    self.pruned_last = left_out, scene, pruned, self.prepare(scene) if self.prepare else None, kept
+                _, scene, pruned, prepared, weights = self.pruned_last
             trim()  # what the last candidate's decode and draws freed, given back before this write
             self.on_disk = key, write(scene, self.path, precision=step, tune=tune, force=True, prepared=prepared,
-                                      **self.options), pruned
+                                      weights=weights, **self.options), pruned
             # A mapped input's pages, read again by the next write: none held beside the decode and draws.
             hand_back(self.scene.columns.values())
             trim()
@@ -205,13 +208,6 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     floor = min_psnr if min_psnr is not None else fmt.floors.get(name) if max_bytes is None else None
     whose = f"--min-psnr {floor:g} dB floor" if min_psnr is not None else f"{floor:g} dB floor of the {name!r} setting" \
         if floor is not None else ""
-    kept = fmt.kept_step(scene, quality) if fmt.kept_step is not None else None
-    if kept is not None and min_psnr is None and max_bytes is None and not prune:
-        # A file of this very setting, written again at its own step: nothing changes, nothing to prove.
-        report = write(scene, output, quality=quality, precision=kept, sort=sort, zstd_level=zstd_level,
-                       force=force, progress=progress)
-        return report, [f"not proved again: {precision_text(name, kept)} keeps every value of the source, "
-                        "a file of that setting"]
     started = time.perf_counter()
     # What every candidate's write shares, computed once (and before the renderer holds its memory).
     prepared = fmt.prepare(scene) if fmt.prepare is not None else None
@@ -231,8 +227,11 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                            "candidate") as advance, \
             Prover(scene, views, times) as prover:
         options = {"quality": quality, "sort": sort, "zstd_level": zstd_level}
+        # What each splat adds to the proof's frames: the format spends its bits by it, and pruning
+        # leaves out the least.
+        weights = frame_weights(scene, views, times) if fmt.weighs or prune else None
         c = _Candidates(scene, os.path.join(folder, os.path.basename(output)), prover, options, advance,
-                        fmt.prepare, prepared)
+                        fmt.prepare, prepared, weights if fmt.weighs else None)
         if max_bytes is not None:
             coarsest = c.size((steps[0], (), 0))
             fits = [p for p in steps if c.size((p, (), 0)) <= max_bytes] if coarsest <= max_bytes else []
@@ -253,13 +252,13 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                                   f"{precision_text(name, chosen)}), below the {whose} (--best-effort writes it "
                                   "all the same)", output)
         # Pruning first: leaving out a splat saves more bytes for the dB it costs than any notch.
-        left_out = _pruned(c, chosen, floor, views, times) if prune and short is None else 0
+        left_out = _pruned(c, chosen, floor, views, times, weights) if prune and short is None else 0
         if tunes and short is None:
             tune = _tuned(c, fmt.tunings, chosen, left_out, floor)
         tried, family, instead = 0, name, None
         if other and short is None and chosen > 0:
             o = _Candidates(scene, os.path.join(folder, "other-" + os.path.basename(output)), prover,
-                            dict(options, quality=other), advance, fmt.prepare, prepared)
+                            dict(options, quality=other), advance, fmt.prepare, prepared, c.weights)
             found = _other_family(o, steps, fmt.tunings, fmt.floors.get(other, floor) if min_psnr is None else floor,
                                   large)
             if found is not None and o.size(found) < c.size((chosen, tune, left_out)):
@@ -424,13 +423,13 @@ def tuning_text(tune) -> str:
     return ", ".join(f"{name} {n} {'notch' if n == 1 else 'notches'} coarser" for name, n in counts.items())
 
 
-def _pruned(c: _Candidates, step: int, floor: float, views: list, times) -> int:
+def _pruned(c: _Candidates, step: int, floor: float, views: list, times, weights) -> int:
     """How many of the least contributing drawable splats ``step`` can leave out and still reach ``floor``.
 
     A bisection over the share left out, :data:`PRUNE_PROOFS` proofs at most:
     none left out holds (proved), all cannot (a file holds a splat).
     """
-    c.ranked = ranked(c.scene, views, times)
+    c.ranked = ranked(c.scene, views, times, weights)
     holds, breaks = 0, len(c.ranked)
     for _ in range(PRUNE_PROOFS):
         if breaks - holds <= max(1, len(c.ranked) // PRUNE_RESOLUTION):

@@ -261,12 +261,27 @@ def load_candidate(renderer: Renderer, path) -> None:
     renderer.load_pieces(count, lambda put: fmt.converted_texture(path, put))
 
 
-def ranked(scene: Scene, views: list, times=None) -> np.ndarray:
-    """The drawable splats of ``scene``, least first by what they add to the proof's frames: ``(M,) intp``.
+def frame_weights(scene: Scene, views: list, times=None) -> np.ndarray:
+    """What each splat of ``scene`` adds to the frames drawn from ``views`` at ``times``, in units of what the
+    median splat that shows adds: ``(N,) float64``, 0 for a splat no frame shows.
 
     :func:`splatconv.ops.prune.contributions` from ``views`` (:func:`proof_views`)
     at ``times`` (default :data:`PROOF_TIMES`), each splat's opacity at a time the
     best between it and the next: a splat seen only between two proved times counts.
+    Relative to the scene's median, so that a splat keeps its weight in the scene
+    with the least of them left out (``--prune``).
+    """
+    matrices = [(view.matrix, cam.projection_matrix(view.fx, view.fy, view.width, view.height), view.width,
+                 view.height) for _name, view in views]
+    score = prune.contributions(scene.columns, matrices, PROOF_TIMES if times is None else times)
+    shown = score[score > 0]
+    return score / np.median(shown) if len(shown) else score
+
+
+def ranked(scene: Scene, views: list, times=None, weights: np.ndarray | None = None) -> np.ndarray:
+    """The drawable splats of ``scene``, least first by what they add to the proof's frames: ``(M,) intp``.
+
+    By :func:`frame_weights` (``weights``, where computed already).
     Last of all come the splats the viewer's sort depends on
     (:func:`splatconv.render.sort.viewer_order`): it scales the depth keys by
     their range, never draws a splat whose scaled key reaches the top (the
@@ -277,9 +292,7 @@ def ranked(scene: Scene, views: list, times=None) -> np.ndarray:
     the first drawable row and the :data:`KEEP_IMPORTANT` most important (the
     first record in importance order, its quantized key allowing) come last.
     """
-    matrices = [(view.matrix, cam.projection_matrix(view.fx, view.fy, view.width, view.height), view.width,
-                 view.height) for _name, view in views]
-    score = prune.contributions(scene.columns, matrices, PROOF_TIMES if times is None else times)
+    score = frame_weights(scene, views, times) if weights is None else weights
     order = prune.ranked(scene.columns, score)
     xyz = np.stack([np.asarray(scene.columns[a])[order] for a in "xyz"], axis=1)
     apart = np.zeros(len(order), bool)

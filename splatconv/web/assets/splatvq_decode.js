@@ -8,7 +8,7 @@
 // indices in the block in importance order, or null where that is payload order), then
 // {type: "done"} -- or {type: "error", message} with a plain-language reason, and nothing more.
 //
-// Every byte is as specs/splatvq.md says (version 4), refused where
+// Every byte is as specs/splatvq.md says (version 5), refused where
 // splatconv/formats/splatvq.py and splatvq_codec.py refuse it, and the arithmetic is
 // that of splatvq_codec.py's decode_block, operation for operation, in
 // doubles (products with exact powers of two, one sum, one square root, one
@@ -22,12 +22,12 @@
 "use strict";
 
 const MAGIC = "SPVQ";
-const VERSION = 4;
+const VERSION = 5;
 const CODER_DEFLATE_RAW = 1;
 const CHUNK_LOG2 = 8;
 const CHUNK = 1 << CHUNK_LOG2;
 const BLOCK = 1 << 16;
-const PREAMBLE = 26;           // magic, version, coder, 11 setting bytes, chunk_log2, json_length, block_count
+const PREAMBLE = 27;           // magic, version, coder, 12 setting bytes, chunk_log2, json_length, block_count
 const ENTRY = 16;              // coded, raw, payload (inflated bytes), stored: four uint32
 const MAX_JSON = 64 << 20;
 const MAX_RATIO = 1032;        // deflate gives at most this many bytes a stored byte
@@ -56,19 +56,22 @@ const CLASS_LIMITS = [8, 32, 128, 512];
 const CLASS_TOP = CLASS_LIMITS[CLASS_LIMITS.length - 1], TOP_CLASS = CLASS_LIMITS.length;
 const CLASS_OF = new Uint8Array(CLASS_TOP);  // the class of each code below the last limit
 CLASS_LIMITS.forEach((limit) => { for (let u = limit; u < CLASS_TOP; u++) CLASS_OF[u]++; });
-// window_index = (e + WINDOW_BIAS) * 4 + the dropped quaternion component, e <= WINDOW_MAX.
-const WINDOW_BIAS = 30, WINDOW_MAX = 30;
-const WINDOW_INDEX_MAX = (WINDOW_MAX + WINDOW_BIAS) * 4 + 3;
+// window_index = level * 64 + (e + WINDOW_BIAS) * 4 + the dropped quaternion component: the
+// splat's boost level (0-3), its window exponent e (-13..2) and rotation index.
+const WINDOW_BIAS = 13;
 const SCALE_ZERO = 0, SCALE_INF = 1, SCALE_FIRST = 2;
 const HALF_INF = 0x7c00;
 const POSITION_CODE_MAX = 4294967295;
-// Preamble bytes 6..16: name, signed, lowest, highest (SETTING_LIMITS in splatvq_codec.py).
+// Preamble bytes 6..17: name, signed, lowest, highest (SETTING_LIMITS in splatvq_codec.py).
 const SETTING = [
   ["position_shift", true, -30, 30], ["rotation_bits", false, 2, 16], ["scale_step", false, 1, 255],
   ["trbf_scale_step", false, 1, 255], ["time_shift", false, 0, 30], ["omega_shift", false, 0, 30],
   ["motion_shift", true, -30, 30], ["acceleration_shift", false, 0, 8], ["jerk_shift", false, 0, 8],
-  ["alpha_levels", false, 0, 7], ["flat_octaves", false, 0, 15],
+  ["alpha_levels", false, 0, 7], ["flat_octaves", false, 0, 15], ["boost_step", false, 0, 4],
 ];
+// A splat's geometric steps are its boost level times boost_step bits finer; a rotation component
+// takes at most 16 bits.
+const ROTATION_BITS_MAX = 16;
 const CHUNK_LOG2_AT = 6 + SETTING.length, JSON_AT = CHUNK_LOG2_AT + 1, BLOCKS_AT = JSON_AT + 4;
 
 // 2^x for integer x, exactly, past every exponent a file can give (halving and doubling 1
@@ -538,7 +541,7 @@ let scratch = null;
 function workspace(n) {
   if (!scratch || scratch.size < n) {
     scratch = {
-      size: n, k: new Int32Array(n), e: new Int32Array(n), c: new Int32Array(n),
+      size: n, k: new Int32Array(n), e: new Int32Array(n), c: new Int32Array(n), boost: new Int32Array(n),
       plain: [new Uint32Array(n), new Uint32Array(n), new Uint32Array(n)], values: new Float64Array(n),
       values1: new Float64Array(n), values2: new Float64Array(n), values3: new Float64Array(n),
       cls: new Uint8Array(n), rank: new Int32Array(n), keys: new Float64Array(n), low: new Uint32Array(n),
@@ -707,11 +710,11 @@ function scaleField(b, column, slot, base, stride, offset, step) {
 }
 
 // Scales (words 5-6, half slots 10-12), each splat's coarsening c from its alpha byte
-// (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))) and its step exponent k (from its
-// least scale, at most flat_octaves below its middle one, plus c): one pass, the scales
-// kept in registers.
+// (min(alpha_levels, 7 - floor(log2(max(alpha, 1))))), its boost (in bits) and its step
+// exponent k (from its least scale, at most flat_octaves below its middle one, plus c,
+// less the boost): the scales kept in registers.
 function scalesAndSteps(b) {
-  const {p, n, s, halves, k, c, columns} = b;
+  const {p, n, s, halves, k, c, boost, columns} = b;
   const v0 = saturatingValues(p, n, columns.scale[0], b.values);
   const v1 = saturatingValues(p, n, columns.scale[1], b.values1);
   const v2 = saturatingValues(p, n, columns.scale[2], b.values2);
@@ -719,6 +722,7 @@ function scalesAndSteps(b) {
   for (let a = 0; a < 256; a++) coarsening[a] = Math.min(s.alpha_levels, 7 - (31 - Math.clz32(Math.max(1, a))));
   const bad = scaleSteps(halves, v0, v1, v2, b.scaleBase, s.scale_step, p, columns.color[3].at, coarsening,
                          s.flat_octaves << 10, s.position_shift, k, c, n);
+  boosts(p, columns.window_index[0].at, s.boost_step, k, boost, n);
   if (bad) throw new Refusal(`${b.which} is damaged (a scale code decodes past the half range).`);
 }
 
@@ -750,6 +754,15 @@ function scaleSteps(halves, v0, v1, v2, base, step, p, alphaPlane, coarsening, f
   return bad;
 }
 
+// Each splat's boost in bits, its level (the window byte's top two bits) times boost_step, taken
+// off its step exponent k.
+function boosts(p, windowPlane, step, k, boost, n) {
+  for (let i = 0; i < n; i++) {
+    boost[i] = (p[windowPlane + i] >> 6) * step;
+    k[i] -= boost[i];
+  }
+}
+
 // Positions (words 0-2): f32(base + code * 2^k). Inside a chunk x is stored as the step
 // from floor(previous code * 2^(previous k - k)), the chunk's first splat as its code.
 function positions(b) {
@@ -777,26 +790,22 @@ function positionAxis(floats, posBase, code, k, j, n) {
   for (let i = 0; i < n; i++) floats[16 * i + j] = posBase[3 * (i >>> CHUNK_LOG2) + j] + code[i] * POW2[POW2_BIAS + k[i]];
 }
 
-// Window exponent e, from the byte that also holds the rotation index.
+// Window exponent e, from the byte that also holds the boost level and the rotation index.
 function windowExponents(b) {
   const {p, n, e} = b, plane = b.columns.window_index[0].at;
-  for (let i = 0; i < n; i++) {
-    const v = p[plane + i];
-    if (v > WINDOW_INDEX_MAX) throw new Refusal(`${b.which} is damaged (a window exponent past ${WINDOW_MAX}).`);
-    e[i] = (v >> 2) - WINDOW_BIAS;
-  }
+  for (let i = 0; i < n; i++) e[i] = ((p[plane + i] >> 2) & 15) - WINDOW_BIAS;
 }
 
-// Rotation (words 3-4, half slots 6-9): three kept components, the dropped one from them.
+// Rotation (words 3-4, half slots 6-9): three kept components, the dropped one from them,
+// rotation_bits plus the splat's boost (at most 16) each.
 function rotations(b) {
-  const {p, n, halves, columns, plain} = b, plane = columns.window_index[0].at;
-  const M = (1 << b.s.rotation_bits) - 1;
-  const rotValue = new Float64Array(M + 1), rotHalf = new Uint16Array(M + 1);
-  rotationTables(M, rotValue, rotHalf);
+  const {p, n, halves, columns, plain, boost} = b, plane = columns.window_index[0].at;
   const r0 = plainValues(p, n, columns.rotation[0], plain[0]), r1 = plainValues(p, n, columns.rotation[1], plain[1]);
   const r2 = plainValues(p, n, columns.rotation[2], plain[2]);
   for (let i = 0; i < n; i++) {
     const index = p[plane + i] & 3;
+    const bits = Math.min(ROTATION_BITS_MAX, b.s.rotation_bits + boost[i]), M = 2 ** bits - 1;
+    const {rotValue, rotHalf} = ROTATION_TABLES[bits] || rotationTables(bits);
     const c0 = r0[i], c1 = r1[i], c2 = r2[i];
     if (c0 > M || c1 > M || c2 > M) throw new Refusal(`${b.which} is damaged (a rotation code past ${M}).`);
     const a0 = rotValue[c0], a1 = rotValue[c1], a2 = rotValue[c2];
@@ -809,12 +818,16 @@ function rotations(b) {
   }
 }
 
-// A kept component depends on its code alone.
-function rotationTables(M, rotValue, rotHalf) {
+// A kept component depends on its code and bits alone: the value and half of every code of
+// each number of bits, made once a worker.
+const ROTATION_TABLES = [];
+function rotationTables(bits) {
+  const M = 2 ** bits - 1, rotValue = new Float64Array(M + 1), rotHalf = new Uint16Array(M + 1);
   for (let r = 0; r <= M; r++) {
     rotValue[r] = ((2 * r - M) / M) * Math.SQRT1_2;
     rotHalf[r] = half(rotValue[r]);
   }
+  return (ROTATION_TABLES[bits] = {rotValue, rotHalf});
 }
 
 // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice
@@ -850,7 +863,7 @@ function motionAndOmega(b) {
   saturatingValues(p, n, columns.omega[1], values1);
   saturatingValues(p, n, columns.omega[2], values2);
   saturatingValues(p, n, columns.omega[3], values3);
-  omegaTerms(halves, values, values1, values2, values3, rank, POW2_BIAS - s.omega_shift, c, e, n);
+  omegaTerms(halves, values, values1, values2, values3, rank, POW2_BIAS - s.omega_shift, c, e, b.boost, n);
 }
 
 function identity(rank, n) {
@@ -869,10 +882,10 @@ function threeTerms(halves, v0, v1, v2, rank, slot, x, k, e, d, n) {
   }
 }
 
-// Omega's four columns into half slots 26..29, on the lattice 2^(x - POW2_BIAS + c[i] - e[i]).
-function omegaTerms(halves, v0, v1, v2, v3, rank, x, c, e, n) {
+// Omega's four columns into half slots 26..29, on the lattice 2^(x - POW2_BIAS + c[i] - e[i] - boost[i]).
+function omegaTerms(halves, v0, v1, v2, v3, rank, x, c, e, boost, n) {
   for (let i = 0; i < n; i++) {
-    const r = rank[i], step = POW2[x + c[i] - e[i]], q = 32 * i + 26;
+    const r = rank[i], step = POW2[x + c[i] - e[i] - boost[i]], q = 32 * i + 26;
     const a = v0[r], b = v1[r], f = v2[r], g = v3[r];
     if (a !== 0) halves[q] = half(unzigzag(a) * step);
     if (b !== 0) halves[q + 1] = half(unzigzag(b) * step);
@@ -894,13 +907,13 @@ function termAndClass(halves, values, rank, slot, x, k, e, cls, n) {
   }
 }
 
-// Temporal centre (half slot 30) on the lattice 2^-time_shift.
+// Temporal centre (half slot 30) on the lattice 2^-(time_shift + boost).
 function temporalCentres(b) {
-  const {p, n, halves} = b, timeScale = POW2[POW2_BIAS - b.s.time_shift];
+  const {p, n, halves, boost} = b, x = POW2_BIAS - b.s.time_shift;
   const centre = plainValues(p, n, b.columns.trbf_center[0], b.plain[0]);
   for (let i = 0; i < n; i++) {
     const u = centre[i];
-    if (u !== 0) halves[32 * i + 30] = half(unzigzag(u) * timeScale);
+    if (u !== 0) halves[32 * i + 30] = half(unzigzag(u) * POW2[x - boost[i]]);
   }
 }
 
