@@ -213,6 +213,20 @@ def _matrices(views):
     return [(v.matrix, cam.projection_matrix(v.fx, v.fy, v.width, v.height), v.width, v.height) for _, v in views]
 
 
+def test_contributions_a_chunk_at_a_time_are_the_whole_scenes(monkeypatch):
+    """A scene of many splats is placed in the frames a chunk at a time (its footprints kept in float32) and
+    its occlusion summed a chunk of cell entries at a time: what each splat adds comes out the same."""
+    scene = moving_scene(3000, seed=2)
+    views = _matrices(proof.proof_views(scene))
+    whole = prune.contributions(scene.columns, views, proof.PROOF_TIMES)
+    monkeypatch.setattr(prune, "_FRAME_SPLATS", 700)
+    monkeypatch.setattr(prune, "_CHUNK_SPLATS", 256)
+    chunked = prune.contributions(scene.columns, views, proof.PROOF_TIMES)
+    assert np.count_nonzero(whole) > 2000
+    assert np.array_equal(chunked > 0, whole > 0)
+    assert np.allclose(chunked, whole, rtol=1e-4, atol=1e-6 * whole.max())
+
+
 def test_splats_no_frame_shows_rank_last():
     """Behind the camera, out of the frame: nothing added, ranked first to go; hidden in time at every t: nothing
     added and not ranked (undrawable); seen only between the times drawn: counted; behind an opaque splat: less

@@ -43,6 +43,11 @@ _MAX_AXIS = 1024.0
 #: :data:`_CELL_BUDGET` entries a splat (big splats cover many cells).
 _CELL = 8
 _CELL_BUDGET = 8
+#: Splats whose cell entries are made at once (:func:`_transmittance`).
+_CHUNK_SPLATS = 1 << 16
+#: Splats placed in the frames at once (:func:`contributions`): a larger scene's are worked out a chunk
+#: at a time, their footprints alone kept (in float32).
+_FRAME_SPLATS = 1 << 16
 #: Opacity over a cell at most: keeps log(1 - a) finite.
 _MOST_OPACITY = 0.999
 
@@ -129,7 +134,13 @@ def _frame(position, vrk, alpha, view, projection, width: int, height: int):
 
 
 def _transmittance(weight, depth, box, alpha, width: int, height: int) -> np.ndarray:
-    """What the splats in front of each one let through, ``(n,)``: on a grid of cells, front to back."""
+    """What the splats in front of each one let through, ``(n,)``: on a grid of cells, front to back.
+
+    The splats are taken :data:`_CHUNK_SPLATS` at a time, front to back, each
+    chunk's (splat, cell) entries made and summed on their own, the light lost
+    in each cell so far carried from chunk to chunk: a frame of a million splats
+    needs a chunk's entries, not all of them at once.
+    """
     out = np.ones(len(weight))
     if len(weight) == 0:
         return out
@@ -146,30 +157,45 @@ def _transmittance(weight, depth, box, alpha, width: int, height: int) -> np.nda
                 or cell >= max(width, height):
             break
         cell *= 2
-    # One entry a (splat, cell it covers), front to back: the k-th cell of a splat's box is
-    # (k % nx, k // nx) from its corner.
-    owner = np.repeat(np.arange(len(front)), count)
-    k = np.arange(len(owner)) - np.repeat(np.cumsum(count) - count, count)
-    nxo = nx[owner]
-    cells = ((cy0[owner] + k // nxo) * columns + cx0[owner] + k % nxo).astype(np.uint16)
     # A splat's opacity over a cell: its weight at the cell's point nearest its centre, times the
     # share of the cell it covers when smaller than one.
     a = alpha[front]
     small = a * np.minimum(1.0, weight[front] / np.maximum(a, 1e-12) / (cell * cell))
-    px = np.clip(sx[owner], (cx0[owner] + k % nxo) * cell, (cx0[owner] + k % nxo + 1) * cell) - sx[owner]
-    py = np.clip(sy[owner], (cy0[owner] + k // nxo) * cell, (cy0[owner] + k // nxo + 1) * cell) - sy[owner]
-    with np.errstate(over="ignore", invalid="ignore"):
-        falloff = np.exp(-(qa[owner] * px * px + 2 * qb[owner] * px * py + qc[owner] * py * py))
-    cover = np.minimum(np.nan_to_num(small[owner] * falloff), _MOST_OPACITY)
-    order = np.argsort(cells, kind="stable")  # by cell, front to back within one (a radix sort)
-    owner, cells, cover = owner[order], cells[order], cover[order]
-    loss = np.log1p(-cover)
-    total = np.cumsum(loss)
-    first = np.ones(len(order), bool)
-    first[1:] = cells[1:] != cells[:-1]
-    start = np.maximum.accumulate(np.where(first, np.arange(len(order)), 0))
-    before = total - loss - (total[start] - loss[start])  # what is in front, in the same cell
-    out[front] = np.bincount(owner, weights=np.exp(before), minlength=len(front)) / count
+    lost = np.zeros(columns * -(-height // cell))  # log of what each cell lets through, splats so far
+    through = np.empty(len(front))
+    for lo in range(0, len(front), _CHUNK_SPLATS):
+        hi = min(lo + _CHUNK_SPLATS, len(front))
+        c = count[lo:hi]
+        # One entry a (splat, cell it covers), front to back: the k-th cell of a splat's box is
+        # (k % nx, k // nx) from its corner.
+        owner = np.repeat(np.arange(lo, hi), c)
+        k = np.arange(len(owner)) - np.repeat(np.cumsum(c) - c, c)
+        nxo = nx[owner]
+        kx, ky = cx0[owner] + k % nxo, cy0[owner] + k // nxo
+        del k, nxo
+        cells = (ky * columns + kx).astype(np.uint16)  # fewer than 2**16 cells: a radix sort
+        px = np.clip(sx[owner], kx * cell, (kx + 1) * cell) - sx[owner]
+        py = np.clip(sy[owner], ky * cell, (ky + 1) * cell) - sy[owner]
+        del kx, ky
+        with np.errstate(over="ignore", invalid="ignore"):
+            falloff = np.exp(-(qa[owner] * px * px + 2 * qb[owner] * px * py + qc[owner] * py * py))
+        del px, py
+        cover = np.minimum(np.nan_to_num(small[owner] * falloff), _MOST_OPACITY)
+        del falloff
+        order = np.argsort(cells, kind="stable")  # by cell, front to back within one
+        owner, cells, cover = owner[order], cells[order], cover[order]
+        del order
+        loss = np.log1p(-cover)
+        del cover
+        total = np.cumsum(loss)
+        first = np.ones(len(loss), bool)
+        first[1:] = cells[1:] != cells[:-1]
+        start = np.maximum.accumulate(np.where(first, np.arange(len(loss)), 0))
+        # What is in front: the same cell's earlier entries in this chunk, and the chunks before.
+        before = total - loss - (total[start] - loss[start]) + lost[cells]
+        through[lo:hi] = np.bincount(owner - lo, weights=np.exp(before), minlength=hi - lo) / c
+        lost += np.bincount(cells, weights=loss, minlength=len(lost))
+    out[front] = through
     return out
 
 
@@ -194,15 +220,48 @@ def contributions(cols: dict, views, times) -> np.ndarray:
     """
     score = np.zeros(len(cols["x"]))
     rows = np.flatnonzero(~viewer.undrawable(cols))
-    sub = {name: np.asarray(cols[name])[rows] for name in COLUMNS}
     times = sorted(float(t) for t in times)
     edges = [viewer.TIME_RANGE[0]] + [(a + b) / 2 for a, b in zip(times[:-1], times[1:])] + [viewer.TIME_RANGE[1]]
+    whole = len(rows) <= _FRAME_SPLATS  # else each time's splats are placed a chunk at a time
+    sub = {name: np.asarray(cols[name])[rows] for name in COLUMNS} if whole else None
     for t, lo, hi in zip(times, edges[:-1], edges[1:]):
-        position, vrk, alpha = _at_time(sub, t, lo, hi)
-        for view, projection, width, height in views:
-            drawn, weight, depth, box = _frame(position, vrk, alpha, view, projection, width, height)
-            score[rows[drawn]] += weight * _transmittance(weight, depth, box, alpha[drawn], width, height)
+        if whole:
+            position, vrk, alpha = _at_time(sub, t, lo, hi)
+            frames = [(_frame(position, vrk, alpha, view, projection, width, height), alpha, width, height)
+                      for view, projection, width, height in views]
+            frames = [(drawn, weight, depth, box, alpha[drawn], width, height)
+                      for (drawn, weight, depth, box), alpha, width, height in frames]
+            del position, vrk, alpha
+        else:
+            frames = _footprints(cols, rows, t, lo, hi, views)
+        while frames:  # each frame's footprints let go of once it is summed
+            drawn, weight, depth, box, alpha, width, height = frames.pop(0)
+            score[rows[drawn]] += weight * _transmittance(weight, depth, box, alpha, width, height)
+            del drawn, weight, depth, box, alpha
     return score
+
+
+def _footprints(cols: dict, rows: np.ndarray, t: float, lo: float, hi: float, views) -> list:
+    """:func:`_frame` of the splats ``rows`` at time ``t`` from each of ``views``, worked out
+    :data:`_FRAME_SPLATS` splats at a time, what is kept in float32: for each view, the splats
+    drawn (indices into ``rows``), their weight, depth, footprint and opacity, and the frame's size."""
+    parts = [[] for _ in views]
+    for start in range(0, len(rows), _FRAME_SPLATS):
+        sub = {name: np.asarray(cols[name])[rows[start:start + _FRAME_SPLATS]] for name in COLUMNS}
+        position, vrk, alpha = _at_time(sub, t, lo, hi)
+        del sub
+        for part, (view, projection, width, height) in zip(parts, views):
+            drawn, weight, depth, box = _frame(position, vrk, alpha, view, projection, width, height)
+            part.append(((drawn + start).astype(np.int32), weight.astype(np.float32), depth.astype(np.float32),
+                         tuple(v.astype(np.float32) for v in box), alpha[drawn].astype(np.float32)))
+        del position, vrk, alpha
+    frames = []
+    for part, (_view, _projection, width, height) in zip(parts, views):
+        drawn, weight, depth, boxes, alpha = zip(*part)
+        part.clear()
+        frames.append((np.concatenate(drawn), np.concatenate(weight), np.concatenate(depth),
+                       tuple(np.concatenate(v) for v in zip(*boxes)), np.concatenate(alpha), width, height))
+    return frames
 
 
 def ranked(cols: dict, score: np.ndarray) -> np.ndarray:
