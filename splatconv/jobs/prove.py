@@ -220,6 +220,10 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     every = proof_views(scene, drawable)
     views, times = proof_plan(scene, every)
     large = len(views) < len(every) or len(times) < len(PROOF_TIMES)
+    # What each splat adds to the proof's frames: the format spends its bits by it, and pruning leaves
+    # out the least. Before the renderer holds its memory; a mapped input's pages handed back after.
+    weights = frame_weights(scene, views, times) if fmt.weighs or prune else None
+    hand_back(scene.columns.values())
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
             progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0)
                            + (TUNE_NOTCHES + len(fmt.tunings) if tunes else 0) * (2 if other else 1)
@@ -227,9 +231,6 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                            "candidate") as advance, \
             Prover(scene, views, times) as prover:
         options = {"quality": quality, "sort": sort, "zstd_level": zstd_level}
-        # What each splat adds to the proof's frames: the format spends its bits by it, and pruning
-        # leaves out the least.
-        weights = frame_weights(scene, views, times) if fmt.weighs or prune else None
         c = _Candidates(scene, os.path.join(folder, os.path.basename(output)), prover, options, advance,
                         fmt.prepare, prepared, weights if fmt.weighs else None)
         if max_bytes is not None:
