@@ -799,13 +799,17 @@ function windowExponents(b) {
 // Rotation (words 3-4, half slots 6-9): three kept components, the dropped one from them,
 // rotation_bits plus the splat's boost (at most 16) each.
 function rotations(b) {
-  const {p, n, halves, columns, plain, boost} = b, plane = columns.window_index[0].at;
+  const {p, n, s, halves, columns, plain} = b, plane = columns.window_index[0].at;
   const r0 = plainValues(p, n, columns.rotation[0], plain[0]), r1 = plainValues(p, n, columns.rotation[1], plain[1]);
   const r2 = plainValues(p, n, columns.rotation[2], plain[2]);
+  // Each boost level's tables: rotation_bits plus level * boost_step bits, at most 16.
+  const byLevel = [0, 1, 2, 3].map((level) => {
+    const bits = Math.min(ROTATION_BITS_MAX, s.rotation_bits + level * s.boost_step);
+    return ROTATION_TABLES[bits] || rotationTables(bits);
+  });
   for (let i = 0; i < n; i++) {
-    const index = p[plane + i] & 3;
-    const bits = Math.min(ROTATION_BITS_MAX, b.s.rotation_bits + boost[i]), M = 2 ** bits - 1;
-    const {rotValue, rotHalf} = ROTATION_TABLES[bits] || rotationTables(bits);
+    const v = p[plane + i], index = v & 3;
+    const {M, rotValue, rotHalf} = byLevel[v >> 6];
     const c0 = r0[i], c1 = r1[i], c2 = r2[i];
     if (c0 > M || c1 > M || c2 > M) throw new Refusal(`${b.which} is damaged (a rotation code past ${M}).`);
     const a0 = rotValue[c0], a1 = rotValue[c1], a2 = rotValue[c2];
@@ -827,7 +831,7 @@ function rotationTables(bits) {
     rotValue[r] = ((2 * r - M) / M) * Math.SQRT1_2;
     rotHalf[r] = half(rotValue[r]);
   }
-  return (ROTATION_TABLES[bits] = {rotValue, rotHalf});
+  return (ROTATION_TABLES[bits] = {M, rotValue, rotHalf});
 }
 
 // Motion (words 8-12, half slots 16-24): degree d = 1, 2, 3 on the lattice
