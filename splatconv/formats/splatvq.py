@@ -258,9 +258,10 @@ def _encode_to(scene: Scene, out, *, sort: str | None = None, quality: str | Non
         report.notes.append(f"kept {plural(shaping, 'undrawable splat')}: the viewer's depth sort needs them")
     raw = sum(r for _, r, _, _ in blocks) - forced
     # A scene read from a .splatvq of this very setting is on its grid already (the quantizers are
-    # projections): encoding it again quantizes nothing, so the note says the setting was kept.
+    # projections), but for a splat whose boost level comes out otherwise this time (at a level's edge).
     kept = scene.variant == FORMAT.name and scene.meta.get("setting") == name
-    how = f"kept the source's {name!r} setting" if kept else f"quantized with the {name!r} setting"
+    how = f"kept the source's {name!r} setting (a splat at the edge of a boost level may move a step)" \
+        if kept else f"quantized with the {name!r} setting"
     report.notes.append(f"{how} ({(end - first) / n:.1f} bytes a splat)"
                         + (f"; {plural(raw, 'splat')} kept verbatim (a zero rotation, an axis-aligned flat splat, or NaN, infinite or far values)" if raw else "")
                         + (f"; {plural(forced, 'splat')} at the ends of the viewer's depth sort kept exactly"

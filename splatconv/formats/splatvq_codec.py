@@ -269,7 +269,7 @@ SATURATED = 255
 SPLAT_FIELDS = (
     ("x_step", 1, SATURATING),     # x code as a step from the splat before (see x_steps)
     ("yz", 2, PLAIN),              # y and z codes
-    ("window_index", 1, BYTE),     # (e + WINDOW_BIAS) * 4 + the dropped quaternion component
+    ("window_index", 1, BYTE),     # level * 64 + (e + WINDOW_BIAS) * 4 + the dropped quaternion component
     ("rotation", 3, PLAIN),        # the other three components, in order
     ("scale", 3, SATURATING),      # reserved codes, then lattice index - base + 2
     ("color", 4, BYTE),            # the RGBA8 word's bytes as they are
