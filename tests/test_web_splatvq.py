@@ -358,6 +358,38 @@ def test_every_coding_path_decodes_to_the_words_python_decodes(browser, tmp_path
     page.close()
 
 
+@pytest.mark.parametrize("rotation_bits, boost_step", [(10, 4), (6, 0)])
+def test_boost_steps_at_their_limits_decode_to_the_words_python_decodes(browser, tmp_path, monkeypatch,
+                                                                       rotation_bits, boost_step):
+    """A boost step of 4 (a level-3 splat's rotation at the 16-bit cap) and of 0 (every level alike: levels
+    the encoder never writes there, set by hand)."""
+    monkeypatch.setitem(codec.SETTINGS, "default", codec.replace(codec.SETTINGS["default"],
+                                                                 rotation_bits=rotation_bits, boost_step=boost_step))
+    path = tmp_path / "boosted.splatvq"
+    scene = real_scene(3000, seed=6)[0]
+    weights = 2.0 ** np.random.default_rng(6).uniform(-4, 18, scene.count)  # levels 0 to 3
+    splatconv.write(scene, path, weights=weights)
+    if not boost_step:
+        rng = np.random.default_rng(7)
+
+        def levels_by_hand(tables, fields):
+            fields["window_index"][:, 0] |= (rng.integers(0, 4, len(fields["window_index"])) << 6).astype(np.uint8)
+
+        path.write_bytes(damage.with_codes(path.read_bytes(), levels_by_hand))
+    _, fields, _ = codec.unpack_payload(damage.payload(path.read_bytes()),
+                                        *damage.layout(path.read_bytes())[1][0][:2], "x", ())
+    levels = np.bincount(fields["window_index"][:, 0] >> 6, minlength=4)
+    assert (levels > 0).all(), levels  # every level taken
+    if boost_step:
+        assert fields["rotation"].max() >= 1 << 15  # a level-3 splat's 16 bits in use
+    page_path = tmp_path / "boosted.html"
+    page_path.write_bytes(build_page([SceneRef(name="boosted.splatvq", data=path.read_bytes())]))
+    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
+    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
+    assert_same_words(page, path)
+    page.close()
+
+
 def test_raw_records_of_every_kind_of_key_come_in_the_order_python_gives(browser, small, tmp_path):
     """Negative, -0, NaN and equal importance keys (a raw record may hold any scale half): the same order."""
     path = tmp_path / "odd.splatvq"
