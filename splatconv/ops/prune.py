@@ -222,18 +222,8 @@ def contributions(cols: dict, views, times) -> np.ndarray:
     rows = np.flatnonzero(~viewer.undrawable(cols))
     times = sorted(float(t) for t in times)
     edges = [viewer.TIME_RANGE[0]] + [(a + b) / 2 for a, b in zip(times[:-1], times[1:])] + [viewer.TIME_RANGE[1]]
-    whole = len(rows) <= _FRAME_SPLATS  # else each time's splats are placed a chunk at a time
-    sub = {name: np.asarray(cols[name])[rows] for name in COLUMNS} if whole else None
     for t, lo, hi in zip(times, edges[:-1], edges[1:]):
-        if whole:
-            position, vrk, alpha = _at_time(sub, t, lo, hi)
-            frames = [(_frame(position, vrk, alpha, view, projection, width, height), alpha, width, height)
-                      for view, projection, width, height in views]
-            frames = [(drawn, weight, depth, box, alpha[drawn], width, height)
-                      for (drawn, weight, depth, box), alpha, width, height in frames]
-            del position, vrk, alpha
-        else:
-            frames = _footprints(cols, rows, t, lo, hi, views)
+        frames = _footprints(cols, rows, t, lo, hi, views)
         while frames:  # each frame's footprints let go of once it is summed
             drawn, weight, depth, box, alpha, width, height = frames.pop(0)
             score[rows[drawn]] += weight * _transmittance(weight, depth, box, alpha, width, height)
@@ -242,9 +232,13 @@ def contributions(cols: dict, views, times) -> np.ndarray:
 
 
 def _footprints(cols: dict, rows: np.ndarray, t: float, lo: float, hi: float, views) -> list:
-    """:func:`_frame` of the splats ``rows`` at time ``t`` from each of ``views``, worked out
-    :data:`_FRAME_SPLATS` splats at a time, what is kept in float32: for each view, the splats
-    drawn (indices into ``rows``), their weight, depth, footprint and opacity, and the frame's size."""
+    """:func:`_frame` of the splats ``rows`` at time ``t`` from each of ``views``: for each view, the splats
+    drawn (indices into ``rows``), their weight, depth, footprint and opacity, and the frame's size.
+
+    Worked out :data:`_FRAME_SPLATS` splats at a time; where that takes more than one chunk, what is kept
+    is kept in float32 (a million splats' footprints for every view)."""
+    narrow = len(rows) > _FRAME_SPLATS
+    kept = (lambda v: v.astype(np.float32)) if narrow else (lambda v: v)
     parts = [[] for _ in views]
     for start in range(0, len(rows), _FRAME_SPLATS):
         sub = {name: np.asarray(cols[name])[rows[start:start + _FRAME_SPLATS]] for name in COLUMNS}
@@ -252,8 +246,8 @@ def _footprints(cols: dict, rows: np.ndarray, t: float, lo: float, hi: float, vi
         del sub
         for part, (view, projection, width, height) in zip(parts, views):
             drawn, weight, depth, box = _frame(position, vrk, alpha, view, projection, width, height)
-            part.append(((drawn + start).astype(np.int32), weight.astype(np.float32), depth.astype(np.float32),
-                         tuple(v.astype(np.float32) for v in box), alpha[drawn].astype(np.float32)))
+            part.append(((drawn + start).astype(np.int32 if narrow else np.intp), kept(weight), kept(depth),
+                         tuple(kept(v) for v in box), kept(alpha[drawn])))
         del position, vrk, alpha
     frames = []
     for part, (_view, _projection, width, height) in zip(parts, views):
