@@ -90,6 +90,16 @@ def assert_same_words(page, path):
     assert not words[len(expected):].any()
 
 
+def assert_page_decodes_as_python(browser, tmp_path, path):
+    """The page given ``path``'s bytes holds the texture words Python decodes from it."""
+    page_path = tmp_path / (path.stem + ".html")
+    page_path.write_bytes(build_page([SceneRef(name=path.name, data=path.read_bytes())]))
+    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
+    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
+    assert_same_words(page, path)
+    page.close()
+
+
 @pytest.mark.parametrize("fixture", ["small", "large"])
 def test_served_page_decodes_the_words_python_decodes(browser, request, fixture):
     """`view X.splatvq`: the page fetches the .splatvq itself and decodes it word for word."""
@@ -350,12 +360,7 @@ def test_every_coding_path_decodes_to_the_words_python_decodes(browser, tmp_path
     saturating = [name for name, _, coding in codec.SPLAT_FIELDS if coding == codec.SATURATING]
     assert all((fields[name] > codec.SATURATED).any() for name in saturating)
     assert fields["motion"].max() > codec.VALUE_MAX and fields["yz"].max() > 1 << 24
-    page_path = tmp_path / "every.html"
-    page_path.write_bytes(build_page([SceneRef(name="every.splatvq", data=data)]))
-    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
-    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
-    assert_same_words(page, path)
-    page.close()
+    assert_page_decodes_as_python(browser, tmp_path, path)
 
 
 @pytest.mark.parametrize("rotation_bits, boost_step", [(10, 4), (6, 0)])
@@ -382,12 +387,7 @@ def test_boost_steps_at_their_limits_decode_to_the_words_python_decodes(browser,
     assert (levels > 0).all(), levels  # every level taken
     if boost_step:
         assert fields["rotation"].max() >= 1 << 15  # a level-3 splat's 16 bits in use
-    page_path = tmp_path / "boosted.html"
-    page_path.write_bytes(build_page([SceneRef(name="boosted.splatvq", data=path.read_bytes())]))
-    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
-    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
-    assert_same_words(page, path)
-    page.close()
+    assert_page_decodes_as_python(browser, tmp_path, path)
 
 
 def test_raw_records_of_every_kind_of_key_come_in_the_order_python_gives(browser, small, tmp_path):
@@ -395,12 +395,7 @@ def test_raw_records_of_every_kind_of_key_come_in_the_order_python_gives(browser
     path = tmp_path / "odd.splatvq"
     path.write_bytes(damage.with_raw_only(small.read_bytes(), damage.odd_key_records()))
     assert np.array_equal(splatvq.decode(path), damage.odd_key_records()[list(damage.ODD_KEYS_ORDER)])
-    page_path = tmp_path / "odd.html"
-    page_path.write_bytes(build_page([SceneRef(name="odd.splatvq", data=path.read_bytes())]))
-    page = open_page(browser, page_path.as_uri() + "#t=0.5&ui=0", W, H)
-    assert page.evaluate("window.splatconvPlayer.status()")["error"] is None
-    assert_same_words(page, path)
-    page.close()
+    assert_page_decodes_as_python(browser, tmp_path, path)
 
 
 def test_drop_a_splatvq_file(browser, small, tmp_path):
