@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import os
 import re
 import struct
@@ -302,6 +303,25 @@ def test_image_diff(tmp_path):
     r = run("diff", pa, pa)
     assert r.exit_code == 0 and "inf" in r.stdout
     assert run("diff", pa, pb, "--min-psnr", "60").exit_code == 1
+
+
+def test_psnr_of_rgba_frames_counts_rgb_only_and_exactly():
+    """A proof's frames (RGBA, as drawn) and images (RGB): the same figure, the alpha left out, every error
+    as large as a byte allows."""
+    from splatconv.render import diff as imgdiff
+
+    rng = np.random.default_rng(3)
+    a = rng.integers(0, 256, (37, 53, 4), dtype=np.uint8)
+    b = a.copy()
+    b[..., 3] = 255 - a[..., 3]  # alpha differs everywhere: not counted
+    b[0, 0, :3] = 255 - a[0, 0, :3]
+    b[36, 52, 0] = 0 if a[36, 52, 0] > 127 else 255
+    d = a[..., :3].astype(np.int64) - b[..., :3].astype(np.int64)
+    expected = 10 * math.log10(255.0**2 / float((d * d).sum() / d.size))
+    assert imgdiff.psnr(a, b) == expected == imgdiff.psnr(a[..., :3], b[..., :3])
+    assert imgdiff.compare(a, b).psnr == expected
+    full = np.zeros((4, 4, 4), np.uint8)
+    assert imgdiff.psnr(full, full + 255) == 0.0 and imgdiff.psnr(a, a) == math.inf
 
 
 def test_image_diff_rows_name_the_images_not_a_time_or_camera(tmp_path, monkeypatch):

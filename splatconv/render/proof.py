@@ -203,7 +203,7 @@ class Prover:
         with progress.stage("drawing", len(self.frames), "frame") as advance:
             for i in order:
                 name, view, t = plan[i]
-                values[i] = imgdiff.compare(self.frames[i], self.renderer.draw(view, float(t))).psnr
+                values[i] = imgdiff.psnr(self.frames[i], self.renderer.draw(view, float(t)))
                 drawn.append(i)
                 advance()
                 if floor is not None and values[i] < floor:
