@@ -45,8 +45,12 @@ PRUNE_PROOFS = 7
 PRUNE_RESOLUTION = 128
 #: Tuning (:func:`_tuned`): notches it keeps at most (each a full proof), and the scenes it is tried
 #: on (drawable splats: what a proof draws), where a proof is quick.
-TUNE_NOTCHES = 8
+TUNE_NOTCHES = 16
 TUNE_MAX_SPLATS = 100_000
+#: Past this many drawable splats a tuning keeps at most :data:`TUNE_NOTCHES_LARGE` notches: each a proof
+#: of some seconds, for bytes that are a smaller share of the file than a small scene's.
+TUNE_MANY_SPLATS = 50_000
+TUNE_NOTCHES_LARGE = 8
 
 
 def _precisions(output) -> tuple:
@@ -213,6 +217,7 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     prepared = fmt.prepare(scene) if fmt.prepare is not None else None
     drawable = ~undrawable(scene.columns)
     tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS, drawable)
+    notches = TUNE_NOTCHES if tunes and _drawable_at_most(scene, TUNE_MANY_SPLATS, drawable) else TUNE_NOTCHES_LARGE
     # A setting below the best must not write a larger file than the best's: where a scene is tuned
     # and the setting's ladder climbed past it (the ladders part ways), the best setting's file is
     # found too (_other_family).
@@ -226,7 +231,7 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     hand_back(scene.columns.values())
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
             progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0)
-                           + (TUNE_NOTCHES + len(fmt.tunings) if tunes else 0) * (2 if other else 1)
+                           + (notches + len(fmt.tunings) if tunes else 0) * (2 if other else 1)
                            + (len(steps) if other else 0),
                            "candidate") as advance, \
             Prover(scene, views, times) as prover:
@@ -255,13 +260,13 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
         # Pruning first: leaving out a splat saves more bytes for the dB it costs than any notch.
         left_out = _pruned(c, chosen, floor, views, times, weights) if prune and short is None else 0
         if tunes and short is None:
-            tune = _tuned(c, fmt.tunings, chosen, left_out, floor)
+            tune = _tuned(c, fmt.tunings, chosen, left_out, floor, notches)
         tried, family, instead = 0, name, None
         if other and short is None and chosen > 0:
             o = _Candidates(scene, os.path.join(folder, "other-" + os.path.basename(output)), prover,
                             dict(options, quality=other), advance, fmt.prepare, prepared, c.weights)
             found = _other_family(o, steps, fmt.tunings, fmt.floors.get(other, floor) if min_psnr is None else floor,
-                                  large)
+                                  large, notches)
             if found is not None and o.size(found) < c.size((chosen, tune, left_out)):
                 instead = f"smaller than the {name!r} setting's best, {c.size((chosen, tune, left_out)):,} bytes"
                 tried, family, c, (chosen, tune, _) = len(c.proofs), other, o, found
@@ -358,7 +363,8 @@ def precision_text(name: str, step: int) -> str:
            f"{'finer' if step > 0 else 'coarser'}"
 
 
-def _tuned(c: _Candidates, tunings: tuple, step: int, left_out: int, floor: float) -> tuple:
+def _tuned(c: _Candidates, tunings: tuple, step: int, left_out: int, floor: float,
+           notches: int = TUNE_NOTCHES) -> tuple:
     """The quantizers ``step`` (with ``left_out`` splats pruned) can take a notch coarser each and still reach
     ``floor``: a tuning to the scene.
 
@@ -368,7 +374,8 @@ def _tuned(c: _Candidates, tunings: tuple, step: int, left_out: int, floor: floa
     that cost least for the bytes they save on real scenes first), each quantizer
     is taken a notch coarser where that makes the file smaller and the candidate
     still reaches the floor; one that breaks it is not tried again. Pass after
-    pass, at most :data:`TUNE_NOTCHES` notches kept. A notch is kept only on a proof of
+    pass, at most ``notches`` kept (:data:`TUNE_NOTCHES`; :data:`TUNE_NOTCHES_LARGE` on a scene of
+    more than :data:`TUNE_MANY_SPLATS` drawable splats). A notch is kept only on a proof of
     every frame: a proof from fewer frames misleads, since a notch can move the
     viewer's depth sort and spoil a frame that was among the best (on a real scene,
     one position notch took a view from 51 dB to 44.5 while its worst frame held).
@@ -377,9 +384,9 @@ def _tuned(c: _Candidates, tunings: tuple, step: int, left_out: int, floor: floa
     counted: each quantizer fails once at most.
     """
     tune, left, kept = (), list(tunings), 0
-    while left and kept < TUNE_NOTCHES:
+    while left and kept < notches:
         for name in list(left):
-            if kept >= TUNE_NOTCHES:
+            if kept >= notches:
                 break
             key = (step, tune + (name,), left_out)
             if c.size(key) >= c.size((step, tune, left_out)):  # at its limit, or nothing to gain
@@ -393,7 +400,8 @@ def _tuned(c: _Candidates, tunings: tuple, step: int, left_out: int, floor: floa
     return tune
 
 
-def _other_family(c: _Candidates, steps: list, tunings: tuple, floor: float, large: bool):
+def _other_family(c: _Candidates, steps: list, tunings: tuple, floor: float, large: bool,
+                  notches: int = TUNE_NOTCHES):
     """The candidate the best setting (``c``'s quality) is written at for its ``floor``, tuned, as ``convert``
     of that setting finds it; None where none of its steps reaches the floor.
 
@@ -412,7 +420,7 @@ def _other_family(c: _Candidates, steps: list, tunings: tuple, floor: float, lar
     chosen = _searched(c, steps, floor, large=large)
     if chosen is None:
         return None
-    return chosen, _tuned(c, tunings, chosen, 0, floor), 0
+    return chosen, _tuned(c, tunings, chosen, 0, floor, notches), 0
 
 
 def tuning_text(tune) -> str:
