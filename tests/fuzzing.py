@@ -118,11 +118,11 @@ def _is_splatvq(name: str) -> bool:
 
 
 def _splatvq_parts(data: bytes):
-    """(JSON length, block count, where the block table starts) of a .splatvq, or None if too short."""
+    """(JSON stored length, block count, where the block table starts) of a .splatvq, or None if too short."""
     if len(data) < splatvq.PREAMBLE.size:
         return None
     fields = splatvq.PREAMBLE.unpack_from(data)
-    return fields[-2], fields[-1], splatvq.PREAMBLE.size + fields[-2]
+    return fields[-3], fields[-1], splatvq.PREAMBLE.size + fields[-3]
 
 
 def _header_len(data: bytes) -> int:
@@ -267,16 +267,19 @@ def _splatvq_header_edit(rng, data):
         return data
     json_len, blocks, table_at = parts
     try:
-        meta = json.loads(data[splatvq.PREAMBLE.size:table_at])
-    except (ValueError, RecursionError, UnicodeDecodeError):
+        meta = json.loads(zlib.decompress(data[splatvq.PREAMBLE.size:table_at], -15))
+    except (ValueError, RecursionError, UnicodeDecodeError, zlib.error):
         return bit_flips(rng, data, "")
     text = _hostile_json(rng, meta).encode()
-    declared = len(text) if rng.random() < 0.85 else rng.choice(INTERESTING_INTS[:20])
+    stored = splatvq.header_deflated(text)
+    # The stored and the inflated length, each as it is or a lie.
+    declared = [len(stored) if rng.random() < 0.85 else rng.choice(INTERESTING_INTS[:20]),
+                len(text) if rng.random() < 0.85 else rng.choice(INTERESTING_INTS[:20])]
     preamble = bytearray(data[:splatvq.PREAMBLE.size])
-    struct.pack_into("<I", preamble, splatvq.PREAMBLE.size - 8, declared & 0xFFFFFFFF)
+    struct.pack_into("<II", preamble, splatvq.PREAMBLE.size - 12, declared[0] & 0xFFFFFFFF, declared[1] & 0xFFFFFFFF)
     if rng.random() < 0.3:  # a setting byte at an edge of its range or past it
         preamble[rng.randrange(6, 6 + len(splatvq.SETTING_ORDER))] = rng.choice([0, 1, 2, 8, 16, 30, 31, 127, 128, 255])
-    return bytes(preamble) + text + data[table_at:]
+    return bytes(preamble) + stored + data[table_at:]
 
 
 def header_edit(rng, data, name):

@@ -24,7 +24,7 @@ def setting(data: bytes) -> codec.Setting:
 
 def layout(data: bytes):
     """Where the block table starts, its entries (coded, raw, payload, stored) and where the blocks start."""
-    json_length, blocks = splatvq.PREAMBLE.unpack_from(data)[-2:]
+    json_length, _json_size, blocks = splatvq.PREAMBLE.unpack_from(data)[-3:]
     table_at = splatvq.PREAMBLE.size + json_length
     entries = list(splatvq.BLOCK_ENTRY.iter_unpack(data[table_at:table_at + blocks * splatvq.BLOCK_ENTRY.size]))
     return table_at, entries, table_at + blocks * splatvq.BLOCK_ENTRY.size
@@ -40,14 +40,30 @@ def with_entry(data: bytes, i: int = 0, *, coded=None, raw=None, payload=None, s
     return data[:at] + entry + rest
 
 
-def with_count(data: bytes, count) -> bytes:
-    """The header JSON's count changed (the block table left as it is)."""
+def header_json(data: bytes) -> dict:
+    """The header JSON of a file (inflated and parsed)."""
+    table_at, _, _ = layout(data)
+    return json.loads(zlib.decompress(data[splatvq.PREAMBLE.size:table_at], -15))
+
+
+def with_header(data: bytes, stored: bytes, size: int) -> bytes:
+    """The header's stored bytes replaced by ``stored``, the preamble declaring them and ``size`` inflated."""
     head = splatvq.PREAMBLE.unpack_from(data)
     table_at, _, _ = layout(data)
-    meta = json.loads(data[splatvq.PREAMBLE.size:table_at])
-    meta["count"] = count
+    return splatvq.PREAMBLE.pack(*head[:-3], len(stored), size, head[-1]) + stored + data[table_at:]
+
+
+def with_meta(data: bytes, meta: dict) -> bytes:
+    """The header JSON replaced by ``meta``, deflated as the writer deflates it."""
     text = json.dumps(meta).encode()
-    return splatvq.PREAMBLE.pack(*head[:-2], len(text), head[-1]) + text + data[table_at:]
+    return with_header(data, splatvq.header_deflated(text), len(text))
+
+
+def with_count(data: bytes, count) -> bytes:
+    """The header JSON's count changed (the block table left as it is)."""
+    meta = header_json(data)
+    meta["count"] = count
+    return with_meta(data, meta)
 
 
 def deflate(payload: bytes) -> bytes:
@@ -116,10 +132,11 @@ def declaring(blocks: int, last: int = codec.BLOCK) -> bytes:
                                     "position": [0, 0, -5], "rotation": [[1, 0, 0], [0, 1, 0], [0, 0, 1]],
                                     "fx": 64, "fy": 64}]}).encode()
     values = [getattr(codec.SETTINGS["default"], f) for f in splatvq.SETTING_ORDER]
+    packed = splatvq.header_deflated(meta)
     head = splatvq.PREAMBLE.pack(splatvq.MAGIC, splatvq.VERSION, codec.CODER_DEFLATE_RAW, *values,
-                                 codec.CHUNK_LOG2, len(meta), blocks)
+                                 codec.CHUNK_LOG2, len(packed), len(meta), blocks)
     table = b"".join(splatvq.BLOCK_ENTRY.pack(n, 0, codec.payload_bounds(n, 0)[0], len(stored[n])) for n in sizes)
-    return head + meta + table + b"".join(stored[n] for n in sizes)
+    return head + packed + table + b"".join(stored[n] for n in sizes)
 
 
 def rearranged(data: bytes, picks, corrupt: int | None = None) -> bytes:

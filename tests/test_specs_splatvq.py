@@ -57,7 +57,7 @@ def test_preamble_table_is_the_struct():
     assert "16 `B`" in SPEC and splatvq.BLOCK_ENTRY.size == 16
     assert "`coded`, `raw`, `payload`, `stored`, four uint32" in SPEC and splatvq.BLOCK_ENTRY.format == "<IIII"
     assert "the bytes `SPVQ` (`MAGIC`)" in SPEC and splatvq.MAGIC == b"SPVQ"
-    assert "| 4 | 1 | version | 5 (`VERSION`) |" in SPEC and splatvq.VERSION == 5
+    assert "| 4 | 1 | version | 6 (`VERSION`) |" in SPEC and splatvq.VERSION == 6
     assert "1: raw deflate (`CODER_DEFLATE_RAW`)" in SPEC and codec.CODER_DEFLATE_RAW == 1
     assert "8: 256 splats a chunk (`CHUNK_LOG2`)" in SPEC and codec.CHUNK == 256
 

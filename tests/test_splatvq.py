@@ -360,16 +360,26 @@ def _no_blocks(data: bytes) -> bytes:
 
 
 BAD = [
-    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (27-byte preamble)"),
+    ("too short", lambda d: d[:10], "10 bytes is too short for a .splatvq file (31-byte preamble)"),
     ("magic", lambda d: b"XXXX" + d[4:], "not a .splatvq file: magic b'XXXX', expected b'SPVQ'"),
-    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (5)"),
-    ("version 4", lambda d: d[:4] + b"\x04" + d[5:], "version 4 is not one this reader knows (5)"),
+    ("version", lambda d: d[:4] + b"\x09" + d[5:], "version 9 is not one this reader knows (6)"),
+    ("version 5", lambda d: d[:4] + b"\x05" + d[5:], "version 5 is not one this reader knows (6)"),
     ("coder", lambda d: d[:5] + b"\x02" + d[6:], "coder 2 is not one this reader knows (1: raw deflate)"),
     ("setting", lambda d: d[:7] + b"\x00" + d[8:], "setting 'rotation_bits' is 0, outside [2, 16]"),
     ("truncated", lambda d: d[:-5], "block 0: declares {stored} bytes but the file ends {short} bytes after its "
      "start: file truncated?"),
     ("extra bytes", lambda d: d + b"\0", "the blocks end at byte {size} but the file has {size1}"),
     ("count lies", lambda d: damage.with_count(d, 5), "header 'count' is 5 but the blocks hold {count} splats"),
+    ("header corrupt", lambda d: damage.with_header(d, b"\xff" * 20, 300),
+     "header JSON: compressed data is corrupt (Error -3 while decompressing data: invalid block type)"),
+    ("header decodes to more", lambda d: damage.with_header(d, damage.deflate(b" " * 400), 300),
+     "header JSON: decodes to more than the 300 bytes declared"),
+    ("header past the JSON read", lambda d: damage.with_header(d, damage.deflate(b" " * 400), (64 << 20) + 1),
+     "header declares 67108865 bytes of JSON, more than the 67108864 read"),
+    ("header ratio", lambda d: damage.with_header(d, b"\0" * 5, 6000),
+     "header declares 6000 bytes of JSON from 5 stored, more than deflate can give"),
+    ("header not JSON", lambda d: damage.with_header(d, damage.deflate(b"{count"), 6),
+     "header JSON: Expecting property name enclosed in double quotes (line 1, column 2)"),
     ("table lies: more splats", lambda d: damage.with_entry(d, coded=70000), "block 0: holds {big} splats; a block "
      "holds 1 to 65536"),
     ("table lies: decoded size", lambda d: damage.with_entry(d, payload=damage.layout(d)[1][0][2] + 10),
@@ -459,11 +469,12 @@ def test_a_small_file_declaring_a_large_scene_is_held_to_the_decompression_ceili
     held to the decompression ceiling (--max-decompressed) from the block table, before a block is decoded."""
     payload = bytes(codec.payload_bounds(codec.BLOCK, 0)[0])  # a valid payload: every code 0
     stored = damage.deflate(payload)
-    cameras = json.loads(_header_json(splatvq.encode(real_scene(300, seed=1)[0])[0]))["cameras"]
-    meta = json.dumps({"count": 8 * codec.BLOCK, "cameras": cameras})
+    cameras = damage.header_json(splatvq.encode(real_scene(300, seed=1)[0])[0])["cameras"]
+    meta = json.dumps({"count": 8 * codec.BLOCK, "cameras": cameras}).encode()
+    packed = splatvq.header_deflated(meta)
     values = [getattr(codec.SETTINGS["default"], f) for f in splatvq.SETTING_ORDER]
     data = (splatvq.PREAMBLE.pack(splatvq.MAGIC, splatvq.VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2,
-                                  len(meta), 8) + meta.encode()
+                                  len(packed), len(meta), 8) + packed
             + splatvq.BLOCK_ENTRY.pack(codec.BLOCK, 0, len(payload), len(stored)) * 8 + stored * 8)
     path = _write(tmp_path, data)
     assert len(data) < 40_000 and splatvq.splat_count(path) == 8 * codec.BLOCK
@@ -477,11 +488,6 @@ def test_a_small_file_declaring_a_large_scene_is_held_to_the_decompression_ceili
     # info holds a block at a time, never the scene: the ceiling on a scene held does not apply.
     r = CliRunner().invoke(main, ["--max-decompressed", "32M", "info", "--json", str(path)])
     assert r.exit_code == 0 and json.loads(r.stdout)["count"] == 524_288
-
-
-def _header_json(data: bytes) -> bytes:
-    table_at = damage.layout(data)[0]
-    return data[splatvq.PREAMBLE.size:table_at]
 
 
 def test_an_unknown_quality_is_a_usage_error(real):

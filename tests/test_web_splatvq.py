@@ -190,10 +190,7 @@ class _QuietHandler(http.server.SimpleHTTPRequestHandler):
 def test_the_first_block_is_drawn_before_the_file_has_arrived(browser, large):
     """Streaming: the server sends the first block, then waits; the page draws it meanwhile."""
     data = large.read_bytes()
-    with open(large, "rb") as f:
-        head = splatvq.PREAMBLE.unpack(f.read(splatvq.PREAMBLE.size))
-    json_length = head[-2]
-    table_at = splatvq.PREAMBLE.size + json_length
+    table_at, _, _ = damage.layout(data)
     (coded0, raw0, _, stored0), _ = splatvq.BLOCK_ENTRY.iter_unpack(
         data[table_at:table_at + 2 * splatvq.BLOCK_ENTRY.size])
     first_end = table_at + 2 * splatvq.BLOCK_ENTRY.size + stored0
@@ -274,7 +271,15 @@ BAD = [
     ("a block that inflates to far more than declared",
      lambda d: damage.with_payload(d, damage.payload(d) + bytes(8 << 20), declared=len(damage.payload(d))),
      "block 1 of 1 is damaged: it decodes to more than the"),
-    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 5"),
+    ("another version", lambda d: d[:4] + b"\x09" + d[5:], "version 9; this page reads version 6"),
+    ("a corrupt header", lambda d: damage.with_header(d, b"\xff" * 20, 300),
+     "its header is corrupt: its compressed data cannot be decoded"),
+    ("a header that inflates to more than declared", lambda d: damage.with_header(d, damage.deflate(b" " * 400), 300),
+     "its header is damaged: it decodes to more than the 300 bytes"),
+    ("a header past what deflate can give", lambda d: damage.with_header(d, b"\0" * 5, 6000),
+     "its header is damaged (it claims 6000 bytes of header from 5 stored"),
+    ("a header that is not JSON", lambda d: damage.with_header(d, damage.deflate(b"{count"), 6),
+     "its header is damaged (not valid JSON)"),
     ("a setting out of range", lambda d: d[:7] + b"\x00" + d[8:], "setting rotation_bits is 0"),
     ("a position step past the code range", lambda d: damage.with_codes(d, damage.bad_position_step),
      "block 1 of 1 is damaged (a position code past 2^32 - 1)"),

@@ -19,6 +19,7 @@ import io
 import json
 import os
 import struct
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from typing import NamedTuple
 
@@ -46,9 +47,10 @@ STORAGE = {"position": "quantized", "rotation": "quantized", "scale": "quantized
            "opacity": "byte", "motion": "quantized", "omega": "quantized", "trbf": "quantized"}
 
 MAGIC = b"SPVQ"
-VERSION = 5
-#: magic, version, coder, the setting's twelve numbers, chunk size (log2), JSON length, block count.
-PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBBBII")
+VERSION = 6
+#: magic, version, coder, the setting's twelve numbers, chunk size (log2), the header JSON's stored (raw
+#: deflate) and inflated lengths, block count.
+PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBBBIII")
 #: One block table entry: splats quantized, splats verbatim, payload (inflated) bytes, stored (compressed) bytes.
 BLOCK_ENTRY = struct.Struct("<IIII")
 #: Largest JSON header read.
@@ -70,7 +72,8 @@ class Block(NamedTuple):
 
 
 __all__ = ["FORMAT", "read", "write", "encode", "prepare", "decode", "check", "info_fields", "splat_count", "most_splats",
-           "storage", "read_records", "converted_texture", "scan", "MAGIC", "VERSION", "PREAMBLE", "BLOCK_ENTRY"]
+           "storage", "read_records", "converted_texture", "scan", "header_deflated", "MAGIC", "VERSION", "PREAMBLE",
+           "BLOCK_ENTRY"]
 
 
 # --------------------------------------------------------------------------
@@ -197,8 +200,10 @@ def _encode_to(scene: Scene, out, *, sort: str | None = None, quality: str | Non
                       ensure_ascii=False, allow_nan=False).encode("utf-8")
     values = [getattr(setting, f) for f in SETTING_ORDER]
     first = out.tell()
-    out.write(PREAMBLE.pack(MAGIC, VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2, len(text), len(starts)))
-    out.write(text)
+    stored = header_deflated(text)
+    out.write(PREAMBLE.pack(MAGIC, VERSION, codec.CODER_DEFLATE_RAW, *values, codec.CHUNK_LOG2, len(stored), len(text),
+                            len(starts)))
+    out.write(stored)
     table_at = out.tell()
     out.write(bytes(BLOCK_ENTRY.size * len(starts)))  # the block table, written once the blocks are
     with ThreadPoolExecutor(max_workers=2) if len(starts) > 1 else contextlib.nullcontext() as pool:
@@ -293,6 +298,13 @@ def _seekable(stream) -> bool:
         return False
 
 
+def header_deflated(text: bytes) -> bytes:
+    """The header JSON's UTF-8 ``text`` as stored: raw deflate (a file's cameras are most of it, and
+    their numbers' digits deflate to some two thirds)."""
+    comp = zlib.compressobj(9, zlib.DEFLATED, -15, 9)
+    return comp.compress(text) + comp.flush()
+
+
 # --------------------------------------------------------------------------
 # Reading
 
@@ -305,7 +317,7 @@ def _header(f, path: str, file_size: int):
     fields = PREAMBLE.unpack(f.read(PREAMBLE.size))
     magic, version, coder = fields[:3]
     values = dict(zip(SETTING_ORDER, fields[3:3 + len(SETTING_ORDER)]))
-    chunk_log2, json_len, block_count = fields[3 + len(SETTING_ORDER):]
+    chunk_log2, json_len, json_size, block_count = fields[3 + len(SETTING_ORDER):]
     if magic != MAGIC:
         raise FormatError(f"not a .splatvq file: magic {magic!r}, expected {MAGIC!r}", path)
     if version != VERSION:
@@ -319,10 +331,16 @@ def _header(f, path: str, file_size: int):
         if not lo <= values[key] <= hi:
             raise FormatError(f"setting '{key}' is {values[key]}, outside [{lo}, {hi}]", path)
     setting = codec.Setting(**values)
-    if json_len > MAX_JSON_BYTES or PREAMBLE.size + json_len > file_size:
-        raise FormatError(f"header declares {json_len} bytes of JSON but the file ends after "
+    if json_size > MAX_JSON_BYTES:
+        raise FormatError(f"header declares {json_size} bytes of JSON, more than the {MAX_JSON_BYTES} read", path)
+    if PREAMBLE.size + json_len > file_size:
+        raise FormatError(f"header declares {json_len} stored bytes of JSON but the file ends after "
                           f"{file_size - PREAMBLE.size}", path)
-    meta = loads_strict(f.read(json_len), path, "header JSON")
+    if json_size > codec.MAX_RATIO * json_len + 64:
+        raise FormatError(f"header declares {json_size} bytes of JSON from {json_len} stored, more than deflate "
+                          "can give", path)
+    text = codec.inflate(f.read(json_len), json_size, path, ("header JSON",))
+    meta = loads_strict(text, path, "header JSON")
     if not isinstance(meta, dict):
         raise FormatError("header JSON must be an object", path)
     table_at = PREAMBLE.size + json_len

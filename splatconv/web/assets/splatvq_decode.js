@@ -8,7 +8,7 @@
 // indices in the block in importance order, or null where that is payload order), then
 // {type: "done"} -- or {type: "error", message} with a plain-language reason, and nothing more.
 //
-// Every byte is as specs/splatvq.md says (version 5), refused where
+// Every byte is as specs/splatvq.md says (version 6), refused where
 // splatconv/formats/splatvq.py and splatvq_codec.py refuse it, and the arithmetic is
 // that of splatvq_codec.py's decode_block, operation for operation, in
 // doubles (products with exact powers of two, one sum, one square root, one
@@ -22,12 +22,13 @@
 "use strict";
 
 const MAGIC = "SPVQ";
-const VERSION = 5;
+const VERSION = 6;
 const CODER_DEFLATE_RAW = 1;
 const CHUNK_LOG2 = 8;
 const CHUNK = 1 << CHUNK_LOG2;
 const BLOCK = 1 << 16;
-const PREAMBLE = 27;           // magic, version, coder, 12 setting bytes, chunk_log2, json_length, block_count
+const PREAMBLE = 31;           // magic, version, coder, 12 setting bytes, chunk_log2, json_length, json_size,
+                               // block_count
 const ENTRY = 16;              // coded, raw, payload (inflated bytes), stored: four uint32
 const MAX_JSON = 64 << 20;
 const MAX_RATIO = 1032;        // deflate gives at most this many bytes a stored byte
@@ -72,7 +73,8 @@ const SETTING = [
 // A splat's geometric steps are its boost level times boost_step bits finer; a rotation component
 // takes at most 16 bits.
 const ROTATION_BITS_MAX = 16;
-const CHUNK_LOG2_AT = 6 + SETTING.length, JSON_AT = CHUNK_LOG2_AT + 1, BLOCKS_AT = JSON_AT + 4;
+const CHUNK_LOG2_AT = 6 + SETTING.length, JSON_AT = CHUNK_LOG2_AT + 1, JSON_SIZE_AT = JSON_AT + 4;
+const BLOCKS_AT = JSON_SIZE_AT + 4;
 
 // 2^x for integer x, exactly, past every exponent a file can give (halving and doubling 1
 // are exact in doubles; below 2^-1074 it is 0 and above 2^1023 Infinity: what decodes
@@ -142,7 +144,8 @@ function take(n) {
   return out;
 }
 
-const file = {stage: "preamble", setting: null, jsonLength: 0, blockCount: 0, blocks: [], next: 0, start: 0};
+const file = {stage: "preamble", setting: null, jsonLength: 0, jsonSize: 0, blockCount: 0, blocks: [], next: 0,
+              start: 0};
 // Blocks' results are posted in file order: each waits for the one before it.
 let posted = Promise.resolve();
 
@@ -157,8 +160,17 @@ function advance() {
         readPreamble(take(PREAMBLE));
       } else if (file.stage === "json") {
         if (available < file.jsonLength) break;
-        file.meta = readJson(take(file.jsonLength));
-        file.stage = "table";
+        // The header is raw deflate: read on once it is inflated (the bytes after it wait).
+        file.stage = "inflating";
+        inflate(take(file.jsonLength), file.jsonSize, "its header").then((text) => {
+          file.meta = readJson(text);
+          file.stage = "table";
+          advance();
+        }).catch((e) => fail(e instanceof Refusal ? e.message
+                                                  : `the decoder failed (${e && e.message ? e.message : e}).`));
+        break;
+      } else if (file.stage === "inflating") {
+        break;
       } else if (file.stage === "table") {
         if (available < file.blockCount * ENTRY) break;
         readTable(take(file.blockCount * ENTRY));
@@ -180,7 +192,7 @@ function advance() {
     fail(e instanceof Refusal ? e.message : `the decoder failed (${e && e.message ? e.message : e}).`);
     return;
   }
-  if (ended) {
+  if (ended && file.stage !== "inflating") {
     finished = true;
     const complete = file.stage === "after";
     const reason = complete ? null : truncated();
@@ -310,9 +322,14 @@ function readPreamble(bytes) {
   }
   file.setting = setting;
   file.jsonLength = dv.getUint32(JSON_AT, true);
+  file.jsonSize = dv.getUint32(JSON_SIZE_AT, true);
   file.blockCount = dv.getUint32(BLOCKS_AT, true);
-  if (file.jsonLength > MAX_JSON) {
-    throw new Refusal(`its header is damaged (it claims a header of ${file.jsonLength} bytes).`);
+  if (file.jsonSize > MAX_JSON) {
+    throw new Refusal(`its header is damaged (it claims a header of ${file.jsonSize} bytes).`);
+  }
+  if (file.jsonSize > MAX_RATIO * file.jsonLength + 64) {
+    throw new Refusal(`its header is damaged (it claims ${file.jsonSize} bytes of header from ` +
+                      `${file.jsonLength} stored, more than deflate can give).`);
   }
   if (file.blockCount > MAX_SPLATS) {
     throw new Refusal(`its block table is damaged (it claims ${file.blockCount} blocks).`);
@@ -401,10 +418,10 @@ async function inflate(stored, expected, which) {
     throw new Refusal(`${which} is corrupt: its compressed data cannot be decoded.`);
   }
   if (got > expected) {
-    throw new Refusal(`${which} is damaged: it decodes to more than the ${expected} bytes its table declares.`);
+    throw new Refusal(`${which} is damaged: it decodes to more than the ${expected} bytes declared for it.`);
   }
   if (got !== expected) {
-    throw new Refusal(`${which} is damaged: it decodes to ${got} bytes, not the ${expected} its table declares.`);
+    throw new Refusal(`${which} is damaged: it decodes to ${got} bytes, not the ${expected} declared for it.`);
   }
   return out;
 }
