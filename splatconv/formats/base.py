@@ -180,8 +180,9 @@ class Format:
         the file to the texture format holds (zero padded), decoded without the scene: given
         by a format whose blocks decode to the texture's records (what a proof draws).
     prepare : callable or None
-        ``prepare(scene) -> object``: what writes of ``scene`` at each of its :attr:`precisions`
-        share, computed once and given to each as ``prepared=`` (a proof writes several).
+        ``prepare(scene, kinds=None) -> object``: what writes of ``scene`` at each of its
+        :attr:`precisions` share, computed once and given to each as ``prepared=`` (a proof writes
+        several); ``kinds``: the scene's :func:`~splatconv.viewer.undrawable_kinds`, where known.
     expands : bool
         A file is compressed inside: a small one can declare a scene many times
         its size (``most_splats``), so a read is held to the decompression ceiling

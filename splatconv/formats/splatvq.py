@@ -87,14 +87,15 @@ def _setting_name(quality: str | None) -> str:
     return name
 
 
-def prepare(scene: Scene) -> tuple:
+def prepare(scene: Scene, kinds: np.ndarray | None = None) -> tuple:
     """What every write of ``scene`` shares, whatever its setting and step: ``(kinds, ends)``.
 
-    Its :func:`~splatconv.viewer.undrawable_kinds` and the splats the viewer's depth
-    sort turns on (:func:`~splatconv.viewer.sort_ends`), computed once for a proof that
-    writes the scene at several steps (:attr:`~splatconv.formats.base.Format.prepare`).
+    Its :func:`~splatconv.viewer.undrawable_kinds` (``kinds``, where the caller has
+    them) and the splats the viewer's depth sort turns on
+    (:func:`~splatconv.viewer.sort_ends`), computed once for a proof that writes the
+    scene at several steps (:attr:`~splatconv.formats.base.Format.prepare`).
     """
-    kinds = undrawable_kinds(scene.columns)
+    kinds = undrawable_kinds(scene.columns) if kinds is None else kinds
     return kinds, sort_ends(scene.columns, scene.cameras, kinds)
 
 

@@ -30,7 +30,7 @@ from ..progress import SILENT
 from ..ops.prune import leave_out
 from ..publish import PAGE
 from ..render.proof import PROOF_TIMES, Prover, frame_weights, proof_plan, proof_views, ranked
-from ..viewer import undrawable
+from ..viewer import DRAWABLE, undrawable, undrawable_kinds
 from ..wording import plural
 from .convert import PROVE_MEMORY_BYTES, convert
 
@@ -214,8 +214,9 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
         if floor is not None else ""
     started = time.perf_counter()
     # What every candidate's write shares, computed once (and before the renderer holds its memory).
-    prepared = fmt.prepare(scene) if fmt.prepare is not None else None
-    drawable = ~undrawable(scene.columns)
+    kinds = undrawable_kinds(scene.columns)
+    drawable = kinds == DRAWABLE
+    prepared = fmt.prepare(scene, kinds) if fmt.prepare is not None else None
     tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS, drawable)
     notches = TUNE_NOTCHES if tunes and _drawable_at_most(scene, TUNE_MANY_SPLATS, drawable) else TUNE_NOTCHES_LARGE
     # A setting below the best must not write a larger file than the best's: where a scene is tuned
@@ -227,7 +228,7 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     large = len(views) < len(every) or len(times) < len(PROOF_TIMES)
     # What each splat adds to the proof's frames: the format spends its bits by it, and pruning leaves
     # out the least. Before the renderer holds its memory; a mapped input's pages handed back after.
-    weights = frame_weights(scene, views, times) if fmt.weighs or prune else None
+    weights = frame_weights(scene, views, times, drawable) if fmt.weighs or prune else None
     hand_back(scene.columns.values())
     with tempfile.TemporaryDirectory(prefix="splatconv-proof-") as folder, \
             progress.stage("proving", len(steps) + (PRUNE_PROOFS if prune else 0)

@@ -199,7 +199,7 @@ def _transmittance(weight, depth, box, alpha, width: int, height: int) -> np.nda
     return out
 
 
-def contributions(cols: dict, views, times) -> np.ndarray:
+def contributions(cols: dict, views, times, drawable: np.ndarray | None = None) -> np.ndarray:
     """What each splat adds to the frames drawn from ``views`` at ``times``: ``(N,) float64``, >= 0.
 
     The sum over frames of the splat's blend weight over the frame's pixels (see
@@ -217,9 +217,11 @@ def contributions(cols: dict, views, times) -> np.ndarray:
         the viewer holds them, and the frame's size in pixels.
     times : sequence of float
         In [0, 1].
+    drawable : (N,) bool ndarray, optional
+        ``~viewer.undrawable(cols)``, where the caller has it.
     """
     score = np.zeros(len(cols["x"]))
-    rows = np.flatnonzero(~viewer.undrawable(cols))
+    rows = np.flatnonzero(~viewer.undrawable(cols) if drawable is None else drawable)
     times = sorted(float(t) for t in times)
     edges = [viewer.TIME_RANGE[0]] + [(a + b) / 2 for a, b in zip(times[:-1], times[1:])] + [viewer.TIME_RANGE[1]]
     for t, lo, hi in zip(times, edges[:-1], edges[1:]):

@@ -261,7 +261,7 @@ def load_candidate(renderer: Renderer, path) -> None:
     renderer.load_pieces(count, lambda put: fmt.converted_texture(path, put))
 
 
-def frame_weights(scene: Scene, views: list, times=None) -> np.ndarray:
+def frame_weights(scene: Scene, views: list, times=None, drawable: np.ndarray | None = None) -> np.ndarray:
     """What each splat of ``scene`` adds to the frames drawn from ``views`` at ``times``, in units of what the
     median splat that shows adds: ``(N,) float64``, 0 for a splat no frame shows.
 
@@ -273,7 +273,7 @@ def frame_weights(scene: Scene, views: list, times=None) -> np.ndarray:
     """
     matrices = [(view.matrix, cam.projection_matrix(view.fx, view.fy, view.width, view.height), view.width,
                  view.height) for _name, view in views]
-    score = prune.contributions(scene.columns, matrices, PROOF_TIMES if times is None else times)
+    score = prune.contributions(scene.columns, matrices, PROOF_TIMES if times is None else times, drawable)
     shown = score[score > 0]
     return score / np.median(shown) if len(shown) else score
 
