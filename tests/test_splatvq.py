@@ -196,7 +196,7 @@ def test_a_small_block_joins_planes_into_fewer_deflate_blocks(tmp_path, real, mo
 def test_deflate_groups_keep_every_part_in_order_and_large_ones_alone():
     rng = np.random.default_rng(0)
     parts = [rng.integers(0, k, size, dtype=np.uint8).tobytes()
-             for size, k in [(30, 3), (20, 3), (3000, 200), (40, 4), (500, 9), (14, 2), (5000, 50), (60, 60)]]
+             for size, k in [(30, 3), (20, 3), (4500, 200), (40, 4), (500, 9), (14, 2), (5000, 50), (60, 60)]]
     groups = codec.deflate_groups(parts)
     assert [part for group in groups for part in group] == parts
     assert [parts[2]] in groups and [parts[6]] in groups
@@ -376,6 +376,10 @@ BAD = [
      "header JSON: decodes to more than the 300 bytes declared"),
     ("header past the JSON read", lambda d: damage.with_header(d, damage.deflate(b" " * 400), (64 << 20) + 1),
      "header declares 67108865 bytes of JSON, more than the 67108864 read"),
+    ("stored header past the JSON read", lambda d: d[:19] + ((64 << 20) + 1).to_bytes(4, "little") + d[23:],
+     "header declares 67108865 bytes of JSON, more than the 67108864 read"),
+    ("header inflating past 0 declared", lambda d: damage.with_header(d, damage.deflate(bytes(1 << 20)), 0),
+     "header JSON: decodes to more than the 0 bytes declared"),
     ("header ratio", lambda d: damage.with_header(d, b"\0" * 5, 6000),
      "header declares 6000 bytes of JSON from 5 stored, more than deflate can give"),
     ("header not JSON", lambda d: damage.with_header(d, damage.deflate(b"{count"), 6),

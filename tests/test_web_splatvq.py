@@ -257,7 +257,10 @@ def _bad_scale(tables, fields):
 
 BAD = [
     ("truncated in its last block", lambda d: d[:-100], "the file is truncated: it ends inside block 1 of 1"),
-    ("truncated in its header", lambda d: d[:30], "the file is truncated: it ends inside its header"),
+    ("truncated in its preamble", lambda d: d[:30], "the file is truncated: it ends inside its header"),
+    ("truncated in its stored header", lambda d: d[:splatvq.PREAMBLE.size + 10],
+     "the file is truncated: it ends inside its header"),
+    ("truncated at its block table", lambda d: d[:damage.layout(d)[0]], "the file is truncated: it ends inside its header"),
     ("a block of no splats", lambda d: damage.with_entry(d, 0, coded=0, raw=0), "its block table is damaged"),
     ("a count that is not the blocks' sum", lambda d: damage.with_count(d, 5), "its header is damaged (its count 5 is"),
     ("a block that claims too much", lambda d: damage.with_entry(d, 0, stored=10), "more than deflate can give"),

@@ -1,7 +1,7 @@
 """The ``.splatvq`` format: a quantized ``.splatv`` in independently decodable blocks.
 
 Layout (see ``specs/splatvq.md``): a fixed preamble (magic, version, coder and
-the quantizer's setting), a UTF-8 JSON object (count, cameras), a block table
+the quantizer's setting), a UTF-8 JSON object (count, cameras) as raw deflate, a block table
 (per block: splats quantized, splats verbatim, payload bytes, stored bytes), then
 each block's raw-deflate stream. Blocks follow the importance order of a ``.splatv``, so a
 player draws the most important splats first. A block decodes to ``.splatv``
@@ -53,7 +53,7 @@ VERSION = 6
 PREAMBLE = struct.Struct("<4sBBbBBBBBbBBBBBBIII")
 #: One block table entry: splats quantized, splats verbatim, payload (inflated) bytes, stored (compressed) bytes.
 BLOCK_ENTRY = struct.Struct("<IIII")
-#: Largest JSON header read.
+#: Largest JSON header read: inflated, and as stored.
 MAX_JSON_BYTES = 64 << 20
 #: Most splats a file holds: as many as a ``.splatv`` texture (65536 rows of 1024).
 MAX_SPLATS = 65536 * SPLATS_PER_ROW
@@ -332,8 +332,9 @@ def _header(f, path: str, file_size: int):
         if not lo <= values[key] <= hi:
             raise FormatError(f"setting '{key}' is {values[key]}, outside [{lo}, {hi}]", path)
     setting = codec.Setting(**values)
-    if json_size > MAX_JSON_BYTES:
-        raise FormatError(f"header declares {json_size} bytes of JSON, more than the {MAX_JSON_BYTES} read", path)
+    if json_size > MAX_JSON_BYTES or json_len > MAX_JSON_BYTES:
+        raise FormatError(f"header declares {max(json_size, json_len)} bytes of JSON, more than the "
+                          f"{MAX_JSON_BYTES} read", path)
     if PREAMBLE.size + json_len > file_size:
         raise FormatError(f"header declares {json_len} stored bytes of JSON but the file ends after "
                           f"{file_size - PREAMBLE.size}", path)

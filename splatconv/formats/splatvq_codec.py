@@ -742,10 +742,12 @@ def deflate_groups(parts: list, level: int = 9) -> list:
     parts, about 600 bytes smaller cut so). The cut is the smallest of all cuts into
     runs of at most :data:`GROUP_BYTES` bytes (or of one larger part: every plane of
     a large block is a run of its own), each run deflated as the writer deflates
-    it: a shortest path over the parts, each run ending at a part tried from the
-    :data:`GROUP_LOOKBACK` runs of parts before it (a few hundred deflates of at
-    most 2 KB a small block, some 30 ms; a large block's planes take none). An
-    encoder's choice: any cut inflates to the same payload.
+    it (but for the few bits a flush holds back): a shortest path over the parts,
+    each run ending at a part tried from the :data:`GROUP_LOOKBACK` parts before it
+    (some 4,000 deflates of at most 4 KB for a block of a few hundred splats, 0.1 to
+    0.2 s, far fewer where a proof's candidates share planes, :func:`_deflated_size`;
+    a large block's planes take none). An encoder's choice: any cut inflates to the
+    same payload.
     """
     n = len(parts)
     best = [0] + [None] * n  # bytes of the best cut of the first j parts
@@ -985,10 +987,10 @@ def payload_parts(tables: dict, fields: dict, raw: np.ndarray):
 
 
 def inflate(stored: bytes, expected: int, path: str, where: tuple) -> bytes:
-    """Raw-inflate a block, refusing one that gives more or fewer than ``expected`` bytes."""
+    """Raw-inflate a block (or the header), refusing one that gives more or fewer than ``expected`` bytes."""
     d = zlib.decompressobj(-15)
     try:
-        out = d.decompress(stored, expected)
+        out = d.decompress(stored, max(expected, 1))  # a max_length of 0 is no limit at all
         more = d.unconsumed_tail or (not d.eof and d.decompress(b"", 1))
     except zlib.error as e:
         raise FormatError(f"compressed data is corrupt ({e})", path, where) from None

@@ -55,7 +55,7 @@ def psnr(a: np.ndarray, b: np.ndarray) -> float:
 
     The squared errors summed as integers (exact): RGBA frames, as a proof draws them,
     in one pass over their contiguous bytes, the alpha's squares set to 0."""
-    if a.ndim == 3 and a.shape[-1] == 4 and a.flags.c_contiguous and b.flags.c_contiguous:
+    if a.shape == b.shape and a.ndim == 3 and a.shape[-1] == 4 and a.flags.c_contiguous and b.flags.c_contiguous:
         sq = np.subtract(a, b, dtype=np.int16)
         np.abs(sq, out=sq)
         sq = sq.view(np.uint16)  # |d| <= 255: its square fits 16 bits

@@ -324,8 +324,9 @@ function readPreamble(bytes) {
   file.jsonLength = dv.getUint32(JSON_AT, true);
   file.jsonSize = dv.getUint32(JSON_SIZE_AT, true);
   file.blockCount = dv.getUint32(BLOCKS_AT, true);
-  if (file.jsonSize > MAX_JSON) {
-    throw new Refusal(`its header is damaged (it claims a header of ${file.jsonSize} bytes).`);
+  if (file.jsonSize > MAX_JSON || file.jsonLength > MAX_JSON) {
+    throw new Refusal(`its header is damaged (it claims a header of ${Math.max(file.jsonSize, file.jsonLength)} ` +
+                      "bytes).");
   }
   if (file.jsonSize > MAX_RATIO * file.jsonLength + 64) {
     throw new Refusal(`its header is damaged (it claims ${file.jsonSize} bytes of header from ` +
