@@ -267,7 +267,7 @@ def _splatvq_header_edit(rng, data):
         return data
     json_len, blocks, table_at = parts
     try:
-        meta = json.loads(zlib.decompress(data[splatvq.PREAMBLE.size:table_at], -15))
+        meta = json.loads(zlib.decompressobj(-15).decompress(data[splatvq.PREAMBLE.size:table_at], 1 << 20))
     except (ValueError, RecursionError, UnicodeDecodeError, zlib.error):
         return bit_flips(rng, data, "")
     text = _hostile_json(rng, meta).encode()
