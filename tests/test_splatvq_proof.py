@@ -445,8 +445,8 @@ def test_a_proof_with_a_floor_stops_at_the_first_frame_below_it():
         assert held.complete and held.values == full.values and held.worst == full.worst
 
 
-def test_the_tuning_limit_counts_the_splats_a_proof_draws():
-    """Real scenes hold many splats the viewer never draws (zero rotations): the tuning's limit counts the
+def test_the_tuning_limit_counts_the_splats_a_proof_draws(tmp_path, monkeypatch):
+    """Real scenes hold many splats the viewer never draws (zero rotations): the tuning's limits count the
     drawable ones, which are what a proof's frames cost."""
     from splatconv.jobs import prove
     scene = _shaped("large")
@@ -454,5 +454,12 @@ def test_the_tuning_limit_counts_the_splats_a_proof_draws():
     c = {k: np.concatenate([np.array(v), np.zeros(300, np.float32)]) for k, v in scene.columns.items()}
     padded = Scene(c, cameras=scene.cameras)  # 300 more, each of zero rotation
     assert int(np.count_nonzero(~viewer.undrawable(padded.columns))) == drawable > 100
-    assert prove._drawable_at_most(padded, drawable) and not prove._drawable_at_most(padded, drawable - 1)
-    assert prove._drawable_at_most(padded, padded.count)
+    kept = []  # the notches each tuning may keep
+    monkeypatch.setattr(prove, "_tuned", lambda *args: kept.append(args[-1]) or ())
+    for most, many, notches in ((drawable, drawable, [prove.TUNE_NOTCHES]),
+                                (drawable, drawable - 1, [prove.TUNE_NOTCHES_LARGE]), (drawable - 1, drawable, [])):
+        monkeypatch.setattr(prove, "TUNE_MAX_SPLATS", most)
+        monkeypatch.setattr(prove, "TUNE_MANY_SPLATS", many)
+        kept.clear()
+        prove.write_proven(padded, tmp_path / "out.splatvq", quality=None, min_psnr=20.0, force=True)
+        assert kept == notches

@@ -566,7 +566,7 @@ def _decoded_quaternion(code: np.ndarray, index: np.ndarray, rmax: int) -> np.nd
     return _half(quat)
 
 
-def _keep_largest(code: np.ndarray, index: np.ndarray, rmax: int) -> np.ndarray:
+def _keep_largest(code: np.ndarray, index: np.ndarray, rmax: np.ndarray) -> np.ndarray:
     """Codes nudged toward zero where a kept component would decode larger than the dropped one.
 
     A second conversion drops the largest decoded component (the first of equals):

@@ -30,7 +30,7 @@ from ..progress import SILENT
 from ..ops.prune import leave_out
 from ..publish import PAGE
 from ..render.proof import PROOF_TIMES, Prover, frame_weights, proof_plan, proof_views, ranked
-from ..viewer import DRAWABLE, undrawable, undrawable_kinds
+from ..viewer import DRAWABLE, undrawable_kinds
 from ..wording import plural
 from .convert import PROVE_MEMORY_BYTES, convert
 
@@ -217,8 +217,9 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     kinds = undrawable_kinds(scene.columns)
     drawable = kinds == DRAWABLE
     prepared = fmt.prepare(scene, kinds) if fmt.prepare is not None else None
-    tunes = floor is not None and bool(fmt.tunings) and _drawable_at_most(scene, TUNE_MAX_SPLATS, drawable)
-    notches = TUNE_NOTCHES if tunes and _drawable_at_most(scene, TUNE_MANY_SPLATS, drawable) else TUNE_NOTCHES_LARGE
+    shown = int(np.count_nonzero(drawable))  # what a proof draws
+    tunes = floor is not None and bool(fmt.tunings) and shown <= TUNE_MAX_SPLATS
+    notches = TUNE_NOTCHES if shown <= TUNE_MANY_SPLATS else TUNE_NOTCHES_LARGE
     # A setting below the best must not write a larger file than the best's: where a scene is tuned
     # and the setting's ladder climbed past it (the ladders part ways), the best setting's file is
     # found too (_other_family).
@@ -259,7 +260,7 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
                                   f"{precision_text(name, chosen)}), below the {whose} (--best-effort writes it "
                                   "all the same)", output)
         # Pruning first: leaving out a splat saves more bytes for the dB it costs than any notch.
-        left_out = _pruned(c, chosen, floor, views, times, weights) if prune and short is None else 0
+        left_out = _pruned(c, chosen, floor, views, times, weights, drawable) if prune and short is None else 0
         if tunes and short is None:
             tune = _tuned(c, fmt.tunings, chosen, left_out, floor, notches)
         tried, family, instead = 0, name, None
@@ -298,13 +299,6 @@ def write_proven(scene: Scene, output, *, quality: str | None, min_psnr: float |
     if short is not None:
         notes.append(f"{short:.2f} dB short of the {whose} (--best-effort)")
     return report, notes
-
-
-def _drawable_at_most(scene: Scene, limit: int, drawn: np.ndarray | None = None) -> bool:
-    """Whether ``scene`` holds at most ``limit`` splats the viewer can draw (counted only past ``limit`` read:
-    real scenes hold many it never draws); ``drawn``: ``~undrawable(scene.columns)`` where known."""
-    return scene.count <= limit or int(np.count_nonzero(~undrawable(scene.columns) if drawn is None else drawn)) \
-        <= limit
 
 
 def _searched(c: _Candidates, steps: list, floor: float, large: bool = False) -> int | None:
@@ -433,13 +427,13 @@ def tuning_text(tune) -> str:
     return ", ".join(f"{name} {n} {'notch' if n == 1 else 'notches'} coarser" for name, n in counts.items())
 
 
-def _pruned(c: _Candidates, step: int, floor: float, views: list, times, weights) -> int:
+def _pruned(c: _Candidates, step: int, floor: float, views: list, times, weights, drawable) -> int:
     """How many of the least contributing drawable splats ``step`` can leave out and still reach ``floor``.
 
     A bisection over the share left out, :data:`PRUNE_PROOFS` proofs at most:
     none left out holds (proved), all cannot (a file holds a splat).
     """
-    c.ranked = ranked(c.scene, views, times, weights)
+    c.ranked = ranked(c.scene, views, times, weights, drawable)
     holds, breaks = 0, len(c.ranked)
     for _ in range(PRUNE_PROOFS):
         if breaks - holds <= max(1, len(c.ranked) // PRUNE_RESOLUTION):

@@ -260,13 +260,13 @@ def _footprints(cols: dict, rows: np.ndarray, t: float, lo: float, hi: float, vi
     return frames
 
 
-def ranked(cols: dict, score: np.ndarray) -> np.ndarray:
+def ranked(cols: dict, score: np.ndarray, drawable: np.ndarray | None = None) -> np.ndarray:
     """Drawable rows (:func:`splatconv.viewer.undrawable`), least ``score`` first: ``(M,) intp``.
 
     Equal scores go less important first (:func:`splatconv.viewer.importance`),
-    then by row.
+    then by row. ``drawable``: ``~viewer.undrawable(cols)``, where the caller has it.
     """
-    rows = np.flatnonzero(~viewer.undrawable(cols))
+    rows = np.flatnonzero(~viewer.undrawable(cols) if drawable is None else drawable)
     with np.errstate(invalid="ignore"):
         key = np.nan_to_num(viewer.importance({k: cols[k][rows] for k in COLUMNS}), nan=0.0)
     return rows[np.lexsort((rows, key, score[rows]))]

@@ -278,10 +278,12 @@ def frame_weights(scene: Scene, views: list, times=None, drawable: np.ndarray | 
     return score / np.median(shown) if len(shown) else score
 
 
-def ranked(scene: Scene, views: list, times=None, weights: np.ndarray | None = None) -> np.ndarray:
+def ranked(scene: Scene, views: list, times=None, weights: np.ndarray | None = None,
+           drawable: np.ndarray | None = None) -> np.ndarray:
     """The drawable splats of ``scene``, least first by what they add to the proof's frames: ``(M,) intp``.
 
-    By :func:`frame_weights` (``weights``, where computed already).
+    By :func:`frame_weights` (``weights``, where computed already; ``drawable``, its
+    drawable rows, where known).
     Last of all come the splats the viewer's sort depends on
     (:func:`splatconv.render.sort.viewer_order`): it scales the depth keys by
     their range, never draws a splat whose scaled key reaches the top (the
@@ -292,8 +294,8 @@ def ranked(scene: Scene, views: list, times=None, weights: np.ndarray | None = N
     the first drawable row and the :data:`KEEP_IMPORTANT` most important (the
     first record in importance order, its quantized key allowing) come last.
     """
-    score = frame_weights(scene, views, times) if weights is None else weights
-    order = prune.ranked(scene.columns, score)
+    score = frame_weights(scene, views, times, drawable) if weights is None else weights
+    order = prune.ranked(scene.columns, score, drawable)
     xyz = np.stack([np.asarray(scene.columns[a])[order] for a in "xyz"], axis=1)
     apart = np.zeros(len(order), bool)
     for _name, view in views:
